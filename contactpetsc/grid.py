@@ -1,0 +1,150 @@
+"""Distributed surface grid: a 2-D PETSc DMDA decomposed along y only.
+
+A surface field f(x_i, y_j) on an nx x ny grid is stored in PETSc's natural
+order, index i + nx*j, so each rank owns whole rows j in [ys, ye).  That is a
+slab decomposition: the rows of one rank are one contiguous block of memory,
+which the FFT (``contactpetsc.fft``) transforms along x without communication.
+
+User-facing arrays are indexed [i, j] = [x, y] with shape (nx, ny), as in
+contact.engineering; ``local_array`` returns the rank's part as an (nx, ny_loc)
+view of the Vec (Fortran order), ``rows`` the same memory as (ny_loc, nx).
+"""
+from __future__ import annotations
+
+import numpy as np
+from petsc4py import PETSc
+
+
+class GridError(ValueError):
+    """Invalid grid parameters (raised identically on every rank)."""
+
+
+def check_index_range(n_unknowns: int, what: str = "grid") -> None:
+    """Fail early if ``n_unknowns`` exceeds PETSc's index type (32-bit by default on Debian)."""
+    bits = 8 * np.dtype(PETSc.IntType).itemsize
+    limit = 2 ** (bits - 1) - 1
+    if n_unknowns > limit:
+        raise GridError(
+            f"{what}: {n_unknowns} unknowns exceed the {bits}-bit PETSc index limit "
+            f"({limit}); use a PETSc built with 64-bit indices "
+            f"(Debian: python3-petsc4py-64-real, PETSC_DIR=/usr/lib/petscdir/petsc64)")
+
+
+class SurfaceGrid:
+    """Uniform nx x ny surface grid of spacing (dx, dy) in metres, distributed along y.
+
+    Parameters
+    ----------
+    nx, ny : int
+        Number of nodes (elements) along x and y, each >= 2.
+    dx, dy : float
+        Grid spacing [m] (> 0).  ``dy`` defaults to ``dx``.
+    periodic : bool
+        True: a periodic cell of size nx*dx x ny*dy.  False: an isolated
+        (non-periodic) window of an infinite half-space.
+    comm : PETSc.Comm or mpi4py communicator, optional
+        Defaults to PETSc.COMM_WORLD.
+    stencil_width : int
+        Ghost width of the DMDA (1 serves the 4-neighbour stencils).
+    """
+
+    def __init__(self, nx: int, ny: int, dx: float, dy: float | None = None, *,
+                 periodic: bool = True, comm=None, stencil_width: int = 1):
+        dy = dx if dy is None else dy
+        for name, n in (("nx", nx), ("ny", ny)):
+            if int(n) != n or n < 2:
+                raise GridError(f"{name} must be an integer >= 2, got {n!r}")
+        for name, d in (("dx", dx), ("dy", dy)):
+            if not (np.isfinite(d) and d > 0):
+                raise GridError(f"{name} (grid spacing, m) must be finite and > 0, got {d!r}")
+        self.nx, self.ny = int(nx), int(ny)
+        self.dx, self.dy = float(dx), float(dy)
+        self.periodic = bool(periodic)
+        check_index_range(self.nx * self.ny, f"{self.nx} x {self.ny} grid")
+
+        comm = PETSc.COMM_WORLD if comm is None else comm
+        if not isinstance(comm, PETSc.Comm):
+            comm = PETSc.Comm(comm)
+        self.comm = comm
+        self.mpi_comm = comm.tompi4py()
+        size = self.mpi_comm.Get_size()
+        if size > self.ny:
+            raise GridError(
+                f"{size} MPI ranks but only ny = {self.ny} grid rows: the grid is split "
+                f"along y, so use at most {self.ny} ranks")
+        bt = PETSc.DM.BoundaryType.PERIODIC if self.periodic else PETSc.DM.BoundaryType.NONE
+        self.da = PETSc.DMDA().create(
+            dim=2, dof=1, sizes=(self.nx, self.ny), proc_sizes=(1, size),
+            boundary_type=(bt, bt), stencil_type=PETSc.DMDA.StencilType.STAR,
+            stencil_width=stencil_width, comm=comm, setup=False)
+        self.da.setUp()
+        self.da.setUniformCoordinates(0.0, (self.nx - 1) * self.dx, 0.0, (self.ny - 1) * self.dy)
+        (self.xs, self.xe), (self.ys, self.ye) = self.da.getRanges()
+        ly = self.da.getOwnershipRanges()[1]
+        starts = np.concatenate([[0], np.cumsum(ly)])
+        self.y_ranges = [(int(starts[r]), int(starts[r + 1])) for r in range(size)]
+
+    # -- sizes -------------------------------------------------------------
+    @property
+    def shape(self) -> tuple[int, int]:
+        return (self.nx, self.ny)
+
+    @property
+    def ny_local(self) -> int:
+        return self.ye - self.ys
+
+    @property
+    def lengths(self) -> tuple[float, float]:
+        """Physical size of the grid [m]: (nx*dx, ny*dy)."""
+        return (self.nx * self.dx, self.ny * self.dy)
+
+    @property
+    def element_area(self) -> float:
+        return self.dx * self.dy
+
+    # -- vectors -------------------------------------------------------------
+    def create_vec(self, value: float | None = None) -> PETSc.Vec:
+        v = self.da.createGlobalVec()
+        if value is not None:
+            v.set(value)
+        return v
+
+    def rows(self, vec: PETSc.Vec, readonly: bool = False) -> np.ndarray:
+        """The rank's part of ``vec`` as a C-ordered (ny_loc, nx) view (row j = one y)."""
+        a = vec.getArray(readonly=readonly)
+        return a.reshape(self.ny_local, self.nx)
+
+    def local_array(self, vec: PETSc.Vec, readonly: bool = False) -> np.ndarray:
+        """The rank's part of ``vec`` as an (nx, ny_loc) view indexed [i, j - ys]."""
+        return self.rows(vec, readonly).T
+
+    def coordinates(self) -> tuple[np.ndarray, np.ndarray]:
+        """Local node coordinates (x, y) [m], each of shape (nx, ny_loc); node (i, j) at (i dx, j dy)."""
+        x = np.arange(self.nx) * self.dx
+        y = np.arange(self.ys, self.ye) * self.dy
+        return np.meshgrid(x, y, indexing="ij")
+
+    def vec_from_array(self, array: np.ndarray, name: str = "array") -> PETSc.Vec:
+        """A Vec holding the global (nx, ny) ``array``; each rank copies only its rows."""
+        array = np.asarray(array)
+        if array.shape != self.shape:
+            raise GridError(f"{name} has shape {array.shape}, the grid needs (nx, ny) = {self.shape}")
+        v = self.create_vec()
+        self.local_array(v)[...] = array[:, self.ys:self.ye]
+        return v
+
+    def gather(self, vec: PETSc.Vec, root: int | None = None) -> np.ndarray | None:
+        """The global (nx, ny) array of ``vec`` on every rank (root=None) or on ``root`` only."""
+        rows = np.ascontiguousarray(self.rows(vec, readonly=True))
+        if root is None:
+            parts = self.mpi_comm.allgather(rows)
+        else:
+            parts = self.mpi_comm.gather(rows, root=root)
+            if parts is None:
+                return None
+        return np.concatenate(parts, axis=0).T.copy()
+
+    def __repr__(self) -> str:
+        kind = "periodic" if self.periodic else "isolated"
+        return (f"SurfaceGrid({self.nx} x {self.ny}, dx={self.dx:g} m, dy={self.dy:g} m, {kind}, "
+                f"{self.mpi_comm.Get_size()} rank(s))")
