@@ -30,6 +30,22 @@ def check_index_range(n_unknowns: int, what: str = "grid") -> None:
             f"(Debian: python3-petsc4py-64-real, PETSC_DIR=/usr/lib/petscdir/petsc64)")
 
 
+def aligned_split(n: int, parts: int, alignment: int = 1) -> list[int]:
+    """Rows per rank: balanced blocks of ``alignment`` rows (the remainder to the last rank).
+
+    Falls back to a plain balanced split when there are fewer blocks than ranks.
+    """
+    if int(alignment) != alignment or alignment < 1:
+        raise GridError(f"row_alignment must be an integer >= 1, got {alignment!r}")
+    blocks = n // alignment
+    if blocks < parts:
+        alignment, blocks = 1, n
+    base, extra = divmod(blocks, parts)
+    rows = [alignment * (base + (1 if r < extra else 0)) for r in range(parts)]
+    rows[-1] += n - sum(rows)
+    return rows
+
+
 class SurfaceGrid:
     """Uniform nx x ny surface grid of spacing (dx, dy) in metres, distributed along y.
 
@@ -46,10 +62,16 @@ class SurfaceGrid:
         Defaults to PETSc.COMM_WORLD.
     stencil_width : int
         Ghost width of the DMDA (1 serves the 4-neighbour stencils).
+    row_alignment : int
+        Make every rank's first row a multiple of this (a power of two lets
+        the multilevel solver halve the grid with rank-local transfers).
+    y_ownership : sequence of int, optional
+        Rows per rank, overriding the balanced split (coarse grids use it).
     """
 
     def __init__(self, nx: int, ny: int, dx: float, dy: float | None = None, *,
-                 periodic: bool = True, comm=None, stencil_width: int = 1):
+                 periodic: bool = True, comm=None, stencil_width: int = 1,
+                 row_alignment: int = 1, y_ownership=None):
         dy = dx if dy is None else dy
         for name, n in (("nx", nx), ("ny", ny)):
             if int(n) != n or n < 2:
@@ -72,9 +94,16 @@ class SurfaceGrid:
             raise GridError(
                 f"{size} MPI ranks but only ny = {self.ny} grid rows: the grid is split "
                 f"along y, so use at most {self.ny} ranks")
+        if y_ownership is None:
+            y_ownership = aligned_split(self.ny, size, row_alignment)
+        y_ownership = [int(r) for r in y_ownership]
+        if len(y_ownership) != size or sum(y_ownership) != self.ny or min(y_ownership) < 1:
+            raise GridError(f"y_ownership {y_ownership} must give >= 1 row to each of {size} ranks, "
+                            f"{self.ny} rows in all")
         bt = PETSc.DM.BoundaryType.PERIODIC if self.periodic else PETSc.DM.BoundaryType.NONE
         self.da = PETSc.DMDA().create(
             dim=2, dof=1, sizes=(self.nx, self.ny), proc_sizes=(1, size),
+            ownership_ranges=((self.nx,), tuple(y_ownership)),
             boundary_type=(bt, bt), stencil_type=PETSc.DMDA.StencilType.STAR,
             stencil_width=stencil_width, comm=comm, setup=False)
         self.da.setUp()

@@ -59,7 +59,7 @@ class HalfSpaceOperator:
                             threads=threads, planner=planner)
 
     def _set_pairs(self):
-        self._kernel_pairs = self._as_pairs(self.kernel)
+        self._kernel_pairs = self.as_pairs(self.kernel)
         self._inverse_pairs = None  # built on first use of K^-1
 
     @property
@@ -68,12 +68,12 @@ class HalfSpaceOperator:
         return self.fft.fft_pairs
 
     @staticmethod
-    def _as_pairs(kernel: np.ndarray) -> np.ndarray:
+    def as_pairs(kernel: np.ndarray) -> np.ndarray:
         """A real kernel duplicated for (re, im) pairs: a float*float multiply, ~1.6x faster
         than numpy's complex*real loop (measured), for one extra double per grid point."""
         return np.ascontiguousarray(np.repeat(kernel[..., None], 2, axis=-1))
 
-    def _convolve(self, kernel_pairs: np.ndarray, rows_in: np.ndarray, rows_out: np.ndarray) -> np.ndarray:
+    def convolve(self, kernel_pairs: np.ndarray, rows_in: np.ndarray, rows_out: np.ndarray) -> np.ndarray:
         spec = self.fft.forward(rows_in)
         pairs = spec.view(np.float64).reshape(kernel_pairs.shape)
         np.multiply(pairs, kernel_pairs, out=pairs)
@@ -83,7 +83,7 @@ class HalfSpaceOperator:
         """Displacement v = K p [m] for pressure p [Pa], both local (ny_loc, nx) rows."""
         ev = log_event("CPElasticMult")
         ev.begin()
-        self._convolve(self._kernel_pairs, pressure_rows, out_rows)
+        self.convolve(self._kernel_pairs, pressure_rows, out_rows)
         ev.end()
         return out_rows
 
@@ -92,8 +92,8 @@ class HalfSpaceOperator:
         ev = log_event("CPElasticSolve")
         ev.begin()
         if self._inverse_pairs is None:
-            self._inverse_pairs = self._as_pairs(self.inverse_kernel)
-        self._convolve(self._inverse_pairs, displacement_rows, out_rows)
+            self._inverse_pairs = self.as_pairs(self.inverse_kernel)
+        self.convolve(self._inverse_pairs, displacement_rows, out_rows)
         ev.end()
         return out_rows
 

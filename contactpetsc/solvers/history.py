@@ -1,0 +1,60 @@
+"""Per-iteration solver history: the raw material of "error against run time"."""
+from __future__ import annotations
+
+import csv
+import time
+from dataclasses import dataclass, field, asdict
+
+
+@dataclass
+class HistoryRecord:
+    """One iteration of a solve.
+
+    ``complementarity_error`` is max_i |min(K_ii p_i, g_i)| [m] relative to a
+    length scale (the surface's rms height unless stated), ``load_error`` the
+    relative mismatch of the net force (load control), NaN otherwise.
+    """
+    solve: int            #: index of the solve (step of a sweep, outer load iteration)
+    iteration: int        #: Newton (or relaxation) iteration within the solve
+    wall_time: float      #: seconds since the history was created
+    fft_pairs: int        #: FFT pairs on the finest grid, cumulative (coarse levels weighted by size)
+    linear_iterations: int  #: Krylov iterations, cumulative
+    complementarity_error: float
+    load_error: float
+    approach: float       #: rigid-body approach delta [m]
+    mean_pressure: float  #: [Pa]
+    contact_fraction: float
+    solver: str = ""
+
+
+@dataclass
+class SolveHistory:
+    """Records of every iteration of every solve, with a common clock."""
+    records: list = field(default_factory=list)
+    t0: float = field(default_factory=time.perf_counter)
+
+    def elapsed(self) -> float:
+        return time.perf_counter() - self.t0
+
+    def append(self, **kw) -> HistoryRecord:
+        rec = HistoryRecord(wall_time=self.elapsed(), **kw)
+        self.records.append(rec)
+        return rec
+
+    def __len__(self):
+        return len(self.records)
+
+    def __getitem__(self, i):
+        return self.records[i]
+
+    def column(self, name: str) -> list:
+        return [getattr(r, name) for r in self.records]
+
+    def write_csv(self, path: str) -> None:
+        """Write all records to ``path`` (call on one rank only)."""
+        names = list(HistoryRecord.__dataclass_fields__)
+        with open(path, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=names)
+            w.writeheader()
+            for r in self.records:
+                w.writerow(asdict(r))

@@ -1,0 +1,234 @@
+"""MLMI: a multilevel preconditioner for the reduced contact Jacobian K_II.
+
+After Venner & Lubrecht (2000), the reference paper's solver family, recast
+as a linear preconditioner for Krylov iterations inside the VI Newton method.
+
+Why distributive relaxation.  K is a pseudo-differential operator of order
+-1 (symbol 2/(E*|q|)): its smallest eigenvalues belong to the highest
+frequencies, so plain Jacobi or Gauss-Seidel damps smooth errors and leaves
+rough ones, the opposite of what a multigrid smoother must do.  Distributing
+each correction over the node and its four neighbours with the stencil
+D = [1 on the node, -1/4 on each neighbour] (symbol
+D(q) = 1 - (cos qx dx + cos qy dy)/2 ~ |q|^2) makes the relaxed operator
+K D of order +1, which Jacobi smooths well.  Smoother on level l:
+
+    x <- x + Lambda^-1/2 chi_I D chi_I Lambda^-1/2 (b - K_II x),
+
+with Lambda_ii = lambda_i / omega, lambda_i = (chi D chi K chi)_ii =
+K_0 - (K_x n_x,i + K_y n_y,i)/4 the local diagonal (n the in-set neighbours
+of node i along x and y, K_0, K_x, K_y the self and nearest influence
+coefficients), and omega = 2 / (min + max) of the symbol K D / lambda over the
+high-frequency half of the modes (optimal Richardson damping there for an
+interior node).  The symmetric, local scaling matters: a global 1/lambda
+over-corrects nodes with few in-set neighbours (small asperity contacts) and
+makes the cycle indefinite.
+
+Coarse grids halve the number of nodes in x and y (spacing doubles) and use
+the same half-space operator rediscretised (Love coefficients or 2/(E*|q|)
+of the coarse elements).  Transfers: a coarse node belongs to the coarse set
+if any of its 2 x 2 children is in I; prolongation copies a coarse correction
+to the children in I (pressure is a density), restriction averages the
+children's gap residuals (R = P^T / 4, so the cycle is symmetric and R K P
+approximates the rediscretised K).  A V(nu1, nu2)- or W-cycle with
+``coarse_sweeps`` smoothing sweeps on the coarsest grid is a fixed symmetric
+linear operator, so it preconditions CG.  Transfers are rank-local because
+the fine grid's row ownership is aligned to 2^(levels-1) rows.
+
+Options (prefix of the solver, e.g. ``-contact_``): ``mlmi_levels`` (max,
+default 8), ``mlmi_cycle`` (v|w), ``mlmi_pre``/``mlmi_post`` (sweeps, 1),
+``mlmi_coarse_sweeps`` (4), ``mlmi_min_size`` (coarsest grid >= this, 8).
+"""
+from __future__ import annotations
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from ..fft import log_event
+from ..grid import SurfaceGrid
+from ..operators.elastic import half_space
+from .preconditioners import ReducedPreconditioner, lowest_mode_stiffness
+
+
+class Level:
+    """One grid of the hierarchy: operator, smoothing constants, halo exchange."""
+
+    def __init__(self, op, fine_points: int):
+        self.op = op
+        self.grid = g = op.grid
+        self.weight = (g.nx * g.ny) / fine_points  # cost of one FFT pair in fine-grid pairs
+        f = op.fft
+        qx, qy = f.wavevectors(f.Nx * g.dx, f.Ny * g.dy)
+        k_hat = op.kernel * (f.Nx * f.Ny)
+        d_hat = 1.0 - 0.5 * (np.cos(qx * g.dx) + np.cos(qy * g.dy))
+        lam = op._spectral_sum(k_hat * d_hat)
+        kd = k_hat * d_hat / lam
+        # influence coefficients K_0 (self), K_x, K_y (nearest neighbours), for the local diagonal
+        self.k0 = op.self_influence
+        self.kx = op._spectral_sum(k_hat * np.cos(qx * g.dx))
+        self.ky = op._spectral_sum(k_hat * np.cos(qy * g.dy))
+        high = (np.abs(qx * g.dx) >= np.pi / 2) | (np.abs(qy * g.dy) >= np.pi / 2)
+        comm = g.mpi_comm
+        lo = comm.allreduce(float(kd[high].min()) if high.any() else np.inf, op=MPI.MIN)
+        hi = comm.allreduce(float(kd[high].max()) if high.any() else 0.0, op=MPI.MAX)
+        self.omega = 2.0 / (lo + hi)
+        rank, size = comm.Get_rank(), comm.Get_size()
+        if g.periodic:
+            self.below, self.above = (rank - 1) % size, (rank + 1) % size
+        else:
+            self.below = rank - 1 if rank > 0 else MPI.PROC_NULL
+            self.above = rank + 1 if rank < size - 1 else MPI.PROC_NULL
+        self.halo_lo = np.zeros(g.nx)
+        self.halo_hi = np.zeros(g.nx)
+        self.work = np.zeros((g.ny_local, g.nx))
+        self.work2 = np.zeros((g.ny_local, g.nx))
+        self.ku = np.zeros((g.ny_local, g.nx))
+        self.mask = None
+
+    def set_mask(self, mask: np.ndarray) -> None:
+        """The level's part of the inactive set; sets the symmetric scaling (omega / lambda_i)^(1/2)."""
+        self.mask = mask.astype(float)
+        sx, sy = self.neighbour_sums(self.mask, self.work, self.ku)
+        lam = self.k0 - 0.25 * (self.kx * sx + self.ky * sy)   # (chi D chi K chi)_ii
+        with np.errstate(divide="ignore", invalid="ignore"):
+            self.scale = np.where(self.mask > 0, np.sqrt(self.omega / np.where(lam > 0, lam, 1.0)), 0.0)
+
+    def neighbour_sums(self, r: np.ndarray, sx: np.ndarray, sy: np.ndarray):
+        """(sum over the 2 x-neighbours, sum over the 2 y-neighbours) of r; halo rows from adjacent ranks."""
+        g = self.grid
+        comm = g.mpi_comm
+        if comm.Get_size() == 1:
+            if g.periodic:
+                self.halo_lo[...] = r[-1]
+                self.halo_hi[...] = r[0]
+            else:
+                self.halo_lo[...] = 0.0
+                self.halo_hi[...] = 0.0
+        else:
+            self.halo_lo[...] = 0.0
+            self.halo_hi[...] = 0.0
+            comm.Sendrecv(np.ascontiguousarray(r[0]), dest=self.below, sendtag=11,
+                          recvbuf=self.halo_hi, source=self.above, recvtag=11)
+            comm.Sendrecv(np.ascontiguousarray(r[-1]), dest=self.above, sendtag=12,
+                          recvbuf=self.halo_lo, source=self.below, recvtag=12)
+        sx[...] = 0.0
+        if g.periodic:
+            sx += np.roll(r, 1, axis=1)
+            sx += np.roll(r, -1, axis=1)
+        else:
+            sx[:, 1:] += r[:, :-1]
+            sx[:, :-1] += r[:, 1:]
+        sy[...] = 0.0
+        sy[1:] += r[:-1]
+        sy[:-1] += r[1:]
+        sy[0] += self.halo_lo
+        sy[-1] += self.halo_hi
+        return sx, sy
+
+    def distribute(self, r: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """out = S r = Lambda^-1/2 chi D chi Lambda^-1/2 r (omega folded into Lambda): symmetric."""
+        t = r * self.scale
+        sx, sy = self.neighbour_sums(t, out, self.work2)
+        sx += sy
+        np.multiply(sx, -0.25, out=sx)
+        sx += t
+        sx *= self.scale
+        return sx
+
+    def residual(self, b: np.ndarray, x: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """out = b - chi_I K x."""
+        self.op.apply(x, self.ku)
+        np.subtract(b, self.ku * self.mask, out=out)
+        return out
+
+    def smooth(self, b, x, sweeps: int, zero_start: bool) -> np.ndarray:
+        for k in range(sweeps):
+            r = b if (zero_start and k == 0) else self.residual(b, x, self.work)
+            x += self.distribute(r, self.ku)
+        return x
+
+
+def _restrict(fine: np.ndarray) -> np.ndarray:
+    ny, nx = fine.shape
+    return fine.reshape(ny // 2, 2, nx // 2, 2).sum(axis=(1, 3)) * 0.25
+
+
+def _prolong(coarse: np.ndarray) -> np.ndarray:
+    return np.repeat(np.repeat(coarse, 2, axis=0), 2, axis=1)
+
+
+def build_levels(fine_op, max_levels: int = 8, min_size: int = 8) -> list[Level]:
+    """Halve the grid while both sizes stay even, >= min_size, and every rank keeps an even row count."""
+    g = fine_op.grid
+    fine_points = g.nx * g.ny
+    levels = [Level(fine_op, fine_points)]
+    while len(levels) < max_levels:
+        rows = [b - a for a, b in g.y_ranges]
+        if (g.nx % 2 or g.ny % 2 or g.nx // 2 < min_size or g.ny // 2 < min_size
+                or any(r % 2 or r < 2 for r in rows)):
+            break
+        gc = SurfaceGrid(g.nx // 2, g.ny // 2, 2 * g.dx, 2 * g.dy, periodic=g.periodic,
+                         comm=g.comm, y_ownership=[r // 2 for r in rows])
+        op = half_space(gc, fine_op.e_star, planner="measure", prefix=fine_op.prefix)
+        levels.append(Level(op, fine_points))
+        g = gc
+    return levels
+
+
+class MLMIPC(ReducedPreconditioner):
+    """Multilevel V/W-cycle with distributive Jacobi smoothing on the inactive set (see module doc)."""
+
+    def prepare(self, ctx):
+        cache = ctx.parent.cache
+        prefix = ctx.parent.prefix
+        opts = PETSc.Options(prefix)
+        if "mlmi_levels" not in cache:
+            cache["mlmi_levels"] = build_levels(ctx.op, opts.getInt("mlmi_levels", 8),
+                                                opts.getInt("mlmi_min_size", 8))
+        self.levels = cache["mlmi_levels"]
+        self.cycle = opts.getString("mlmi_cycle", "v").lower()
+        if self.cycle not in ("v", "w"):
+            raise ValueError(f"{prefix}mlmi_cycle must be v or w, got {self.cycle!r}")
+        self.pre = opts.getInt("mlmi_pre", 1)
+        self.post = opts.getInt("mlmi_post", 1)
+        self.coarse_sweeps = opts.getInt("mlmi_coarse_sweeps", 4)
+        mask = ctx.mask
+        for l, lev in enumerate(self.levels):
+            lev.set_mask(mask)
+            if l + 1 < len(self.levels):
+                mask = mask.reshape(mask.shape[0] // 2, 2, mask.shape[1] // 2, 2).all(axis=(1, 3))
+        # the distributive stencil and (on periodic cells) K vanish at q = 0, so the
+        # cycle leaves the mean of p on I alone; a rank-one term gives it the
+        # stiffness of the lowest mode, keeping M positive definite
+        if "mlmi_mean_stiffness" not in cache:
+            cache["mlmi_mean_stiffness"] = lowest_mode_stiffness(ctx.op)
+        self.mean_stiffness = cache["mlmi_mean_stiffness"]
+        self.n_set = max(ctx.grid.mpi_comm.allreduce(int(ctx.mask.sum())), 1)
+        self.x = [np.zeros_like(lev.mask) for lev in self.levels]
+        self.r = [np.zeros_like(lev.mask) for lev in self.levels]
+
+    def _cycle(self, l: int, b: np.ndarray) -> np.ndarray:
+        lev = self.levels[l]
+        x = self.x[l]
+        x[...] = 0.0
+        if l == len(self.levels) - 1:
+            return lev.smooth(b, x, self.coarse_sweeps, zero_start=True)
+        lev.smooth(b, x, self.pre, zero_start=True)
+        for _ in range(2 if self.cycle == "w" else 1):
+            r = lev.residual(b, x, self.r[l])
+            bc = _restrict(r) * self.levels[l + 1].mask
+            ec = self._cycle(l + 1, bc)
+            x += _prolong(ec) * lev.mask
+        return lev.smooth(b, x, self.post, zero_start=False)
+
+    def inner(self, f, out):
+        ev = log_event("CPMLMICycle")
+        ev.begin()
+        out[...] = self._cycle(0, f)
+        mean_f = self.levels[0].grid.mpi_comm.allreduce(float(f.sum())) / self.n_set
+        out += (self.mean_stiffness * mean_f) * self.levels[0].mask
+        ev.end()
+        return out
+
+    def fft_pairs(self) -> float:
+        return sum(lev.weight * lev.op.fft_pairs for lev in self.levels[1:])

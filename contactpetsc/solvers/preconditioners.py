@@ -1,0 +1,69 @@
+"""Preconditioners for the reduced (inactive-set) contact Jacobian K_II, as Python-context PCs.
+
+Both approximate K_II^-1 on the inactive set I by an operator M acting on
+full grid arrays that vanish outside I.  Select with
+``-<prefix>pc_type python -<prefix>pc_python_type contactpetsc.solvers.preconditioners.SpectralPC``
+(or ``contactpetsc.solvers.mlmi.MLMIPC``), or with the problem's shortcut
+``-<prefix>preconditioner spectral|mlmi|none``.
+"""
+from __future__ import annotations
+
+import numpy as np
+from mpi4py import MPI
+
+
+class ReducedPreconditioner:
+    """Base class: subclasses implement ``prepare(ctx)`` and ``inner(f, out)`` (M on full arrays)."""
+
+    def setUp(self, pc):
+        _, P = pc.getOperators()
+        ctx = P.getPythonContext()
+        self.ctx = ctx
+        self.prepare(ctx)
+        self.f = np.zeros_like(ctx.full_in)
+        self.z = np.zeros_like(ctx.full_in)
+
+    def apply(self, pc, x, y):
+        self.ctx.to_full(x, self.f)
+        self.inner(self.f, self.z)
+        self.ctx.from_full(self.z, y)
+
+    # -- to implement ----------------------------------------------------------
+    def prepare(self, ctx):
+        raise NotImplementedError
+
+    def inner(self, f: np.ndarray, out: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+
+def lowest_mode_stiffness(op) -> float:
+    """min over modes of 1/K_hat [Pa/m]: E*|q_min|/2 on a periodic cell, 1/K_hat(0) when isolated."""
+    norm = 1.0 / (op.fft.Nx * op.fft.Ny)
+    inv = op.inverse_kernel
+    local = float(inv[inv > 0].min()) if (inv > 0).any() else np.inf
+    return op.grid.mpi_comm.allreduce(local, op=MPI.MIN) / norm
+
+
+class SpectralPC(ReducedPreconditioner):
+    """M = R_I K^-1 R_I^T: the Fourier-space inverse of the full operator, restricted to I.
+
+    On a periodic cell K^-1 = E*|q|/2 vanishes at q = 0; M uses the value of
+    the smallest non-zero |q| there instead, so that it stays positive definite
+    (the mean pressure on I is not in K's null space once I is a proper subset).
+    One FFT pair per application.
+    """
+
+    def prepare(self, ctx):
+        op = self.op = ctx.op
+        cache = ctx.parent.cache
+        if "spectral_pairs" not in cache:
+            inv = np.array(op.inverse_kernel, copy=True)
+            inv[inv == 0] = lowest_mode_stiffness(op) / (op.fft.Nx * op.fft.Ny)
+            cache["spectral_pairs"] = op.as_pairs(inv)
+        self.pairs = cache["spectral_pairs"]
+        self.mask = ctx.mask
+
+    def inner(self, f, out):
+        self.op.convolve(self.pairs, f, out)
+        out *= self.mask
+        return out

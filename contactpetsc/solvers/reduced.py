@@ -1,0 +1,79 @@
+"""Matrix-free Jacobian of the contact VI and its reduced (inactive-set) version.
+
+The unknown is the nodal pressure p [Pa]; the residual is the gap
+F(p) = h + K p - delta [m], so the Jacobian is K itself.  SNES VINEWTONRSLS
+asks the Jacobian for its sub-matrix on the inactive set through
+``createSubMatrix``; the reduced Mat keeps the local positions of the
+inactive nodes, which is also what the preconditioners need.
+"""
+from __future__ import annotations
+
+import numpy as np
+from petsc4py import PETSc
+
+from ..lifetime import destroy_at_exit
+
+
+class ContactJacobian:
+    """Python-context Mat on the grid's Vecs: J p = K p."""
+
+    def __init__(self, op, prefix: str):
+        self.op, self.prefix = op, prefix
+        self.cache = {}  # per-problem data of the preconditioners (kernels, coarse levels)
+
+    def mult(self, mat, x, y):
+        g = self.op.grid
+        self.op.apply(g.rows(x, readonly=True), g.rows(y))
+
+    def getDiagonal(self, mat, d):
+        d.set(self.op.self_influence)
+
+    def createSubMatrix(self, mat, isrow, iscol=None, reuse=None, submat=None):
+        ctx = ReducedJacobian(self, isrow)
+        n = self.op.grid.mpi_comm.allreduce(ctx.n_local)
+        sub = PETSc.Mat().createPython(((ctx.n_local, n), (ctx.n_local, n)), ctx, comm=mat.getComm())
+        sub.setUp()
+        return destroy_at_exit(sub)
+
+
+class ReducedJacobian:
+    """K restricted to an index set I (the VI's inactive set): K_II."""
+
+    def __init__(self, parent: ContactJacobian, index_set: PETSc.IS):
+        self.parent = parent
+        self.op = parent.op
+        g = self.grid = self.op.grid
+        self.idx = (index_set.getIndices() - g.nx * g.ys).astype(np.intp)
+        self.n_local = self.idx.size
+        self.mask = np.zeros((g.ny_local, g.nx), bool)
+        self.mask.reshape(-1)[self.idx] = True
+        self.full_in = np.zeros((g.ny_local, g.nx))
+        self.full_out = np.empty((g.ny_local, g.nx))
+        n_set = g.mpi_comm.allreduce(self.n_local)
+        # On a periodic cell K has no mean mode: with every node inactive K_II = K is
+        # singular and the Newton system inconsistent (mean gap = mean h - delta).  There,
+        # and only there, the mean mode gets the compliance of the lowest mode, which
+        # turns the step into one that opens the gap towards partial contact.
+        self.mean_compliance = 0.0
+        if g.periodic and n_set == g.nx * g.ny:
+            from .preconditioners import lowest_mode_stiffness
+            self.mean_compliance = 1.0 / lowest_mode_stiffness(self.op)
+
+    def to_full(self, x: PETSc.Vec, out: np.ndarray) -> np.ndarray:
+        """Scatter a reduced Vec into a full (ny_loc, nx) array (entries outside I untouched)."""
+        out.reshape(-1)[self.idx] = x.getArray(readonly=True)
+        return out
+
+    def from_full(self, full: np.ndarray, y: PETSc.Vec) -> None:
+        y.getArray()[:] = full.reshape(-1)[self.idx]
+
+    def mult(self, mat, x, y):
+        self.to_full(x, self.full_in)
+        self.op.apply(self.full_in, self.full_out)
+        if self.mean_compliance:
+            g = self.grid
+            self.full_out += self.mean_compliance * g.mpi_comm.allreduce(float(self.full_in.sum())) / (g.nx * g.ny)
+        self.from_full(self.full_out, y)
+
+    def getDiagonal(self, mat, d):
+        d.set(self.op.self_influence)

@@ -1,0 +1,173 @@
+"""Composite surface heights h on a ``SurfaceGrid`` (assumption 1 of the reference paper).
+
+h is the separation of the undeformed bodies [m].  Every constructor returns a
+global Vec and gives the same field on any number of ranks: arrays and files
+are sliced by rows, generators are evaluated on each rank's nodes, and random
+surfaces draw their Fourier coefficients per kx column from a generator seeded
+by (seed, kx), so the draw does not depend on which rank owns the column.
+"""
+from __future__ import annotations
+
+import os
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from .fft import SlabRFFT
+from .grid import GridError, SurfaceGrid
+
+
+def _check_finite(grid: SurfaceGrid, vec: PETSc.Vec, what: str) -> PETSc.Vec:
+    bad = int(np.count_nonzero(~np.isfinite(grid.rows(vec, readonly=True))))
+    bad = grid.mpi_comm.allreduce(bad)
+    if bad:
+        raise GridError(f"{what}: {bad} heights are NaN or Inf; heights must be finite")
+    return vec
+
+
+def from_array(grid: SurfaceGrid, heights: np.ndarray) -> PETSc.Vec:
+    """Heights [m] from a global (nx, ny) array (the same array on every rank)."""
+    return _check_finite(grid, grid.vec_from_array(heights, "heights"), "heights array")
+
+
+def from_file(grid: SurfaceGrid, path: str, dataset: str = "heights") -> PETSc.Vec:
+    """Heights [m] from ``.npy`` (memory-mapped) or HDF5 (``dataset``), shape (nx, ny).
+
+    Each rank reads only its own rows.  Errors (missing, unreadable, truncated
+    or wrongly shaped files) are raised on every rank.
+    """
+    ext = os.path.splitext(path)[1].lower()
+    err, local = None, None
+    try:
+        if ext == ".npy":
+            data = np.load(path, mmap_mode="r")
+        elif ext in (".h5", ".hdf5", ".hdf"):
+            import h5py
+            f = h5py.File(path, "r")
+            if dataset not in f:
+                raise KeyError(f"no dataset {dataset!r} in {path} (has {sorted(f.keys())})")
+            data = f[dataset]
+        else:
+            raise ValueError(f"unknown height file type {ext!r} (accepted: .npy, .h5, .hdf5)")
+        if tuple(data.shape) != grid.shape:
+            raise ValueError(f"{path}: heights have shape {tuple(data.shape)}, the grid needs {grid.shape}")
+        local = np.asarray(data[:, grid.ys:grid.ye], dtype=float)
+    except Exception as exc:  # noqa: BLE001 - re-raised collectively below
+        err = f"cannot read heights from {path}: {exc}"
+    errors = [e for e in grid.mpi_comm.allgather(err) if e]
+    if errors:
+        raise GridError(errors[0])
+    v = grid.create_vec()
+    grid.local_array(v)[...] = local
+    return _check_finite(grid, v, path)
+
+
+def from_function(grid: SurfaceGrid, func) -> PETSc.Vec:
+    """Heights [m] = func(x, y) on the local nodes; x, y [m] arrays of shape (nx, ny_local)."""
+    x, y = grid.coordinates()
+    v = grid.create_vec()
+    grid.local_array(v)[...] = func(x, y)
+    return _check_finite(grid, v, "height function")
+
+
+def centre(grid: SurfaceGrid) -> tuple[float, float]:
+    """The node nearest the middle of the grid, (nx//2 dx, ny//2 dy) [m]: a sphere's apex."""
+    return (grid.nx // 2) * grid.dx, (grid.ny // 2) * grid.dy
+
+
+def sphere(grid: SurfaceGrid, radius: float) -> PETSc.Vec:
+    """Paraboloid h = ((x-xc)^2 + (y-yc)^2) / (2R) of a sphere of radius R [m] (Hertz geometry)."""
+    if not (np.isfinite(radius) and radius > 0):
+        raise GridError(f"radius (m) must be finite and > 0, got {radius!r}")
+    xc, yc = centre(grid)
+    return from_function(grid, lambda x, y: ((x - xc) ** 2 + (y - yc) ** 2) / (2 * radius))
+
+
+
+def self_affine(grid: SurfaceGrid, *, hurst: float, seed: int,
+                rms_height: float | None = None, rms_slope: float | None = None,
+                rolloff_wavelength: float | None = None,
+                short_cutoff_wavelength: float | None = None) -> PETSc.Vec:
+    """Periodic self-affine random surface with Gaussian random phases, min(h) = 0.
+
+    Power spectrum C(q) ~ q^(-2(1+H)) between the roll-off wavevector
+    q_r = 2 pi / rolloff_wavelength (constant below it) and the short cut-off
+    q_s = 2 pi / short_cutoff_wavelength (zero above it).  Amplitudes are
+    sqrt(C(q)) times complex Gaussian numbers; exactly one of ``rms_height``
+    [m] or ``rms_slope`` [-] fixes the scale (both computed spectrally, the
+    slope as sqrt(<|grad h|^2>)).  Defaults: roll-off at the cell size, cut-off
+    at 2 grid spacings (Nyquist).
+    """
+    if not 0 < hurst < 1:
+        raise GridError(f"hurst must lie in (0, 1), got {hurst!r}")
+    if (rms_height is None) == (rms_slope is None):
+        raise GridError("give exactly one of rms_height (m) or rms_slope")
+    scale_to = rms_height if rms_height is not None else rms_slope
+    if not (np.isfinite(scale_to) and scale_to >= 0):
+        raise GridError(f"rms_height / rms_slope must be finite and >= 0, got {scale_to!r}")
+    lx, ly = grid.lengths
+    rolloff_wavelength = max(lx, ly) if rolloff_wavelength is None else rolloff_wavelength
+    short_cutoff_wavelength = 2 * max(grid.dx, grid.dy) if short_cutoff_wavelength is None else short_cutoff_wavelength
+    q_r, q_s = 2 * np.pi / rolloff_wavelength, 2 * np.pi / short_cutoff_wavelength
+
+    def psd_amplitude(q):
+        with np.errstate(divide="ignore"):
+            amp = np.maximum(q, q_r) ** (-(1 + hurst))
+        amp[(q == 0) | (q > q_s)] = 0.0
+        return amp
+
+    return _random_surface(grid, seed, psd_amplitude, rms_height, rms_slope)
+
+
+def gaussian_correlated(grid: SurfaceGrid, *, rms_height: float, correlation_length: float,
+                        seed: int) -> PETSc.Vec:
+    """Periodic random surface with Gaussian autocorrelation exp(-r^2/l^2), given rms [m], min(h) = 0."""
+    if not (np.isfinite(correlation_length) and correlation_length > 0):
+        raise GridError(f"correlation_length (m) must be finite and > 0, got {correlation_length!r}")
+
+    def psd_amplitude(q):
+        amp = np.exp(-(q * correlation_length) ** 2 / 8.0)  # sqrt of exp(-q^2 l^2 / 4)
+        amp[q == 0] = 0.0
+        return amp
+
+    return _random_surface(grid, seed, psd_amplitude, rms_height, None)
+
+
+def _random_surface(grid: SurfaceGrid, seed: int, psd_amplitude, rms_height, rms_slope) -> PETSc.Vec:
+    fft = SlabRFFT(grid.mpi_comm, grid.nx, grid.ny, grid.y_ranges, planner="estimate")
+    qx, qy = fft.wavevectors(*grid.lengths)
+    # draw per kx column, [kx_local, ky], from a stream keyed by (seed, kx): rank-independent
+    cols = np.empty((fft.kx1 - fft.kx0, fft.Ny), complex)
+    for i, kx in enumerate(range(fft.kx0, fft.kx1)):
+        z = np.random.default_rng([int(seed), kx]).standard_normal((fft.Ny, 2))
+        col = z[:, 0] + 1j * z[:, 1]
+        if kx == 0 or 2 * kx == fft.Nx:
+            # these columns are their own mirror: make them Hermitian in ky
+            col = (col + np.conj(col[(-np.arange(fft.Ny)) % fft.Ny])) / np.sqrt(2.0)  # keeps E|c|^2 = 2
+        cols[i] = col
+    spec = fft.spectral_layout(cols) * psd_amplitude(np.hypot(qx, qy))
+    w = fft.hermitian_weights()
+    n2 = float(fft.Nx * fft.Ny) ** 2
+    if rms_height is not None:
+        current = np.sqrt(grid.mpi_comm.allreduce(float(np.sum(w * np.abs(spec) ** 2))) / n2)
+        target = rms_height
+    else:
+        current = np.sqrt(grid.mpi_comm.allreduce(
+            float(np.sum(w * (qx ** 2 + qy ** 2) * np.abs(spec) ** 2))) / n2)
+        target = rms_slope
+    if current == 0:
+        raise GridError("random surface: the spectrum is empty (cut-offs leave no modes)")
+    # unnormalised transforms: h = (1/N) * backward(h_hat)
+    fft.spectrum[...] = spec * (target / current / (fft.Nx * fft.Ny))
+    h = grid.create_vec()
+    fft.backward(grid.rows(h))
+    h.shift(-h.min()[1])
+    return h
+
+
+def rms_height(grid: SurfaceGrid, h: PETSc.Vec) -> float:
+    """Root-mean-square deviation of h from its mean [m]."""
+    n = grid.nx * grid.ny
+    mean = h.sum() / n
+    return float(np.sqrt(max(h.dot(h) / n - mean * mean, 0.0)))

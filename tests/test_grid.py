@@ -1,0 +1,107 @@
+"""SurfaceGrid: layout, gather/scatter, coordinates, and clear collective errors."""
+import numpy as np
+import pytest
+from petsc4py import PETSc
+
+from contactpetsc.grid import GridError, SurfaceGrid, check_index_range
+
+
+@pytest.mark.parametrize("periodic", [True, False])
+def test_vec_from_array_gather_round_trip(coll, periodic):
+    """An array scattered by rows and gathered back is bit-identical, on any split (ny = 37)."""
+    nx, ny = 11, 37
+    g = SurfaceGrid(nx, ny, 0.5, 0.25, periodic=periodic)
+    a = np.random.default_rng(7).standard_normal((nx, ny))
+    v = g.vec_from_array(a)
+    # local_array is indexed [i, j - ys]; the Vec holds natural order i + nx*j
+    local_ok = np.array_equal(g.local_array(v, readonly=True), a[:, g.ys:g.ye])
+    natural = v.getArray(readonly=True)
+    ii, jj = np.meshgrid(np.arange(nx), np.arange(g.ys, g.ye), indexing="ij")
+    natural_ok = np.array_equal(natural[(ii + nx * (jj - g.ys)).ravel()], a[ii, jj].ravel())
+    err_all = np.max(np.abs(g.gather(v) - a))
+    root = g.gather(v, root=0)
+    root_ok = (root is None) if coll.rank != 0 else np.array_equal(root, a)
+    assert coll.all(local_ok and natural_ok and root_ok)
+    assert coll.max(err_all) == 0.0
+    # the rows form a contiguous partition of 0..ny, sizes differing by at most one
+    starts = [r[0] for r in g.y_ranges]
+    stops = [r[1] for r in g.y_ranges]
+    sizes = np.diff([0] + stops)
+    assert starts[0] == 0 and stops[-1] == ny and starts[1:] == stops[:-1]
+    assert sizes.max() - sizes.min() <= 1 and len(sizes) == coll.size
+    assert (g.ys, g.ye) == g.y_ranges[coll.rank]
+
+
+def test_coordinates_and_sizes(coll):
+    """Node (i, j) sits at (i dx, j dy); the cell is nx dx x ny dy."""
+    nx, ny, dx, dy = 9, 13, 0.3, 0.7
+    g = SurfaceGrid(nx, ny, dx, dy)
+    x, y = g.coordinates()
+    xg = np.concatenate(g.mpi_comm.allgather(x), axis=1)
+    yg = np.concatenate(g.mpi_comm.allgather(y), axis=1)
+    err = max(np.max(np.abs(xg - dx * np.arange(nx)[:, None])),
+              np.max(np.abs(yg - dy * np.arange(ny)[None, :])))
+    assert coll.max(err) <= 1e-15
+    assert g.shape == (nx, ny) and g.lengths == pytest.approx((nx * dx, ny * dy), rel=1e-15)
+    assert g.element_area == pytest.approx(dx * dy, rel=1e-15)
+    assert coll.all(x.shape == (nx, g.ny_local))
+    # dy defaults to dx
+    assert SurfaceGrid(4, 4, 0.2).dy == 0.2
+
+
+def test_too_few_rows_for_the_ranks(coll):
+    """ny < number of ranks: a GridError on every rank, before any collective call."""
+    class FakeMPI:  # a communicator that claims 4 ranks, only its size is consulted
+        def Get_size(self):
+            return 4
+
+    class FakeComm(PETSc.Comm):
+        def tompi4py(self):
+            return FakeMPI()
+
+    coll.raises(GridError, ["4 MPI ranks", "ny = 3"], SurfaceGrid, 8, 3, 1.0,
+                comm=FakeComm(PETSc.COMM_SELF))
+    if coll.size >= 3:  # the real thing: 2 rows on COMM_WORLD
+        coll.raises(GridError, ["ranks", "ny = 2"], SurfaceGrid, 8, 2, 1.0)
+
+
+@pytest.mark.parametrize("kw", [dict(dx=0.0), dict(dx=-1.0), dict(dx=float("nan")),
+                                dict(dx=float("inf")), dict(dx=1.0, dy=0.0), dict(dx=1.0, dy=-2.0)])
+def test_non_positive_spacing(coll, kw):
+    name = "dy" if "dy" in kw else "dx"
+    coll.raises(GridError, [name, "> 0"], SurfaceGrid, 8, 8, **kw)
+
+
+@pytest.mark.parametrize("nx, ny, bad", [(1, 8, "nx"), (0, 8, "nx"), (-3, 8, "nx"),
+                                         (2.5, 8, "nx"), (8, 1, "ny")])
+def test_too_few_nodes(coll, nx, ny, bad):
+    coll.raises(GridError, [bad, ">= 2"], SurfaceGrid, nx, ny, 1.0)
+
+
+def test_index_range_check(coll):
+    """Problems beyond PETSc's index type fail early and say what to do (no huge allocation)."""
+    bits = 8 * np.dtype(PETSc.IntType).itemsize
+    check_index_range(2 ** (bits - 1) - 1)  # the largest representable size passes
+    coll.raises(GridError, "64-bit indices", check_index_range, 2 ** (bits - 1))
+    if bits == 32:
+        coll.raises(GridError, ["64-bit indices", "2147483648"], check_index_range, 2 ** 31)
+
+
+def test_row_alignment_and_explicit_ownership(coll):
+    """row_alignment: every rank starts on a multiple of it (when there are enough blocks);
+    y_ownership: the requested rows per rank; either way the data round-trips exactly."""
+    nx, ny = 5, 37
+    a = np.random.default_rng(1).standard_normal((nx, ny))
+    g = SurfaceGrid(nx, ny, 1.0, row_alignment=4)
+    assert all(start % 4 == 0 for start, _ in g.y_ranges) and g.y_ranges[-1][1] == ny
+    own = [ny - 2 * (coll.size - 1)] + [2] * (coll.size - 1)      # a deliberately lopsided split
+    h = SurfaceGrid(nx, ny, 1.0, y_ownership=own)
+    assert [e - s for s, e in h.y_ranges] == own
+    errs = [np.max(np.abs(grid.gather(grid.vec_from_array(a)) - a)) for grid in (g, h)]
+    assert coll.max(errs) == 0.0
+    bad_splits = [[ny + 2 - coll.size] + [1] * (coll.size - 1),    # one row too many
+                  [ny - coll.size] + [1] * coll.size]                # one rank too many
+    if coll.size > 1:
+        bad_splits.append([ny] + [0] * (coll.size - 1))              # ranks without rows
+    for bad in bad_splits:
+        coll.raises(GridError, "y_ownership", SurfaceGrid, nx, ny, 1.0, y_ownership=bad)
