@@ -259,7 +259,8 @@ class ContactProblem:
         g = self.grid
         n = g.nx * g.ny
         lo = float(self.heights.min()[1])  # delta <= min h: no contact, no load
-        hi = np.inf
+        # periodic: K p has zero mean, so the mean gap is mean(h) - delta >= 0 at equilibrium
+        hi = self.heights.sum() / n if g.periodic else np.inf
         delta = self._approach if self._approach is not None else lo
         p = self._pressure.copy()
         reason = "no iteration"
@@ -284,7 +285,7 @@ class ContactProblem:
             slope, dp = self._approach_slope()
             step = (target - w) / slope if slope > 0 else np.inf
             new = delta + step
-            if not (lo < new < hi):
+            if not (lo < new < hi) or (np.isfinite(hi) and new > hi - 1e-3 * (hi - lo)):
                 new = 0.5 * (lo + hi) if np.isfinite(hi) else lo + 2.0 * max(delta - lo, self.length_scale)
             else:
                 p.axpy(new - delta, dp)  # Newton predictor on the current contact set
