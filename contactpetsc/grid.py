@@ -107,7 +107,6 @@ class SurfaceGrid:
             boundary_type=(bt, bt), stencil_type=PETSc.DMDA.StencilType.STAR,
             stencil_width=stencil_width, comm=comm, setup=False)
         self.da.setUp()
-        self.da.setUniformCoordinates(0.0, (self.nx - 1) * self.dx, 0.0, (self.ny - 1) * self.dy)
         (self.xs, self.xe), (self.ys, self.ye) = self.da.getRanges()
         ly = self.da.getOwnershipRanges()[1]
         starts = np.concatenate([[0], np.cumsum(ly)])

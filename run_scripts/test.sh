@@ -8,6 +8,7 @@ venv="${CONTACTPETSC_VENV:-$here/.venv}"
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1
 # keep BLAS/FFTW single-threaded so that ranks do not fight over the cores
 export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1
+export PY_COLORS=0  # ranks share one terminal: no escape codes in the log
 cd "$here"
 py="$venv/bin/python"
 echo "== pytest, 1 rank"

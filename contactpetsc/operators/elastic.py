@@ -107,7 +107,7 @@ class HalfSpaceOperator:
         mat.setUp()
         return destroy_at_exit(mat)
 
-    def _spectral_sum(self, kernel_hat: np.ndarray) -> float:
+    def spectral_sum(self, kernel_hat: np.ndarray) -> float:
         """(1 / (Nx Ny)) * sum over all modes of a real, even spectrum given on the rfft half."""
         local = float(np.sum(kernel_hat * self.fft.hermitian_weights()))
         return self.grid.mpi_comm.allreduce(local) / (self.fft.Nx * self.fft.Ny)
@@ -148,7 +148,7 @@ class PeriodicHalfSpace(HalfSpaceOperator):
         self.kernel = k_hat * norm
         self.inverse_kernel = 0.5 * self.e_star * q * norm
         self._set_pairs()
-        self.self_influence = self._spectral_sum(k_hat)
+        self.self_influence = self.spectral_sum(k_hat)
 
 
 class IsolatedHalfSpace(HalfSpaceOperator):

@@ -52,6 +52,17 @@ PRECONDITIONERS = {
 }
 
 
+def _restrict(fine: np.ndarray) -> np.ndarray:
+    """2 x 2 block averages (heights, gaps)."""
+    ny, nx = fine.shape
+    return fine.reshape(ny // 2, 2, nx // 2, 2).mean(axis=(1, 3))
+
+
+def _prolong(coarse: np.ndarray) -> np.ndarray:
+    """Piecewise-constant copy to the 2 x 2 children (pressure is a density: the mean is kept)."""
+    return np.repeat(np.repeat(coarse, 2, axis=0), 2, axis=1)
+
+
 class ContactSolveError(RuntimeError):
     """A solve that did not converge; raised on every rank with the same message."""
 
@@ -97,8 +108,13 @@ class ContactProblem:
 
     def __init__(self, grid: SurfaceGrid, heights: PETSc.Vec, e_star: float, *,
                  prefix: str = "contact_", length_scale: float | None = None,
-                 operator: HalfSpaceOperator | None = None):
+                 operator: HalfSpaceOperator | None = None, tol: float | None = None,
+                 load_tol: float | None = None, preconditioner: str | None = None,
+                 fmg: bool | None = None, _root: "ContactProblem | None" = None):
         self.grid, self.heights, self.prefix = grid, heights, prefix
+        self._defaults = dict(tol=tol, load_tol=load_tol, preconditioner=preconditioner, fmg=fmg)
+        self._root = _root if _root is not None else self
+        self._coarse = None
         self.op = operator if operator is not None else half_space(grid, e_star, prefix=prefix)
         self.e_star = self.op.e_star
         self.kappa = self.op.self_influence
@@ -107,8 +123,10 @@ class ContactProblem:
         if not (np.isfinite(length_scale) and length_scale > 0):
             raise ValueError(f"length_scale (m) must be finite and > 0, got {length_scale!r}")
         self.length_scale = float(length_scale)
-        self.history = SolveHistory()
+        self.history = _root.history if _root is not None else SolveHistory()
         self._snes = self._jac = None
+        self._levels = None     # MLMI levels (shared with the coarse problems)
+        self._slope_cache = None  # (inactive set, slope, z) of the last slope solve
         self._n_solves = 0
         self._pressure = grid.create_vec(0.0)   # last converged pressure: the next warm start
         self._approach = None
@@ -120,6 +138,7 @@ class ContactProblem:
         if self._snes is not None:
             return self._snes
         g = self.grid
+        d = self._defaults
         self._jac = ContactJacobian(self.op, self.prefix)
         n_local, n = g.nx * g.ny_local, g.nx * g.ny
         J = destroy_at_exit(PETSc.Mat().createPython(((n_local, n), (n_local, n)), self._jac, comm=g.comm))
@@ -140,9 +159,12 @@ class ContactProblem:
             opts.setValue("snes_linesearch_type", "basic")
         ksp = snes.getKSP()
         ksp.setType("cg")
-        ksp.setTolerances(rtol=1e-8, max_it=500)
+        # inexact Newton: the semismooth Newton method converges linearly with
+        # rate ~ rtol once the contact set has settled, so a loose Krylov
+        # tolerance costs at most a Newton step or two and saves many Krylov steps
+        ksp.setTolerances(rtol=opts.getReal("newton_ksp_rtol", 1e-1), max_it=500)
         pc = ksp.getPC()
-        choice = opts.getString("preconditioner", "spectral").lower()
+        choice = opts.getString("preconditioner", d["preconditioner"] or "spectral").lower()
         if choice not in PRECONDITIONERS:
             raise ValueError(f"-{self.prefix}preconditioner must be one of "
                              f"{sorted(PRECONDITIONERS)}, got {choice!r}")
@@ -152,18 +174,35 @@ class ContactProblem:
             pc.setType("python")
             pc.setPythonType(PRECONDITIONERS[choice])
         self.preconditioner = choice
-        self.tol = opts.getReal("tol", 1e-10)
-        self.load_tol = opts.getReal("load_tol", 1e-10)
+        self.tol = opts.getReal("tol", 1e-10 if d["tol"] is None else d["tol"])
+        self.load_tol = opts.getReal("load_tol", 1e-10 if d["load_tol"] is None else d["load_tol"])
         self.max_outer = opts.getInt("load_max_it", 50)
+        # load control: inexact inner solves (see _solve_load)
+        self.inner_tol0 = opts.getReal("load_inner_tol", 1e-4)
+        self.inner_eta = opts.getReal("load_inner_eta", 0.1)
+        # nested iteration (full multigrid): first solve on a 2x coarser grid
+        self.fmg = opts.getBool("fmg", True if d["fmg"] is None else d["fmg"])
+        self.fmg_min_size = opts.getInt("fmg_min_size", 32)
+        self.fmg_tol = opts.getReal("fmg_tol", 1e-4)
         snes.setFromOptions()
+        self._inner_tol = self.tol
         slope = self._slope_ksp = destroy_at_exit(PETSc.KSP().create(comm=g.comm))
         slope.setOptionsPrefix(self.prefix + "slope_")
         slope.setType("cg")
-        slope.setTolerances(rtol=1e-8, max_it=500)
+        # the slope only sets the next approach (outer Newton): a loose solve is enough
+        slope.setTolerances(rtol=1e-2, max_it=500)
         slope.getPC().setType(pc.getType())
         if pc.getType() == "python":
             slope.getPC().setPythonType(PRECONDITIONERS[choice])
         slope.setFromOptions()
+        if pc.getType() == "python" and pc.getPythonType() == PRECONDITIONERS["mlmi"]:
+            # built here (not at the first PC set-up) so that the coarse problems of the
+            # nested iteration share the levels' grids and operators
+            if self._levels is None:
+                from .mlmi import build_levels
+                self._levels = build_levels(self.op, opts.getInt("mlmi_levels", 8),
+                                            opts.getInt("mlmi_min_size", 8))
+            self._jac.cache["mlmi_levels"] = self._levels
         self._snes = snes
         return snes
 
@@ -193,37 +232,50 @@ class ContactProblem:
         x, f = snes.getSolution(), snes.getFunction()[0]
         err, mean_p, frac = self._measures(x, f)
         load_err = (abs(mean_p - self._target) / self._target) if self._target else float("nan")
+        solver = "snes-vi+" + self.preconditioner
+        if self._root is not self:
+            solver += f"@{self.grid.nx}x{self.grid.ny}"
         self.history.append(
-            solve=self._n_solves, iteration=it, fft_pairs=self._fft_pairs(),
+            solve=self._root._n_solves, iteration=it, fft_pairs=self._fft_pairs(),
             linear_iterations=self._lin0 + snes.getLinearSolveIterations(),
             complementarity_error=err, load_error=load_err, approach=self._approach,
-            mean_pressure=mean_p, contact_fraction=frac, solver="snes-vi+" + self.preconditioner)
+            mean_pressure=mean_p, contact_fraction=frac, solver=solver)
         self._last_error = err
         if not np.isfinite(err):
             return PETSc.SNES.ConvergedReason.DIVERGED_FNORM_NAN
-        if err <= self.tol:
+        if err <= self._inner_tol:
             return PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS
         if it >= snes.getTolerances()[3]:
             return PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT
         return PETSc.SNES.ConvergedReason.ITERATING
 
-    def _fft_pairs(self) -> float:
-        pairs = float(self.op.fft_pairs)
-        if self._jac is not None:
-            for lev in self._jac.cache.get("mlmi_levels", [])[1:]:
-                pairs += lev.weight * lev.op.fft_pairs
-        return pairs
+    def _operators(self) -> dict:
+        ops = {id(self.op): self.op}
+        for lev in (self._levels or []):
+            ops[id(lev.op)] = lev.op
+        if self._coarse:
+            ops.update(self._coarse._operators())
+        return ops
 
-    def _solve_at(self, approach: float, pressure: PETSc.Vec):
-        """One displacement-controlled SNES solve from ``pressure``; returns (converged, reason)."""
+    def _fft_pairs(self) -> float:
+        """FFT pairs of every operator of the root problem (coarse grids weighted by size), cumulative."""
+        root = self._root
+        n0 = root.grid.nx * root.grid.ny
+        return float(sum(op.fft_pairs * (op.grid.nx * op.grid.ny) / n0
+                         for op in root._operators().values()))
+
+    def _solve_at(self, approach: float, pressure: PETSc.Vec, tol: float | None = None):
+        """One displacement-controlled SNES solve from ``pressure`` to complementarity
+        error ``tol`` (default: the problem's); returns (converged, reason)."""
         snes = self._build()
         self._approach = float(approach)
+        self._inner_tol = self.tol if tol is None else max(tol, self.tol)
         pressure.copy(self._x)
         self._lin0 = self.history[-1].linear_iterations if len(self.history) else 0
         snes.solve(None, self._x)
         self._newton += snes.getIterationNumber()
         self._linear += snes.getLinearSolveIterations()
-        self._n_solves += 1
+        self._root._n_solves += 1
         reason = snes.getConvergedReason()
         return reason > 0, _reason_name(reason)
 
@@ -235,6 +287,11 @@ class ContactProblem:
         """
         g = self.grid
         inactive = (g.rows(self._x, readonly=True) > 0) | (g.rows(self._f, readonly=True) <= 0)
+        cached = self._slope_cache
+        if cached is not None:
+            same = cached[0].shape == inactive.shape and np.array_equal(cached[0], inactive)
+            if g.mpi_comm.allreduce(bool(same), op=MPI.LAND):
+                return cached[1], cached[2]   # same set, same K_II: same z
         local = (np.flatnonzero(inactive) + g.nx * g.ys).astype(PETSc.IntType)
         index_set = PETSc.IS().createGeneral(local, comm=g.comm)
         J = self._snes.getJacobian()[0]
@@ -252,47 +309,139 @@ class ContactProblem:
         full = np.zeros_like(ctx.full_in)
         ctx.to_full(z, full)
         self.grid.rows(dp)[...] = full
-        return dp.sum() / (self.grid.nx * self.grid.ny), dp
+        slope = dp.sum() / (self.grid.nx * self.grid.ny)
+        self._slope_cache = (inactive, slope, dp)
+        return slope, dp
 
     def _solve_load(self, target: float):
-        """Safeguarded Newton on delta (see the module docstring); returns (converged, reason)."""
+        """Safeguarded, inexact Newton on delta; returns (converged, reason).
+
+        W(delta) = mean p is increasing and (for contact of rough surfaces,
+        typically) convex, so after the first step the Newton iterates approach
+        the root from above; a step is only replaced by bisection when it leaves
+        the bracket [lo, hi] of evaluated approaches.  The inner solves are
+        inexact: their complementarity tolerance is ``inner_eta`` times the
+        last approach update (in units of the length scale), never above
+        ``load_inner_tol``; the last solve is to the full tolerance.
+
+        Periodic cells: mean(g) = mean(h) - delta >= 0, so delta <= mean(h) =
+        ``bound``, and delta = mean(h) means full contact, where mean p is set
+        by the initial guess (the reduced Jacobian keeps the mean of the step at
+        zero): a step beyond ``bound`` tries full contact once, with the
+        initial pressure's mean set to the target.
+        """
         g = self.grid
         n = g.nx * g.ny
-        lo = float(self.heights.min()[1])  # delta <= min h: no contact, no load
-        # periodic: K p has zero mean, so the mean gap is mean(h) - delta >= 0 at equilibrium
-        hi = self.heights.sum() / n if g.periodic else np.inf
+        lo = lo0 = float(self.heights.min()[1])  # delta <= min h: no contact, no load
+        lo_exact = hi_exact = True
+        hi = np.inf                         # smallest evaluated approach with a load above the target
+        bound = self.heights.sum() / n if g.periodic else np.inf
+        tried_full = False
         delta = self._approach if self._approach is not None else lo
         p = self._pressure.copy()
+        inner = max(self.tol, self.inner_tol0)
+        slope = 0.0
         reason = "no iteration"
         for _ in range(self.max_outer):
-            ok, reason = self._solve_at(delta, p)
+            ok, reason = self._solve_at(delta, p, inner)
             if not ok:
-                # e.g. beyond full contact on a periodic cell: no equilibrium, too far
+                if delta < bound:
+                    return False, reason   # a real failure of the inner solve: report it
+                # full contact tried below the full-contact load: no equilibrium there
                 hi = min(hi, delta)
                 p = self._pressure.copy()
-                delta = 0.5 * (lo + hi)
+                delta = 0.5 * (lo + min(hi, bound))
                 continue
             self._x.copy(p)
             p.copy(self._pressure)
             w = p.sum() / n
             load_err = abs(w - target) / target
-            if load_err <= self.load_tol:
-                return True, reason
+            # the load error that a complementarity error tol (a gap error of tol * L,
+            # i.e. an approach error of that size) allows: a tighter load_tol cannot be met
+            load_tol = max(self.load_tol, 2.0 * slope * self.tol * self.length_scale / target)
+            if load_err <= load_tol:
+                if inner <= self.tol:
+                    return True, reason
+                inner = self.tol   # right load, loose solve: tighten at the same approach
+                continue
+            # brackets from inexact (loose) solves are soft: a Newton step may cross them
+            exact = inner <= self.tol
             if w < target:
-                lo = max(lo, delta)
+                lo, lo_exact = max(lo, delta), exact
             else:
-                hi = min(hi, delta)
+                hi, hi_exact = min(hi, delta), exact
             slope, dp = self._approach_slope()
-            step = (target - w) / slope if slope > 0 else np.inf
-            new = delta + step
-            if not (lo < new < hi) or (np.isfinite(hi) and new > hi - 1e-3 * (hi - lo)):
-                new = 0.5 * (lo + hi) if np.isfinite(hi) else lo + 2.0 * max(delta - lo, self.length_scale)
-            else:
+            new = delta + (target - w) / slope if slope > 0 else np.inf
+            if np.isfinite(new):
+                if new >= hi and not hi_exact:
+                    hi = np.inf
+                if new <= lo and not lo_exact:
+                    lo = lo0
+            upper = min(hi, bound)
+            if lo < new < upper:
                 p.axpy(new - delta, dp)  # Newton predictor on the current contact set
                 rows = g.rows(p)
                 np.maximum(rows, 0.0, out=rows)
+            elif new >= bound and hi > bound and not tried_full:
+                tried_full = True  # full contact: delta = mean h, mean p from the guess
+                new = bound
+                p.axpy(new - delta, dp)
+                p.shift(target - p.sum() / n)
+                rows = g.rows(p)
+                np.maximum(rows, 0.0, out=rows)
+            elif np.isfinite(upper):
+                new = 0.5 * (lo + upper)
+            else:
+                new = lo + 2.0 * max(delta - lo, self.length_scale)
+            inner = max(self.tol, min(self.inner_tol0, self.inner_eta * abs(new - delta) / self.length_scale))
             delta = new
         return False, f"DIVERGED_LOAD_ITERATION ({self.max_outer} approach updates; last SNES {reason})"
+
+    # -- nested iteration (full multigrid) ---------------------------------------------
+    def _coarse_problem(self):
+        """The same problem on the 2x coarser grid (h averaged over 2 x 2 blocks), or None."""
+        if self._coarse is not None:
+            return self._coarse or None
+        self._coarse = False
+        g = self.grid
+        rows = [b - a for a, b in g.y_ranges]
+        if (not self.fmg or g.nx % 2 or g.ny % 2 or max(g.nx, g.ny) // 2 < self.fmg_min_size
+                or min(g.nx, g.ny) // 2 < 2 or any(r % 2 or r < 2 for r in rows)):
+            return None
+        levels = self._levels
+        if levels and len(levels) > 1:
+            gc, op = levels[1].grid, levels[1].op
+        else:
+            gc = SurfaceGrid(g.nx // 2, g.ny // 2, 2 * g.dx, 2 * g.dy, periodic=g.periodic,
+                             comm=g.comm, y_ownership=[r // 2 for r in rows])
+            # FFTW_MEASURE planning would cost more than the coarse solves themselves
+            op = half_space(gc, self.e_star, prefix=self.prefix, planner="estimate")
+        hc = gc.create_vec()
+        gc.rows(hc)[...] = _restrict(g.rows(self.heights, readonly=True))
+        d = dict(self._defaults, preconditioner=self.preconditioner, fmg=True)
+        coarse = ContactProblem(gc, hc, self.e_star, prefix=self.prefix, length_scale=self.length_scale,
+                                operator=op, _root=self._root, **d)
+        coarse._levels = levels[1:] if levels and len(levels) > 1 else None
+        coarse._build()
+        coarse.tol, coarse.load_tol = max(self.fmg_tol, self.tol), max(1e-6, self.load_tol)
+        coarse.fmg, coarse.fmg_min_size, coarse.fmg_tol = self.fmg, self.fmg_min_size, self.fmg_tol
+        self._coarse = coarse
+        return coarse
+
+    def _nested_guess(self, approach, mean_pressure) -> bool:
+        """Initial (p, delta) from the coarse problem's solution, prolonged; False if none."""
+        coarse = self._coarse_problem()
+        if coarse is None:
+            return False
+        st = coarse.solve(approach=approach, mean_pressure=mean_pressure, raise_on_failure=False)
+        self._newton += st.newton_iterations
+        self._linear += st.linear_iterations
+        if not st.converged:
+            return False
+        g = self.grid
+        g.rows(self._pressure)[...] = _prolong(coarse.grid.rows(st.pressure, readonly=True))
+        self._approach = st.approach
+        return True
 
     # -- public API ------------------------------------------------------------------
     def snes(self) -> PETSc.SNES:
@@ -303,7 +452,10 @@ class ContactProblem:
               force: float | None = None, raise_on_failure: bool = True) -> ContactState:
         """Solve for one approach delta [m] or one load (mean pressure [Pa] or total force [N]).
 
-        The previous solution is the initial guess (warm start along a loading path).
+        The previous solution is the initial guess (warm start along a loading path);
+        the first solve starts from the same problem solved on 2x coarser grids
+        (nested iteration, ``-<prefix>fmg``, down to ``-<prefix>fmg_min_size`` nodes,
+        to complementarity error ``-<prefix>fmg_tol``).
         """
         given = [v is not None for v in (approach, mean_pressure, force)]
         if sum(given) != 1:
@@ -321,6 +473,9 @@ class ContactProblem:
         self._target = mean_pressure
         self._newton = self._linear = 0
         pairs0, t0 = self._fft_pairs(), self.history.elapsed()
+        if self._approach is None:
+            # no previous state: nested iteration, the solution on the 2x coarser grid
+            self._nested_guess(approach, mean_pressure)
         if mean_pressure is None:
             converged, reason = self._solve_at(approach, self._pressure)
             if converged:

@@ -1,0 +1,139 @@
+#!/usr/bin/env python3
+"""Benchmark (issue 3, item 6): rough periodic Signorini contact, ours against Tamaas' PKR.
+
+The benchmark surface: periodic unit cell (L = 1 m), self-affine, Hurst 0.8,
+rms slope 0.1, roll-off at L/4, short cut-off at 4 grid spacings, Gaussian
+random phases (``contactpetsc.surfaces.self_affine``, seed --seed), E* = 1,
+mean pressure 0.005 E*.  For each n in --sizes:
+
+* ours: ``ContactProblem.solve(mean_pressure=...)`` with each preconditioner
+  in --solvers, to a complementarity error max |min(K_ii p, g)| <= --tol of
+  the rms height (our measure; load error <= 1e-10);
+* Tamaas (PolonskyKeerRey, through ``run_scripts/peers/tamaas_signorini.py``
+  in the peer venv from ``run_scripts/peers/setup_peers.sh``) on the same
+  heights (saved as .npy) with its own error measure <= --tol; we then
+  recompute OUR complementarity measure on Tamaas' returned p (gap
+  recomputed with our operator, delta chosen as Tamaas returned it).
+
+Usage::
+
+    .venv/bin/python run_scripts/bench_signorini.py [--sizes 256 512 1024 2048]
+        [--solvers spectral mlmi] [--no-peer] [--tol 1e-8] [PETSc options]
+    mpirun -n 2 .venv/bin/python run_scripts/bench_signorini.py ...   (ours on 2 ranks;
+        the peer runs serially on rank 0)
+
+Times: ours = wall time of ``solve`` (includes the coarse-grid set-up of the
+nested iteration, excludes building the fine operator, reported as t_setup);
+Tamaas = its ``solve`` only.  FFT pairs: ours counts every FFT pair, coarse
+grids weighted by their size; Tamaas = 2 per iteration + 1.
+Output: a table, then one JSON line per case with n, solver, time, fft_pairs, error.
+"""
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+import petsc4py
+
+ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+ap.add_argument("--sizes", type=int, nargs="+", default=[256, 512, 1024, 2048])
+ap.add_argument("--solvers", nargs="+", default=["spectral", "mlmi"])
+ap.add_argument("--tol", type=float, default=1e-8)
+ap.add_argument("--seed", type=int, default=1)
+ap.add_argument("--mean-pressure", type=float, default=0.005)
+ap.add_argument("--no-peer", action="store_true")
+ap.add_argument("--peer-python", default=os.environ.get(
+    "CONTACTPETSC_PEER_PYTHON",
+    os.path.join(os.environ.get("CONTACTPETSC_PEER_VENV",
+                                os.path.expanduser("~/.cache/contactpetsc/peer-venv")), "bin", "python")))
+args, petsc_args = ap.parse_known_args()
+petsc4py.init([sys.argv[0]] + petsc_args)
+
+import numpy as np  # noqa: E402
+from mpi4py import MPI  # noqa: E402
+from petsc4py import PETSc  # noqa: E402
+
+from contactpetsc import surfaces  # noqa: E402
+from contactpetsc.grid import SurfaceGrid  # noqa: E402
+from contactpetsc.operators.elastic import half_space  # noqa: E402
+from contactpetsc.solvers import ContactProblem  # noqa: E402
+
+E_STAR, L = 1.0, 1.0
+comm = PETSc.COMM_WORLD.tompi4py()
+rank = comm.Get_rank()
+HERE = os.path.dirname(os.path.abspath(__file__))
+PEER = os.path.join(HERE, "peers", "tamaas_signorini.py")
+
+
+def our_measure(op, p_rows, h_rows, delta, scale):
+    gap = op.apply(p_rows, np.empty_like(p_rows)) + h_rows - delta
+    err = float(np.abs(np.minimum(op.self_influence * p_rows, gap)).max())
+    return op.grid.mpi_comm.allreduce(err, op=MPI.MAX) / scale
+
+
+results = []
+tmpdir = comm.bcast(tempfile.mkdtemp(prefix="bench-signorini-") if rank == 0 else None)
+for n in args.sizes:
+    dx = L / n
+    g = SurfaceGrid(n, n, dx, row_alignment=64)
+    h = surfaces.self_affine(g, hurst=0.8, seed=args.seed, rms_slope=0.1,
+                             rolloff_wavelength=L / 4, short_cutoff_wavelength=4 * dx)
+    rms = surfaces.rms_height(g, h)
+    op = None
+    for solver in args.solvers:
+        t0 = time.perf_counter()
+        prob = ContactProblem(g, h, E_STAR, preconditioner=solver, tol=args.tol,
+                              prefix=f"b{n}{solver}_", operator=op)
+        op = prob.op
+        t_setup = time.perf_counter() - t0
+        comm.Barrier()
+        t0 = time.perf_counter()
+        st = prob.solve(mean_pressure=args.mean_pressure * E_STAR, raise_on_failure=False)
+        t = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
+        err = our_measure(op, g.rows(st.pressure, readonly=True), g.rows(h, readonly=True),
+                          st.approach, rms)
+        results.append(dict(n=n, solver=solver, ranks=comm.Get_size(), time=t, t_setup=t_setup,
+                            fft_pairs=st.fft_pairs, newton=st.newton_iterations,
+                            krylov=st.linear_iterations, error=err, load_error=st.load_error,
+                            converged=st.converged, contact_fraction=st.contact_fraction))
+        PETSc.Sys.Print(json.dumps(results[-1]))
+    if args.no_peer:
+        continue
+    full = g.gather(h, root=0)
+    res = None
+    if rank == 0:
+        hpath, out = os.path.join(tmpdir, f"h{n}.npy"), os.path.join(tmpdir, f"t{n}.npz")
+        np.save(hpath, full)
+        try:
+            cp = subprocess.run([args.peer_python, PEER, hpath, "--length", str(L), "--estar", str(E_STAR),
+                                 "--mean-pressure", str(args.mean_pressure * E_STAR),
+                                 "--tol", str(args.tol), "--out", out],
+                                capture_output=True, text=True, check=True)
+            res = json.loads(cp.stdout.strip().splitlines()[-1])
+            z = np.load(out)
+            res["_p"], res["_delta"] = z["pressure"], float(z["delta"])
+        except Exception as exc:  # noqa: BLE001
+            res = {"failed": f"{type(exc).__name__}: {exc}"}
+    res = comm.bcast(res, root=0)
+    if "failed" in res:
+        PETSc.Sys.Print(f"peer failed at n={n}: {res['failed']}")
+        continue
+    p_rows = np.ascontiguousarray(res["_p"].T[g.ys:g.ye])   # (nx, ny) -> our rows (ny_loc, nx)
+    err = our_measure(op, p_rows, g.rows(h, readonly=True), res["_delta"], rms)
+    results.append(dict(n=n, solver="tamaas-pkr", ranks=1, time=res["time"], t_setup=None,
+                        fft_pairs=res["fft_pairs"], newton=None, krylov=res["iterations"],
+                        error=err, tamaas_error=res["tamaas_error"],
+                        load_error=res["mean_pressure_rel_err"], converged=res["converged"],
+                        contact_fraction=res["contact_fraction"]))
+    PETSc.Sys.Print(json.dumps(results[-1]))
+
+PETSc.Sys.Print("\n   n  solver        ranks   time[s]  setup[s]  Newton  Krylov  FFT pairs  compl.err  load err")
+for r in results:
+    PETSc.Sys.Print(f"{r['n']:5d}  {r['solver']:12s} {r['ranks']:5d} {r['time']:9.2f} "
+                    f"{(r['t_setup'] or 0):9.2f} {str(r['newton']):>7s} {str(r['krylov']):>7s} "
+                    f"{r['fft_pairs']:10.0f} {r['error']:10.2e} {r['load_error']:9.1e}")
+for r in results:
+    PETSc.Sys.Print(json.dumps({k: r[k] for k in ("n", "solver", "time", "fft_pairs", "error")}))
