@@ -9,7 +9,8 @@ the residual is the gap
 and the VI "p >= 0, g >= 0, p g = 0" is exactly the Signorini condition,
 eq. (4).  Its Jacobian is K itself, applied matrix-free by FFT; the
 reduced-space Newton method (``vinewtonrsls``) solves K_II dp_I = -g_I on the
-inactive set with a Krylov method preconditioned by MLMI (``mlmi.py``).
+inactive set by CG, preconditioned by the Fourier inverse (``SpectralPC``,
+the default) or the multilevel MLMI cycle (``mlmi.py``).
 
 Controls: ``approach`` (displacement control, delta given) or a load
 (``mean_pressure``, or ``force`` for an isolated contact = mean_pressure *
@@ -19,16 +20,19 @@ convex, its slope dW/d delta = mean(z) comes from one reduced solve
 K_II z = 1 on the converged contact set, and z predicts the next pressure,
 so each outer step is one exact Newton step of the load-controlled problem
 on the current contact set.  Steps that leave the bracket [delta_lo, delta_hi]
-of known loads bisect instead.  On a periodic cell K has no mean mode, so
+of known loads bisect instead; intermediate solves are inexact, and the
+first solve is nested (full multigrid): coarser grids first, their pressure
+and approach the fine grid's start.  On a periodic cell K has no mean mode, so
 delta is the approach to the mean plane of the deformed surface and full
 contact is singular under displacement control: load control handles it.
 
 Options (prefix ``contact_`` by default) are read after the code defaults,
 so every PETSc option works: ``-contact_snes_monitor``,
 ``-contact_ksp_monitor``, ``-contact_ksp_type``, ``-log_view``, ...  Own
-options: ``-contact_preconditioner mlmi|spectral|none``,
-``-contact_tol`` (complementarity error relative to the length scale),
-``-contact_load_tol`` (relative load error).
+options (all listed with defaults in docs/formulation.md):
+``-contact_preconditioner spectral|mlmi|none``, ``-contact_tol``
+(complementarity error relative to the length scale), ``-contact_load_tol``
+(relative load error), ``-contact_newton_ksp_rtol``, ``-contact_fmg``, ...
 """
 from __future__ import annotations
 
