@@ -96,16 +96,18 @@ class SlabRFFT:
         empty = pyfftw.empty_aligned
         ny_loc, nkx_loc = self.ye - self.ys, self.kx1 - self.kx0
 
+        # without padding the forward input is rewritten whole at every apply, so the
+        # backward transform may write into it: one large buffer fewer in cache
         if self.size == 1:
             self.real_in = empty((self.Ny, self.Nx), "float64")
-            self.real_out = empty((self.Ny, self.Nx), "float64")
+            self.real_out = self.real_in if not pad else empty((self.Ny, self.Nx), "float64")
             self.spectrum = empty((self.Ny, self.nkx), "complex128")
             self._plans = (pyfftw.FFTW(self.real_in, self.spectrum, axes=(0, 1), **keep),)
             self._plans_bwd = (pyfftw.FFTW(self.spectrum, self.real_out, axes=(0, 1),
                                            direction="FFTW_BACKWARD", **kill),)
         else:
             self.real_in = empty((ny_loc, self.Nx), "float64")
-            self.real_out = empty((ny_loc, self.Nx), "float64")
+            self.real_out = self.real_in if not pad else empty((ny_loc, self.Nx), "float64")
             self.rows = empty((ny_loc, self.nkx), "complex128")
             self.cols = empty((nkx_loc, self.Ny), "complex128")   # y-stage input, zero beyond ny
             self.spectrum = empty((nkx_loc, self.Ny), "complex128")
