@@ -34,6 +34,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..fft import SlabRFFT, log_event
+from ..errors import collective_guard
 from ..grid import SurfaceGrid
 from ..lifetime import destroy_at_exit
 from .love import love_displacement
@@ -119,6 +120,7 @@ class _OperatorContext:
     def __init__(self, op: HalfSpaceOperator, inverse: bool):
         self.op, self.inverse = op, inverse
 
+    @collective_guard
     def mult(self, mat, x, y):
         g = self.op.grid
         f = self.op.apply_inverse if self.inverse else self.op.apply
@@ -126,6 +128,7 @@ class _OperatorContext:
 
     multTranspose = mult
 
+    @collective_guard
     def getDiagonal(self, mat, d):
         if self.inverse:
             raise NotImplementedError("diagonal of K^-1")

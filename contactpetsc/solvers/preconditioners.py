@@ -11,10 +11,13 @@ from __future__ import annotations
 import numpy as np
 from mpi4py import MPI
 
+from ..errors import collective_guard
+
 
 class ReducedPreconditioner:
     """Base class: subclasses implement ``prepare(ctx)`` and ``inner(f, out)`` (M on full arrays)."""
 
+    @collective_guard
     def setUp(self, pc):
         _, P = pc.getOperators()
         ctx = P.getPythonContext()
@@ -23,6 +26,7 @@ class ReducedPreconditioner:
         self.f = np.zeros_like(ctx.full_in)
         self.z = np.zeros_like(ctx.full_in)
 
+    @collective_guard
     def apply(self, pc, x, y):
         self.ctx.to_full(x, self.f)
         self.inner(self.f, self.z)

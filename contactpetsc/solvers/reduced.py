@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 from petsc4py import PETSc
 
+from ..errors import collective_guard
 from ..lifetime import destroy_at_exit
 
 
@@ -21,13 +22,16 @@ class ContactJacobian:
         self.op, self.prefix = op, prefix
         self.cache = {}  # per-problem data of the preconditioners (kernels, coarse levels)
 
+    @collective_guard
     def mult(self, mat, x, y):
         g = self.op.grid
         self.op.apply(g.rows(x, readonly=True), g.rows(y))
 
+    @collective_guard
     def getDiagonal(self, mat, d):
         d.set(self.op.self_influence)
 
+    @collective_guard
     def createSubMatrix(self, mat, isrow, iscol=None, reuse=None, submat=None):
         ctx = ReducedJacobian(self, isrow)
         n = self.op.grid.mpi_comm.allreduce(ctx.n_local)
@@ -67,6 +71,7 @@ class ReducedJacobian:
     def from_full(self, full: np.ndarray, y: PETSc.Vec) -> None:
         y.getArray()[:] = full.reshape(-1)[self.idx]
 
+    @collective_guard
     def mult(self, mat, x, y):
         self.to_full(x, self.full_in)
         self.op.apply(self.full_in, self.full_out)
@@ -75,5 +80,6 @@ class ReducedJacobian:
             self.full_out += self.mean_compliance * g.mpi_comm.allreduce(float(self.full_in.sum())) / (g.nx * g.ny)
         self.from_full(self.full_out, y)
 
+    @collective_guard
     def getDiagonal(self, mat, d):
         d.set(self.op.self_influence)

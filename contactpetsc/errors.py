@@ -1,0 +1,36 @@
+"""Errors inside PETSc callbacks must not deadlock an MPI job.
+
+A Python exception raised in a Mat, PC or SNES callback on one rank only
+leaves the other ranks waiting in the next collective (an all-reduce inside
+the Krylov method) forever.  Callbacks therefore run under
+``collective_guard``: on one rank the exception propagates as usual (petsc4py
+re-raises it from the solve); on several ranks the failing rank prints its
+traceback, tagged with its rank, and aborts the whole job with
+``MPI_Abort`` — loud, immediate, no hang.
+"""
+from __future__ import annotations
+
+import functools
+import sys
+import traceback
+
+from mpi4py import MPI
+
+
+def collective_guard(method):
+    """Decorate a PETSc callback method (see the module docstring)."""
+
+    @functools.wraps(method)
+    def wrapper(*args, **kwargs):
+        try:
+            return method(*args, **kwargs)
+        except Exception:
+            comm = MPI.COMM_WORLD
+            if comm.Get_size() == 1:
+                raise
+            rank = comm.Get_rank()
+            sys.stderr.write(f"contactpetsc [rank {rank}]: error in {method.__qualname__}, "
+                             f"aborting all ranks:\n{traceback.format_exc()}")
+            sys.stderr.flush()
+            comm.Abort(1)
+    return wrapper
