@@ -7,7 +7,8 @@ random phases (``contactpetsc.surfaces.self_affine``, seed --seed), E* = 1,
 mean pressure 0.005 E*.  For each n in --sizes:
 
 * ours: ``ContactProblem.solve(mean_pressure=...)`` with each preconditioner
-  in --solvers, to a complementarity error max |min(K_ii p, g)| <= --tol of
+  in --solvers (``none`` = ``-pc_type none``, only up to --none-max-n),
+  to a complementarity error max |min(K_ii p, g)| <= --tol of
   the rms height (our measure; load error <= 1e-10);
 * Tamaas (PolonskyKeerRey, through ``run_scripts/peers/tamaas_signorini.py``
   in the peer venv from ``run_scripts/peers/setup_peers.sh``) on the same
@@ -18,7 +19,8 @@ mean pressure 0.005 E*.  For each n in --sizes:
 Usage::
 
     .venv/bin/python run_scripts/bench_signorini.py [--sizes 256 512 1024 2048]
-        [--solvers spectral mlmi] [--no-peer] [--tol 1e-8] [PETSc options]
+        [--solvers spectral mlmi none] [--none-max-n 1024] [--no-peer] [--tol 1e-8]
+        [PETSc options]
     mpirun -n 2 .venv/bin/python run_scripts/bench_signorini.py ...   (ours on 2 ranks;
         the peer runs serially on rank 0)
 
@@ -40,7 +42,10 @@ import petsc4py
 
 ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
 ap.add_argument("--sizes", type=int, nargs="+", default=[256, 512, 1024, 2048])
-ap.add_argument("--solvers", nargs="+", default=["spectral", "mlmi"])
+ap.add_argument("--solvers", nargs="+", default=["spectral", "mlmi", "none"],
+                help="preconditioners (-contact_preconditioner values): spectral, mlmi, none")
+ap.add_argument("--none-max-n", type=int, default=1024,
+                help="skip the unpreconditioned solver (none) above this n (it is slow)")
 ap.add_argument("--tol", type=float, default=1e-8)
 ap.add_argument("--seed", type=int, default=1)
 ap.add_argument("--mean-pressure", type=float, default=0.005)
@@ -84,6 +89,9 @@ for n in args.sizes:
     rms = surfaces.rms_height(g, h)
     op = None
     for solver in args.solvers:
+        if solver == "none" and n > args.none_max_n:
+            PETSc.Sys.Print(f"skipping solver none at n={n} (> --none-max-n {args.none_max_n})")
+            continue
         t0 = time.perf_counter()
         prob = ContactProblem(g, h, E_STAR, preconditioner=solver, tol=args.tol,
                               prefix=f"b{n}{solver}_", operator=op)
