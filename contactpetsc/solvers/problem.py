@@ -46,6 +46,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..errors import collective_guard
 from ..grid import SurfaceGrid
 from ..lifetime import destroy_at_exit
 from ..operators.elastic import HalfSpaceOperator, half_space
@@ -270,6 +271,7 @@ class ContactProblem:
         return snes
 
     # -- SNES callbacks ------------------------------------------------------------
+    @collective_guard
     def _residual(self, snes, x, f):
         g = self.grid
         gap = g.rows(f)
@@ -291,6 +293,7 @@ class ContactProblem:
         n = g.nx * g.ny
         return err, sums[0] / n, sums[1] / n
 
+    @collective_guard
     def _converged(self, snes, it, norms):
         x, f = snes.getSolution(), snes.getFunction()[0]
         err, mean_p, frac = self._measures(x, f)
