@@ -33,7 +33,8 @@ this script does not know are handed to PETSc (``petsc4py.init``), so
 ``-log_view`` shows the CPFFTForward/CPFFTBackward/CPElasticMult events and
 ``-elastic_fft_planner`` sets the library's FFTW planner (default measure).
 
-Output: a human-readable table, then, last, one JSON line per case with the
+Output: a human-readable table (the launcher adds the speed-ups; --markdown
+also prints it as Markdown), then, last, one JSON line per case with the
 keys ``n, kind, ranks, t_apply, t_fft_pair, ratio`` (seconds; ratio =
 t_apply / t_fft_pair).
 
@@ -42,7 +43,7 @@ Method
 * All plans and buffers are made before timing (planning is not counted);
   one untimed warm-up of each measurement follows.
 * The machine is noisy, so the measurements are interleaved (apply, Mat mult,
-  FFT pair; the order rotates every repeat) for at least K repeats and at
+  FFT pair[, 1-rank apply]; the order rotates every repeat) for at least K repeats and at
   least --min-time seconds (default 1), and medians are quoted.  Default K:
   15 for n <= 1024, 9 for n = 2048, 5 for n = 4096.
 * Other processes: the CPU time the whole machine used during a case
@@ -60,6 +61,15 @@ Method
   pair measured inside the R-rank run, interleaved with the applies it is
   compared with; the launcher also shows the pair measured in the 1-rank run
   for comparison.
+* Speed-up: the issue's t_apply(1 rank) / t_apply(R ranks) compares two
+  separate mpirun runs, minutes apart, so it also contains any drift of the
+  machine's speed in between.  On R > 1 ranks the worker therefore also times
+  the same operator built on rank 0 alone (COMM_SELF), interleaved with the
+  R-rank apply while the other ranks sleep, and reports the "in-run"
+  speed-up from it (--no-serial-in-run skips this and its memory).
+* ``petsc4py.init`` is called (by the worker only, before any PETSc import)
+  with the options this script does not parse; the launcher itself never
+  initialises MPI.
 """
 from __future__ import annotations
 
@@ -103,6 +113,9 @@ def parse_args(argv):
     p.add_argument("--mpirun", default="mpirun", help="launcher: MPI launcher command")
     p.add_argument("--worker", action="store_true",
                    help="run the measurement in this process (implied under mpirun)")
+    p.add_argument("--no-serial-in-run", action="store_true",
+                   help="on several ranks, do not also time the 1-rank apply on rank 0 "
+                        "(saves the memory of a second, serial operator)")
     p.add_argument("--emit-detail", action="store_true", help=argparse.SUPPRESS)
     return p.parse_known_args(argv)
 
@@ -184,7 +197,15 @@ def worker(args, petsc_argv):
             t_setup = comm.allreduce(clock() - t0, op=MPI.MAX)
 
             t_plan_pair = 0.0
-            if rank == 0:  # rank-0-only: no collectives in here
+            serial = size > 1 and not args.no_serial_in_run
+            if rank == 0:  # rank-0-only: no collectives on COMM_WORLD in here
+                if serial:
+                    # the same operator on rank 0 alone (COMM_SELF), timed while the
+                    # other ranks sleep: a 1-rank apply interleaved with the R-rank one
+                    sgrid = SurfaceGrid(n, n, 1.0 / n, periodic=periodic, comm=PETSc.COMM_SELF)
+                    sop = (PeriodicHalfSpace if periodic else IsolatedHalfSpace)(sgrid, 1.0)
+                    sx = np.random.default_rng(7).random((n, n))
+                    sy = np.empty_like(sx)
                 t0 = clock()
                 a = pyfftw.empty_aligned((N, N), "float64")
                 spec = pyfftw.empty_aligned((N, N // 2 + 1), "complex128")
@@ -226,8 +247,21 @@ def worker(args, petsc_argv):
                 idle_barrier()
                 return comm.bcast(t, root=0)
 
+            def m_serial():
+                comm.Barrier()
+                t = 0.0
+                if rank == 0:  # others sleep in idle_barrier
+                    t = clock()
+                    sop.apply(sx, sy)
+                    t = clock() - t
+                idle_barrier()
+                return comm.bcast(t, root=0)
+
             meas = {"apply": m_apply, "mult": m_mult, "pair": m_pair}
+            if serial:
+                meas["serial"] = m_serial
             names = list(meas)
+            nm = len(names)
             for name in names:          # warm-up
                 meas[name]()
 
@@ -238,7 +272,7 @@ def worker(args, petsc_argv):
                 own0, busy0, w0 = own_cpu_seconds(), machine_busy_seconds(), clock()
                 r = 0
                 while True:
-                    order = names[r % 3:] + names[:r % 3]
+                    order = names[r % nm:] + names[:r % nm]
                     for name in order:
                         times[name].append(meas[name]())
                     r += 1
@@ -270,15 +304,21 @@ def worker(args, petsc_argv):
             if not err <= 1e-12 * scale:
                 raise RuntimeError(f"K.mult and op.apply disagree: {err:g} vs scale {scale:g}")
 
-            t_apply, t_mult, t_pair = (median(times[k]) for k in names)
+            t_apply, t_mult, t_pair = (median(times[k]) for k in ("apply", "mult", "pair"))
+            t_serial = median(times["serial"]) if serial else None
             rec = dict(n=n, kind=kind, ranks=size, t_apply=t_apply, t_fft_pair=t_pair,
                        ratio=t_apply / t_pair, t_mult=t_mult, repeats=len(times["apply"]),
                        foreign_load=foreign, attempts=len(attempts),
                        t_apply_min=min(times["apply"]), t_pair_min=min(times["pair"]),
                        t_mult_min=min(times["mult"]),
                        ratio_paired=median([p / q for p, q in zip(times["apply"], times["pair"])]),
-                       t_setup=t_setup, t_plan_pair=t_plan_pair, transform=N)
+                       t_setup=t_setup, t_plan_pair=t_plan_pair, transform=N,
+                       t_apply_1rank_in_run=t_serial,
+                       speedup_in_run=None if t_serial is None else t_serial / t_apply)
             results.append(rec)
+            if serial:
+                log(f"#   1-rank apply in this run {t_serial * 1e3:.2f} ms, "
+                    f"speed-up {t_serial / t_apply:.2f}")
             log(f"#   t_apply {t_apply * 1e3:.2f} ms, t_mult {t_mult * 1e3:.2f} ms, "
                 f"t_fft_pair {t_pair * 1e3:.2f} ms, ratio {t_apply / t_pair:.3f}, "
                 f"{len(times['apply'])} repeats, foreign load {foreign:.2f} cores")
@@ -291,6 +331,9 @@ def worker(args, petsc_argv):
             del xr, yr, op, K, grid, x, y, y2
             if rank == 0:
                 del fwd, bwd, a, b, spec
+                if serial:
+                    sgrid.da.destroy()
+                    del sop, sgrid, sx, sy
             gc.collect()
 
     if rank == 0:
@@ -311,35 +354,47 @@ def core(rec):
 # output
 # =============================================================================
 def speedups(results):
-    """{(n, kind): t_apply(1 rank) / t_apply(2 ranks)} where both were measured."""
+    """{(n, kind, R): t_apply(1 rank) / t_apply(R ranks)} from separate runs, R > 1."""
     by = {(r["n"], r["kind"], r["ranks"]): r for r in results}
-    return {(n, k): by[(n, k, 1)]["t_apply"] / by[(n, k, 2)]["t_apply"]
-            for (n, k, R) in by if R == 2 and (n, k, 1) in by}
+    return {(n, k, R): by[(n, k, 1)]["t_apply"] / by[(n, k, R)]["t_apply"]
+            for (n, k, R) in by if R > 1 and (n, k, 1) in by}
 
 
 def table_rows(results):
     sp = speedups(results)
     pair1 = {(r["n"], r["kind"]): r["t_fft_pair"] for r in results if r["ranks"] == 1}
+    ms = lambda t: "-" if t is None else f"{t * 1e3:.2f}"   # noqa: E731
     rows = []
     for r in sorted(results, key=lambda r: (KINDS.index(r["kind"]), r["n"], r["ranks"])):
         key = (r["n"], r["kind"])
-        p1 = pair1.get(key) if r["ranks"] > 1 else None
-        s = sp.get(key) if r["ranks"] == 2 else None
+        s = sp.get((*key, r["ranks"]))
+        s_run = r.get("speedup_in_run")
         rows.append([
             str(r["n"]), r["kind"], f"{r['transform']}^2", str(r["ranks"]),
-            f"{r['t_apply'] * 1e3:.2f}", f"{r['t_fft_pair'] * 1e3:.2f}",
-            f"{r['ratio']:.3f}",
-            f"{r['t_mult'] * 1e3:.2f}", f"{r['t_mult'] / r['t_apply']:.3f}",
-            "-" if p1 is None else f"{p1 * 1e3:.2f}",
+            ms(r["t_apply"]), ms(r["t_fft_pair"]), f"{r['ratio']:.3f}",
+            ms(r["t_mult"]), f"{r['t_mult'] / r['t_apply']:.3f}",
             "-" if s is None else f"{s:.2f}",
-            str(r["repeats"]), f"{r['foreign_load']:.2f}",
+            ms(r.get("t_apply_1rank_in_run")),
+            "-" if s_run is None else f"{s_run:.2f}",
+            ms(pair1.get(key) if r["ranks"] > 1 else None),
+            str(r["repeats"]), f"{max(r['foreign_load'], 0.0):.2f}",
         ])
     return rows
 
 
-HEADER = ["n", "kind", "FFT size", "ranks", "t_apply [ms]", "t_fft_pair [ms]", "ratio",
-          "t_mult [ms]", "mult/apply", "pair in 1-rank run [ms]", "2-rank speed-up",
-          "repeats", "foreign load"]
+HEADER = ["n", "kind", "FFT", "ranks", "t_apply", "t_fft_pair", "ratio", "t_mult",
+          "mult/apply", "speed-up", "1-rank apply in run", "speed-up in run",
+          "pair in 1-rank run", "repeats", "foreign load"]
+NOTES = """\
+times in ms, medians over the repeats; FFT = transform size.
+ratio = t_apply / t_fft_pair, t_fft_pair = raw single-rank pyfftw r2c + c2r of the FFT size
+  (on R ranks: timed on rank 0 inside the R-rank run while the other ranks sleep).
+t_mult = the same apply through the PETSc shell Mat (K.mult(x, y)).
+speed-up = t_apply(1 rank, 1-rank run) / t_apply(R ranks, R-rank run).
+1-rank apply in run = the same operator on rank 0 alone (COMM_SELF), timed inside the
+  R-rank run while the other ranks sleep; speed-up in run = that / t_apply.
+pair in 1-rank run = t_fft_pair of the 1-rank run (cross-check of the R-rank reference).
+foreign load = CPU cores used by other processes during the measurement."""
 
 
 def print_table(results, markdown=False):
@@ -348,10 +403,7 @@ def print_table(results, markdown=False):
     print("  ".join(h.rjust(w) for h, w in zip(HEADER, widths)))
     for r in rows:
         print("  ".join(c.rjust(w) for c, w in zip(r, widths)))
-    print("medians; ratio = t_apply / t_fft_pair (raw single-rank pyfftw r2c+c2r of the FFT size);"
-          " t_mult = the same apply through the PETSc shell Mat (K.mult);"
-          " speed-up = t_apply(1 rank) / t_apply(2 ranks);"
-          " foreign load = cores used by other processes during the measurement")
+    print(NOTES)
     if markdown:
         print()
         print("| " + " | ".join(HEADER) + " |")
@@ -379,6 +431,8 @@ def launcher(args, passthrough):
     common = ["--sizes", *map(str, args.sizes), "--kinds", *args.kinds]
     if args.repeats:
         common += ["--repeats", str(args.repeats)]
+    if args.no_serial_in_run:
+        common += ["--no-serial-in-run"]
     common += ["--min-time", str(args.min_time), "--max-foreign", str(args.max_foreign),
                "--retries", str(args.retries), "--retry-wait", str(args.retry_wait)]
     load0 = loadavg()
@@ -395,8 +449,12 @@ def launcher(args, passthrough):
             sys.exit(f"worker on {R} ranks failed with exit code {proc.returncode}")
 
     print_table(results, markdown=args.markdown)
-    for (n, kind), s in sorted(speedups(results).items(), key=lambda t: (KINDS.index(t[0][1]), t[0][0])):
-        print(f"speed-up n={n} {kind}: t_apply 1 rank / t_apply 2 ranks = {s:.2f}")
+    in_run = {(r["n"], r["kind"], r["ranks"]): r.get("speedup_in_run") for r in results}
+    for (n, kind, R), s in sorted(speedups(results).items(),
+                                  key=lambda t: (t[0][2], KINDS.index(t[0][1]), t[0][0])):
+        s_run = in_run.get((n, kind, R))
+        print(f"speed-up n={n} {kind} {R} ranks: t_apply(1 rank) / t_apply({R} ranks) = {s:.2f}"
+              + ("" if s_run is None else f" (in-run: {s_run:.2f})"))
     print(f"load average (1, 5, 15 min) at start: {load0}, at end: {loadavg()}")
     for rec in sorted(results, key=lambda r: (r["ranks"], KINDS.index(r["kind"]), r["n"])):
         print(json.dumps(core(rec)))
