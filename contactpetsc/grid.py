@@ -12,6 +12,7 @@ view of the Vec (Fortran order), ``rows`` the same memory as (ny_loc, nx).
 from __future__ import annotations
 
 import numpy as np
+from mpi4py import MPI
 from petsc4py import PETSc
 
 
@@ -160,6 +161,40 @@ class SurfaceGrid:
         v = self.create_vec()
         self.local_array(v)[...] = array[:, self.ys:self.ye]
         return v
+
+    def halo_rows(self, rows: np.ndarray, lo: np.ndarray, hi: np.ndarray, *,
+                  edge: str = "zero") -> tuple[np.ndarray, np.ndarray]:
+        """Fill ``lo`` with row ys - 1 and ``hi`` with row ye of a (ny_loc, nx) array.
+
+        Rows come from the neighbouring ranks (periodic wrap-around on a
+        periodic grid).  Beyond an isolated grid's edge: zeros
+        (``edge="zero"``) or the edge row repeated (``edge="repeat"``).
+        Collective; ``lo`` and ``hi`` are caller-owned buffers of length nx.
+        """
+        comm = self.mpi_comm
+        size, rank = comm.Get_size(), comm.Get_rank()
+        if edge == "zero":
+            lo[...] = 0.0
+            hi[...] = 0.0
+        elif edge == "repeat":
+            lo[...] = rows[0]
+            hi[...] = rows[-1]
+        else:
+            raise ValueError(f"edge must be 'zero' or 'repeat', got {edge!r}")
+        if size == 1:
+            if self.periodic:
+                lo[...], hi[...] = rows[-1], rows[0]
+            return lo, hi
+        if self.periodic:
+            below, above = (rank - 1) % size, (rank + 1) % size
+        else:
+            below = rank - 1 if rank > 0 else MPI.PROC_NULL
+            above = rank + 1 if rank < size - 1 else MPI.PROC_NULL
+        comm.Sendrecv(np.ascontiguousarray(rows[0]), dest=below, sendtag=21,
+                      recvbuf=hi, source=above, recvtag=21)
+        comm.Sendrecv(np.ascontiguousarray(rows[-1]), dest=above, sendtag=22,
+                      recvbuf=lo, source=below, recvtag=22)
+        return lo, hi
 
     def gather(self, vec: PETSc.Vec, root: int | None = None) -> np.ndarray | None:
         """The global (nx, ny) array of ``vec`` on every rank (root=None) or on ``root`` only."""

@@ -210,16 +210,16 @@ def test_history_and_csv(coll, shared_tmp):
 
 def test_bilinear_prolongation(coll):
     """Nested-iteration transfer: mean and p >= 0 kept, linear fields reproduced, rank-local halos."""
-    from contactpetsc.solvers.problem import _prolong_bilinear
+    from contactpetsc.solvers.transfer import prolong_bilinear
     for periodic in (True, False):
         g = SurfaceGrid(16, 16, 1.0, periodic=periodic)
         x, y = np.meshgrid(np.arange(16.0), np.arange(g.ys, g.ye), indexing="xy")
-        lin = _prolong_bilinear(x + 2 * y, g)
+        lin = prolong_bilinear(x + 2 * y, g)
         X, Y = np.meshgrid(np.arange(32) / 2 - 0.25, np.arange(2 * g.ys, 2 * g.ye) / 2 - 0.25)
         inner = (X > 0.5) & (X < 14.5) & (Y > 0.5) & (Y < 14.5)   # away from wrap / edges
         assert coll.max(np.abs(lin - (X + 2 * Y))[inner].max(initial=0.0)) <= 1e-12
         c = np.random.default_rng(g.ys).random((g.ye - g.ys, 16))
-        f = _prolong_bilinear(c, g)
+        f = prolong_bilinear(c, g)
         assert coll.all(f.min() >= 0.0)
         if periodic:
             sc, sf = g.mpi_comm.allreduce(c.sum()), g.mpi_comm.allreduce(f.sum())

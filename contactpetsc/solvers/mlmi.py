@@ -48,6 +48,7 @@ from ..fft import log_event
 from ..grid import SurfaceGrid
 from ..operators.elastic import half_space
 from .preconditioners import ReducedPreconditioner, lowest_mode_stiffness
+from .transfer import prolong_constant, restrict
 
 
 class Level:
@@ -72,12 +73,6 @@ class Level:
         lo = comm.allreduce(float(kd[high].min()) if high.any() else np.inf, op=MPI.MIN)
         hi = comm.allreduce(float(kd[high].max()) if high.any() else 0.0, op=MPI.MAX)
         self.omega = 2.0 / (lo + hi)
-        rank, size = comm.Get_rank(), comm.Get_size()
-        if g.periodic:
-            self.below, self.above = (rank - 1) % size, (rank + 1) % size
-        else:
-            self.below = rank - 1 if rank > 0 else MPI.PROC_NULL
-            self.above = rank + 1 if rank < size - 1 else MPI.PROC_NULL
         self.halo_lo = np.zeros(g.nx)
         self.halo_hi = np.zeros(g.nx)
         self.work = np.zeros((g.ny_local, g.nx))
@@ -130,21 +125,7 @@ class Level:
     def neighbour_sums(self, r: np.ndarray, sx: np.ndarray, sy: np.ndarray):
         """(sum over the 2 x-neighbours, sum over the 2 y-neighbours) of r; halo rows from adjacent ranks."""
         g = self.grid
-        comm = g.mpi_comm
-        if comm.Get_size() == 1:
-            if g.periodic:
-                self.halo_lo[...] = r[-1]
-                self.halo_hi[...] = r[0]
-            else:
-                self.halo_lo[...] = 0.0
-                self.halo_hi[...] = 0.0
-        else:
-            self.halo_lo[...] = 0.0
-            self.halo_hi[...] = 0.0
-            comm.Sendrecv(np.ascontiguousarray(r[0]), dest=self.below, sendtag=11,
-                          recvbuf=self.halo_hi, source=self.above, recvtag=11)
-            comm.Sendrecv(np.ascontiguousarray(r[-1]), dest=self.above, sendtag=12,
-                          recvbuf=self.halo_lo, source=self.below, recvtag=12)
+        g.halo_rows(r, self.halo_lo, self.halo_hi, edge="zero")
         sx[...] = 0.0
         if g.periodic:
             sx += np.roll(r, 1, axis=1)
@@ -180,15 +161,6 @@ class Level:
             r = b if (zero_start and k == 0) else self.residual(b, x, self.work)
             x += self.distribute(r, self.ku)
         return x
-
-
-def _restrict(fine: np.ndarray) -> np.ndarray:
-    ny, nx = fine.shape
-    return fine.reshape(ny // 2, 2, nx // 2, 2).sum(axis=(1, 3)) * 0.25
-
-
-def _prolong(coarse: np.ndarray) -> np.ndarray:
-    return np.repeat(np.repeat(coarse, 2, axis=0), 2, axis=1)
 
 
 def build_levels(fine_op, max_levels: int = 8, min_size: int = 8) -> list[Level]:
@@ -252,9 +224,9 @@ class MLMIPC(ReducedPreconditioner):
         lev.smooth(b, x, self.pre, zero_start=True)
         for _ in range(2 if self.cycle == "w" else 1):
             r = lev.residual(b, x, self.r[l])
-            bc = _restrict(r) * self.levels[l + 1].mask
+            bc = restrict(r) * self.levels[l + 1].mask
             ec = self._cycle(l + 1, bc)
-            x += _prolong(ec) * lev.mask
+            x += prolong_constant(ec) * lev.mask
         return lev.smooth(b, x, self.post, zero_start=False)
 
     def inner(self, f, out):

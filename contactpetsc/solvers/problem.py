@@ -53,72 +53,13 @@ from ..operators.elastic import HalfSpaceOperator, half_space
 from ..surfaces import rms_height
 from .history import SolveHistory
 from .reduced import ContactJacobian
+from .transfer import prolong_bilinear, prolong_constant, restrict
 
 PRECONDITIONERS = {
     "mlmi": "contactpetsc.solvers.mlmi.MLMIPC",
     "spectral": "contactpetsc.solvers.preconditioners.SpectralPC",
     "none": None,
 }
-
-
-def _restrict(fine: np.ndarray) -> np.ndarray:
-    """2 x 2 block averages (heights, gaps)."""
-    ny, nx = fine.shape
-    return fine.reshape(ny // 2, 2, nx // 2, 2).mean(axis=(1, 3))
-
-
-def _prolong(coarse: np.ndarray) -> np.ndarray:
-    """Piecewise-constant copy to the 2 x 2 children (pressure is a density: the mean is kept)."""
-    return np.repeat(np.repeat(coarse, 2, axis=0), 2, axis=1)
-
-
-def _halo_rows(rows: np.ndarray, grid: SurfaceGrid) -> tuple[np.ndarray, np.ndarray]:
-    """(row below the first local row, row above the last) from the neighbour ranks;
-    periodic wrap, or the edge row itself at an isolated window's boundary."""
-    comm = grid.mpi_comm
-    size, rank = comm.Get_size(), comm.Get_rank()
-    lo, hi = rows[0].copy(), rows[-1].copy()      # isolated boundary: constant extrapolation
-    if size == 1:
-        if grid.periodic:
-            lo[...], hi[...] = rows[-1], rows[0]
-        return lo, hi
-    if grid.periodic:
-        below, above = (rank - 1) % size, (rank + 1) % size
-    else:
-        below = rank - 1 if rank > 0 else MPI.PROC_NULL
-        above = rank + 1 if rank < size - 1 else MPI.PROC_NULL
-    comm.Sendrecv(np.ascontiguousarray(rows[0]), dest=below, sendtag=21,
-                  recvbuf=hi, source=above, recvtag=21)
-    comm.Sendrecv(np.ascontiguousarray(rows[-1]), dest=above, sendtag=22,
-                  recvbuf=lo, source=below, recvtag=22)
-    return lo, hi
-
-
-def _prolong_bilinear(coarse: np.ndarray, grid: SurfaceGrid) -> np.ndarray:
-    """Cell-centred bilinear interpolation to the 2 x 2 children (weights 9/16, 3/16, 3/16, 1/16).
-
-    Coarse node I is the block of fine nodes 2I, 2I+1 (``_restrict``), so a child
-    lies a quarter of a coarse spacing from its parent: 3/4 parent + 1/4 neighbour
-    per direction.  The weights are positive (p >= 0 is kept) and, on a periodic
-    cell, every coarse value is spread with total weight 4, so the mean is kept;
-    at an isolated window's edge the edge value is repeated.  One halo row from
-    each neighbour rank (``grid`` is the coarse grid).
-    """
-    lo, hi = _halo_rows(coarse, grid)
-    ext = np.concatenate([lo[None], coarse, hi[None]])
-    if grid.periodic:
-        left, right = np.roll(ext, 1, axis=1), np.roll(ext, -1, axis=1)
-    else:
-        left = np.concatenate([ext[:, :1], ext[:, :-1]], axis=1)
-        right = np.concatenate([ext[:, 1:], ext[:, -1:]], axis=1)
-    ny, nx = coarse.shape
-    x = np.empty((ny + 2, 2 * nx))
-    x[:, 0::2] = 0.75 * ext + 0.25 * left
-    x[:, 1::2] = 0.75 * ext + 0.25 * right
-    out = np.empty((2 * ny, 2 * nx))
-    out[0::2] = 0.75 * x[1:-1] + 0.25 * x[:-2]
-    out[1::2] = 0.75 * x[1:-1] + 0.25 * x[2:]
-    return out
 
 
 class ContactSolveError(RuntimeError):
@@ -490,7 +431,7 @@ class ContactProblem:
             # FFTW_MEASURE planning would cost more than the coarse solves themselves
             op = half_space(gc, self.e_star, prefix=self.prefix, planner="estimate")
         hc = gc.create_vec()
-        gc.rows(hc)[...] = _restrict(g.rows(self.heights, readonly=True))
+        gc.rows(hc)[...] = restrict(g.rows(self.heights, readonly=True))
         d = dict(self._defaults, preconditioner=self.preconditioner, fmg=True)
         coarse = ContactProblem(gc, hc, self.e_star, prefix=self.prefix, length_scale=self.length_scale,
                                 operator=op, _root=self._root, **d)
@@ -516,9 +457,9 @@ class ContactProblem:
             return False
         g = self.grid
         if self.fmg_prolong == "bilinear":
-            prolong = lambda a: _prolong_bilinear(a, coarse.grid)  # noqa: E731
+            prolong = lambda a: prolong_bilinear(a, coarse.grid)  # noqa: E731
         else:
-            prolong = _prolong
+            prolong = prolong_constant
         g.rows(self._pressure)[...] = prolong(coarse.grid.rows(st.pressure, readonly=True))
         if coarse._slope_cache is not None and self.slope_warm:
             # the coarse dp/d delta: the initial guess of the first fine slope solve

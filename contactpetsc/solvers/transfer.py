@@ -1,0 +1,48 @@
+"""Transfers between a grid and the grid of half as many nodes each way (spacing doubled).
+
+Coarse node (I, J) is the 2 x 2 block of fine nodes (2I..2I+1, 2J..2J+1).
+Rows per rank are aligned to even numbers (``SurfaceGrid(row_alignment=...)``),
+so every transfer but the bilinear one is rank-local.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..grid import SurfaceGrid
+
+
+def restrict(fine: np.ndarray) -> np.ndarray:
+    """2 x 2 block means of a (ny_loc, nx) array (heights, gaps, residuals)."""
+    ny, nx = fine.shape
+    return fine.reshape(ny // 2, 2, nx // 2, 2).mean(axis=(1, 3))
+
+
+def prolong_constant(coarse: np.ndarray) -> np.ndarray:
+    """Piecewise-constant copy to the 2 x 2 children (pressure is a density: the mean is kept)."""
+    return np.repeat(np.repeat(coarse, 2, axis=0), 2, axis=1)
+
+
+def prolong_bilinear(coarse: np.ndarray, grid: SurfaceGrid) -> np.ndarray:
+    """Cell-centred bilinear interpolation to the 2 x 2 children (weights 9/16, 3/16, 3/16, 1/16).
+
+    A child lies a quarter of a coarse spacing from its parent: 3/4 parent +
+    1/4 neighbour per direction.  The weights are positive (p >= 0 is kept)
+    and, on a periodic cell, every coarse value is spread with total weight 4,
+    so the mean is kept; at an isolated window's edge the edge value is
+    repeated.  One halo row from each neighbour rank (``grid`` is the coarse grid).
+    """
+    lo, hi = grid.halo_rows(coarse, np.empty(coarse.shape[1]), np.empty(coarse.shape[1]), edge="repeat")
+    ext = np.concatenate([lo[None], coarse, hi[None]])
+    if grid.periodic:
+        left, right = np.roll(ext, 1, axis=1), np.roll(ext, -1, axis=1)
+    else:
+        left = np.concatenate([ext[:, :1], ext[:, :-1]], axis=1)
+        right = np.concatenate([ext[:, 1:], ext[:, -1:]], axis=1)
+    ny, nx = coarse.shape
+    x = np.empty((ny + 2, 2 * nx))
+    x[:, 0::2] = 0.75 * ext + 0.25 * left
+    x[:, 1::2] = 0.75 * ext + 0.25 * right
+    out = np.empty((2 * ny, 2 * nx))
+    out[0::2] = 0.75 * x[1:-1] + 0.25 * x[:-2]
+    out[1::2] = 0.75 * x[1:-1] + 0.25 * x[2:]
+    return out
