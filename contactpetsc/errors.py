@@ -6,7 +6,8 @@ the Krylov method) forever.  Callbacks therefore run under
 ``collective_guard``: on one rank the exception propagates as usual (petsc4py
 re-raises it from the solve); on several ranks the failing rank prints its
 traceback, tagged with its rank, and aborts the whole job with
-``MPI_Abort`` — loud, immediate, no hang.
+``MPI_Abort`` — loud, immediate, no hang.  "Several ranks" means the
+communicator of the callback's PETSc object (its first argument after self).
 """
 from __future__ import annotations
 
@@ -25,7 +26,12 @@ def collective_guard(method):
         try:
             return method(*args, **kwargs)
         except Exception:
-            comm = MPI.COMM_WORLD
+            # the communicator of the callback's PETSc object (Mat, PC, SNES): a
+            # problem on COMM_SELF inside a parallel job just raises
+            try:
+                comm = args[1].getComm().tompi4py()
+            except Exception:  # noqa: BLE001 - not a PETSc object: assume the world
+                comm = MPI.COMM_WORLD
             if comm.Get_size() == 1:
                 raise
             rank = comm.Get_rank()

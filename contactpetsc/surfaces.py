@@ -31,6 +31,12 @@ def from_array(grid: SurfaceGrid, heights: np.ndarray) -> PETSc.Vec:
     return _check_finite(grid, grid.vec_from_array(heights, "heights"), "heights array")
 
 
+def _local_rows(grid: SurfaceGrid, data, path: str) -> np.ndarray:
+    if tuple(data.shape) != grid.shape:
+        raise ValueError(f"{path}: heights have shape {tuple(data.shape)}, the grid needs {grid.shape}")
+    return np.asarray(data[:, grid.ys:grid.ye], dtype=float)
+
+
 def from_file(grid: SurfaceGrid, path: str, dataset: str = "heights") -> PETSc.Vec:
     """Heights [m] from ``.npy`` (memory-mapped) or HDF5 (``dataset``), shape (nx, ny).
 
@@ -41,18 +47,15 @@ def from_file(grid: SurfaceGrid, path: str, dataset: str = "heights") -> PETSc.V
     err, local = None, None
     try:
         if ext == ".npy":
-            data = np.load(path, mmap_mode="r")
+            local = _local_rows(grid, np.load(path, mmap_mode="r"), path)
         elif ext in (".h5", ".hdf5", ".hdf"):
             import h5py
-            f = h5py.File(path, "r")
-            if dataset not in f:
-                raise KeyError(f"no dataset {dataset!r} in {path} (has {sorted(f.keys())})")
-            data = f[dataset]
+            with h5py.File(path, "r") as f:
+                if dataset not in f:
+                    raise KeyError(f"no dataset {dataset!r} in {path} (has {sorted(f.keys())})")
+                local = _local_rows(grid, f[dataset], path)
         else:
             raise ValueError(f"unknown height file type {ext!r} (accepted: .npy, .h5, .hdf5)")
-        if tuple(data.shape) != grid.shape:
-            raise ValueError(f"{path}: heights have shape {tuple(data.shape)}, the grid needs {grid.shape}")
-        local = np.asarray(data[:, grid.ys:grid.ye], dtype=float)
     except Exception as exc:  # noqa: BLE001 - re-raised collectively below
         err = f"cannot read heights from {path}: {exc}"
     errors = [e for e in grid.mpi_comm.allgather(err) if e]
@@ -67,7 +70,14 @@ def from_function(grid: SurfaceGrid, func) -> PETSc.Vec:
     """Heights [m] = func(x, y) on the local nodes; x, y [m] arrays of shape (nx, ny_local)."""
     x, y = grid.coordinates()
     v = grid.create_vec()
-    grid.local_array(v)[...] = func(x, y)
+    err = None
+    try:
+        grid.local_array(v)[...] = func(x, y)
+    except Exception as exc:  # noqa: BLE001 - re-raised collectively below
+        err = f"height function failed: {exc!r}"
+    errors = [e for e in grid.mpi_comm.allgather(err) if e]
+    if errors:
+        raise GridError(errors[0])
     return _check_finite(grid, v, "height function")
 
 
@@ -170,4 +180,6 @@ def rms_height(grid: SurfaceGrid, h: PETSc.Vec) -> float:
     """Root-mean-square deviation of h from its mean [m]."""
     n = grid.nx * grid.ny
     mean = h.sum() / n
-    return float(np.sqrt(max(h.dot(h) / n - mean * mean, 0.0)))
+    # two passes: <h^2> - <h>^2 cancels (a flat h far from 0 would give round-off, not 0)
+    dev = grid.rows(h, readonly=True) - mean
+    return float(np.sqrt(grid.mpi_comm.allreduce(float(np.vdot(dev, dev))) / n))

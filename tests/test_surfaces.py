@@ -232,3 +232,31 @@ def test_bad_files(coll, shared_tmp):
     coll.raises(GridError, "missing.npy", surfaces.from_file, g, str(shared_tmp / "missing.npy"))
     coll.raises(GridError, "missing.h5", surfaces.from_file, g, str(shared_tmp / "missing.h5"))
     coll.raises(GridError, ".txt", surfaces.from_file, g, str(shared_tmp / "h.txt"))
+
+
+def test_rms_height_two_pass_and_flat_surface(coll):
+    """<h^2> - <h>^2 would cancel for a flat surface far from 0; the rms must be ~0 and rank-free."""
+    from contactpetsc.grid import SurfaceGrid
+    from contactpetsc.solvers import ContactProblem
+    g = SurfaceGrid(16, 13, 1e-8, periodic=True)
+    h = surfaces.from_function(g, lambda x, y: 3.7e-7 + 0 * x)
+    assert coll.max(surfaces.rms_height(g, h)) <= 1e-13 * 3.7e-7  # <h^2>-<h>^2 gave 4e-7 relative
+    assert coll.max(abs(ContactProblem(g, h, 1e9).length_scale - g.dx)) == 0.0
+    # a known sinusoid: rms = amplitude / sqrt(2) exactly on whole periods
+    s = surfaces.from_function(g, lambda x, y: 1.0 + 2e-9 * np.cos(2 * np.pi * x / g.lengths[0]))
+    # on a unit offset: the one-pass formula loses everything (variance 2e-18 vs eps 2e-16)
+    assert coll.max(abs(surfaces.rms_height(g, s) - 2e-9 / np.sqrt(2))) <= 1e-6 * 2e-9
+
+
+def test_height_function_failing_on_one_rank_raises_everywhere(coll):
+    from contactpetsc.grid import GridError, SurfaceGrid
+    g = SurfaceGrid(8, 9, 1e-8, periodic=False)
+    last = g.mpi_comm.Get_size() - 1
+
+    def func(x, y):
+        if g.mpi_comm.Get_rank() == last:
+            raise ValueError("bad heights here")
+        return 0 * x
+
+    msgs = coll.raises(GridError, "height function failed", surfaces.from_function, g, func)
+    assert all("bad heights here" in m for m in msgs)

@@ -17,7 +17,7 @@ class HistoryRecord:
     solve: int            #: index of the solve (step of a sweep, outer load iteration)
     iteration: int        #: Newton (or relaxation) iteration within the solve
     wall_time: float      #: seconds since the history was created
-    fft_pairs: int        #: FFT pairs on the finest grid, cumulative (coarse levels weighted by size)
+    fft_pairs: float      #: FFT pairs in fine-grid units, cumulative (coarse levels weighted by size)
     linear_iterations: int  #: Krylov iterations, cumulative
     complementarity_error: float
     load_error: float

@@ -26,7 +26,7 @@ makes the cycle indefinite.
 Coarse grids halve the number of nodes in x and y (spacing doubles) and use
 the same half-space operator rediscretised (Love coefficients or 2/(E*|q|)
 of the coarse elements).  Transfers: a coarse node belongs to the coarse set
-if any of its 2 x 2 children is in I; prolongation copies a coarse correction
+if all of its 2 x 2 children are in I; prolongation copies a coarse correction
 to the children in I (pressure is a density), restriction averages the
 children's gap residuals (R = P^T / 4, so the cycle is symmetric and R K P
 approximates the rediscretised K).  A V(nu1, nu2)- or W-cycle with
@@ -36,7 +36,8 @@ the fine grid's row ownership is aligned to 2^(levels-1) rows.
 
 Options (prefix of the solver, e.g. ``-contact_``): ``mlmi_levels`` (max,
 default 8), ``mlmi_cycle`` (v|w), ``mlmi_pre``/``mlmi_post`` (sweeps, 1),
-``mlmi_coarse_sweeps`` (4), ``mlmi_min_size`` (coarsest grid >= this, 8).
+``mlmi_coarse_sweeps`` (4), ``mlmi_min_size`` (coarsest grid >= this, 8),
+``mlmi_power_its`` (6) and ``mlmi_rho_bound`` (1.6) for the damping bound.
 """
 from __future__ import annotations
 
@@ -54,10 +55,9 @@ from .transfer import prolong_constant, restrict
 class Level:
     """One grid of the hierarchy: operator, smoothing constants, halo exchange."""
 
-    def __init__(self, op, fine_points: int):
+    def __init__(self, op):
         self.op = op
         self.grid = g = op.grid
-        self.weight = (g.nx * g.ny) / fine_points  # cost of one FFT pair in fine-grid pairs
         f = op.fft
         qx, qy = f.wavevectors(f.Nx * g.dx, f.Ny * g.dy)
         k_hat = op.kernel * (f.Nx * f.Ny)
@@ -166,8 +166,7 @@ class Level:
 def build_levels(fine_op, max_levels: int = 8, min_size: int = 8) -> list[Level]:
     """Halve the grid while both sizes stay even, >= min_size, and every rank keeps an even row count."""
     g = fine_op.grid
-    fine_points = g.nx * g.ny
-    levels = [Level(fine_op, fine_points)]
+    levels = [Level(fine_op)]
     while len(levels) < max_levels:
         rows = [b - a for a, b in g.y_ranges]
         if (g.nx % 2 or g.ny % 2 or g.nx // 2 < min_size or g.ny // 2 < min_size
@@ -176,7 +175,7 @@ def build_levels(fine_op, max_levels: int = 8, min_size: int = 8) -> list[Level]
         gc = SurfaceGrid(g.nx // 2, g.ny // 2, 2 * g.dx, 2 * g.dy, periodic=g.periodic,
                          comm=g.comm, y_ownership=[r // 2 for r in rows])
         op = half_space(gc, fine_op.e_star, planner="estimate", prefix=fine_op.prefix)
-        levels.append(Level(op, fine_points))
+        levels.append(Level(op))
         g = gc
     return levels
 
@@ -237,6 +236,3 @@ class MLMIPC(ReducedPreconditioner):
         out += (self.mean_stiffness * mean_f) * self.levels[0].mask
         ev.end()
         return out
-
-    def fft_pairs(self) -> float:
-        return sum(lev.weight * lev.op.fft_pairs for lev in self.levels[1:])

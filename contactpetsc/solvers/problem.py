@@ -102,7 +102,15 @@ class ContactProblem:
         Length [m] the complementarity error is measured in; defaults to
         the rms height of h (the benchmark convention), or dx if h is flat.
     operator : HalfSpaceOperator, optional
-        Reuse an operator built on the same grid.
+        Reuse an operator built on the same grid (its E* must equal ``e_star``).
+    tol, load_tol : float, optional
+        Code defaults of ``-<prefix>tol`` (complementarity error relative to
+        ``length_scale``, 1e-10) and ``-<prefix>load_tol`` (relative, 1e-10).
+    preconditioner : str, optional
+        Code default of ``-<prefix>preconditioner``: spectral, mlmi or none.
+    fmg : bool, optional
+        Code default of ``-<prefix>fmg`` (nested iteration on the first solve, on).
+    Options given on the command line override these code defaults.
     """
 
     def __init__(self, grid: SurfaceGrid, heights: PETSc.Vec, e_star: float, *,
@@ -115,10 +123,15 @@ class ContactProblem:
         self._root = _root if _root is not None else self
         self._coarse = None
         self.op = operator if operator is not None else half_space(grid, e_star, prefix=prefix)
+        if not np.isclose(self.op.e_star, e_star, rtol=1e-12, atol=0.0):
+            raise ValueError(f"e_star = {e_star!r} Pa differs from the operator's E* = {self.op.e_star!r} Pa")
         self.e_star = self.op.e_star
         self.kappa = self.op.self_influence
         if length_scale is None:
-            length_scale = rms_height(grid, heights) or grid.dx
+            rms = rms_height(grid, heights)
+            # a flat surface (rms at round-off of its heights) has no length of its own
+            flat = rms <= 1e-12 * max(abs(heights.max()[1]), abs(heights.min()[1]))
+            length_scale = grid.dx if flat or rms == 0 else rms
         if not (np.isfinite(length_scale) and length_scale > 0):
             raise ValueError(f"length_scale (m) must be finite and > 0, got {length_scale!r}")
         self.length_scale = float(length_scale)
@@ -190,6 +203,10 @@ class ContactProblem:
             raise ValueError(f"-{self.prefix}fmg_prolong must be bilinear or constant, got {self.fmg_prolong!r}")
         self.slope_warm = opts.getBool("slope_warm_start", True)
         snes.setFromOptions()
+        # -<prefix>pc_type ... may have replaced our choice: record what is in use
+        python_type = pc.getPythonType() if pc.getType() == "python" else None
+        self.preconditioner = next((k for k, v in PRECONDITIONERS.items() if v and v == python_type),
+                                   python_type or pc.getType())
         self._inner_tol = self.tol
         slope = self._slope_ksp = destroy_at_exit(PETSc.KSP().create(comm=g.comm))
         slope.setOptionsPrefix(self.prefix + "slope_")
@@ -197,10 +214,10 @@ class ContactProblem:
         # the slope only sets the next approach (outer Newton): a loose solve is enough
         slope.setTolerances(rtol=1e-2, max_it=500)
         slope.getPC().setType(pc.getType())
-        if pc.getType() == "python":
-            slope.getPC().setPythonType(PRECONDITIONERS[choice])
+        if python_type:
+            slope.getPC().setPythonType(python_type)
         slope.setFromOptions()
-        if pc.getType() == "python" and pc.getPythonType() == PRECONDITIONERS["mlmi"]:
+        if python_type == PRECONDITIONERS["mlmi"]:
             # built here (not at the first PC set-up) so that the coarse problems of the
             # nested iteration share the levels' grids and operators
             if self._levels is None:
@@ -322,6 +339,10 @@ class ContactProblem:
         full = np.zeros_like(ctx.full_in)
         ctx.to_full(z, full)
         self.grid.rows(dp)[...] = full
+        # petsc4py defers freeing parallel objects to PETSc's garbage until exit:
+        # destroy the per-solve temporaries explicitly (collective, all ranks here)
+        for obj in (b, z, A, index_set):
+            obj.destroy()
         slope = dp.sum() / (self.grid.nx * self.grid.ny)
         self._slope_cache = (inactive, slope, dp)
         self._z_guess = dp
@@ -522,8 +543,10 @@ class ContactProblem:
             load_error=load_err, converged=converged, reason=reason,
             newton_iterations=self._newton, linear_iterations=self._linear,
             fft_pairs=self._fft_pairs() - pairs0, wall_time=self.history.elapsed() - t0)
+        # free the parallel temporaries petsc4py parked in PETSc's garbage (collective)
+        PETSc.garbage_cleanup(g.comm)
         if not converged and raise_on_failure:
-            ksp_reason = _ksp_reason_name(self._snes.getKSP().getConvergedReason())
+            ksp_reason = _reason_name(self._snes.getKSP().getConvergedReason(), PETSc.KSP.ConvergedReason)
             raise ContactSolveError(
                 f"contact solve did not converge: {reason} after {state.newton_iterations} Newton "
                 f"iterations (last KSP: {ksp_reason}); complementarity error {err:.3e} "
@@ -532,13 +555,6 @@ class ContactProblem:
         return state
 
 
-def _reason_name(reason: int) -> str:
-    names = {v: k for k, v in vars(PETSc.SNES.ConvergedReason).items() if isinstance(v, int)}
-    return names.get(reason, str(reason))
-
-
-def _ksp_reason_name(reason: int) -> str:
-    names = {v: k for k, v in vars(PETSc.KSP.ConvergedReason).items() if isinstance(v, int)}
-    return names.get(reason, str(reason))
-
-
+def _reason_name(reason: int, kind=PETSc.SNES.ConvergedReason) -> str:
+    """The name of a SNES (or, with ``kind``, KSP) converged/diverged reason."""
+    return next((k for k, v in vars(kind).items() if v == reason and isinstance(v, int)), str(reason))
