@@ -46,10 +46,9 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..fft import log_event
-from ..grid import SurfaceGrid
 from ..operators.elastic import half_space
 from .preconditioners import ReducedPreconditioner, lowest_mode_stiffness
-from .transfer import prolong_constant, restrict
+from .transfer import can_halve, halved, prolong_constant, restrict
 
 
 class Level:
@@ -168,12 +167,9 @@ def build_levels(fine_op, max_levels: int = 8, min_size: int = 8) -> list[Level]
     g = fine_op.grid
     levels = [Level(fine_op)]
     while len(levels) < max_levels:
-        rows = [b - a for a, b in g.y_ranges]
-        if (g.nx % 2 or g.ny % 2 or g.nx // 2 < min_size or g.ny // 2 < min_size
-                or any(r % 2 or r < 2 for r in rows)):
+        if not can_halve(g) or g.nx // 2 < min_size or g.ny // 2 < min_size:
             break
-        gc = SurfaceGrid(g.nx // 2, g.ny // 2, 2 * g.dx, 2 * g.dy, periodic=g.periodic,
-                         comm=g.comm, y_ownership=[r // 2 for r in rows])
+        gc = halved(g)
         op = half_space(gc, fine_op.e_star, planner="estimate", prefix=fine_op.prefix)
         levels.append(Level(op))
         g = gc

@@ -53,7 +53,7 @@ from ..operators.elastic import HalfSpaceOperator, half_space
 from ..surfaces import rms_height
 from .history import SolveHistory
 from .reduced import ContactJacobian
-from .transfer import prolong_bilinear, prolong_constant, restrict
+from .transfer import can_halve, halved, prolong_bilinear, prolong_constant, restrict
 
 PRECONDITIONERS = {
     "mlmi": "contactpetsc.solvers.mlmi.MLMIPC",
@@ -439,16 +439,14 @@ class ContactProblem:
             return self._coarse or None
         self._coarse = False
         g = self.grid
-        rows = [b - a for a, b in g.y_ranges]
-        if (not self.fmg or g.nx % 2 or g.ny % 2 or max(g.nx, g.ny) // 2 < self.fmg_min_size
-                or min(g.nx, g.ny) // 2 < 2 or any(r % 2 or r < 2 for r in rows)):
+        if (not self.fmg or not can_halve(g) or max(g.nx, g.ny) // 2 < self.fmg_min_size
+                or min(g.nx, g.ny) // 2 < 2):
             return None
         levels = self._levels
         if levels and len(levels) > 1:
             gc, op = levels[1].grid, levels[1].op
         else:
-            gc = SurfaceGrid(g.nx // 2, g.ny // 2, 2 * g.dx, 2 * g.dy, periodic=g.periodic,
-                             comm=g.comm, y_ownership=[r // 2 for r in rows])
+            gc = halved(g)
             # FFTW_MEASURE planning would cost more than the coarse solves themselves
             op = half_space(gc, self.e_star, prefix=self.prefix, planner="estimate")
         hc = gc.create_vec()

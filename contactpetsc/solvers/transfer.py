@@ -11,6 +11,18 @@ import numpy as np
 from ..grid import SurfaceGrid
 
 
+def can_halve(grid: SurfaceGrid) -> bool:
+    """Whether ``grid`` has a 2x coarser grid with rank-local transfers (even sizes and rows per rank)."""
+    rows = [b - a for a, b in grid.y_ranges]
+    return not (grid.nx % 2 or grid.ny % 2 or any(r % 2 or r < 2 for r in rows))
+
+
+def halved(grid: SurfaceGrid) -> SurfaceGrid:
+    """The 2x coarser grid (spacing doubled), each rank owning the parents of its rows."""
+    return SurfaceGrid(grid.nx // 2, grid.ny // 2, 2 * grid.dx, 2 * grid.dy, periodic=grid.periodic,
+                       comm=grid.comm, y_ownership=[(b - a) // 2 for a, b in grid.y_ranges])
+
+
 def restrict(fine: np.ndarray) -> np.ndarray:
     """2 x 2 block means of a (ny_loc, nx) array (heights, gaps, residuals)."""
     ny, nx = fine.shape
