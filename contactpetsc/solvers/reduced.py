@@ -69,7 +69,7 @@ class ReducedJacobian:
         return out
 
     def from_full(self, full: np.ndarray, y: PETSc.Vec) -> None:
-        y.getArray()[:] = full.reshape(-1)[self.idx]
+        np.take(full.reshape(-1), self.idx, out=y.getArray())  # no temporary
 
     @collective_guard
     def mult(self, mat, x, y):
