@@ -1,0 +1,120 @@
+"""Protocols: run a validated scene's loading path and write its results.
+
+A path is a list of approaches or loads solved in order, each warm-started
+from the previous state.  Rank 0 prints progress and writes ``curve.csv``
+(one row per step) and ``history.csv`` (one row per iteration: the error
+against run time).  A smooth sphere on an isolated half-space without
+adhesion is also compared with Hertz at each step.
+"""
+from __future__ import annotations
+
+import csv
+import os
+
+import numpy as np
+from petsc4py import PETSc
+
+from . import surfaces
+from .grid import SurfaceGrid
+
+CURVE_COLUMNS = ["step", "approach_m", "force_N", "mean_pressure_Pa", "contact_fraction",
+                 "complementarity_error", "load_error", "converged", "reason", "newton_iterations",
+                 "krylov_iterations", "fft_pairs", "wall_time_s"]
+
+
+def build_grid(scene: dict, comm=None) -> SurfaceGrid:
+    g = scene["geometry"]
+    return SurfaceGrid(g["nx"], g["ny"], g["dx"], g["dy"], periodic=g["periodic"], comm=comm,
+                       row_alignment=16)
+
+
+def build_heights(scene: dict, grid: SurfaceGrid) -> PETSc.Vec:
+    g = scene["geometry"]
+    if g["kind"] == "sphere":
+        return surfaces.sphere(grid, g["radius"])
+    if g["kind"] == "file":
+        return surfaces.from_file(grid, g["path"], g["dataset"])
+    return surfaces.self_affine(grid, hurst=g["hurst"], seed=g["seed"], rms_height=g["rms_height"],
+                                rms_slope=g["rms_slope"], rolloff_wavelength=g["rolloff_wavelength"],
+                                short_cutoff_wavelength=g["short_cutoff_wavelength"])
+
+
+def plan(scene: dict, grid: SurfaceGrid) -> list[str]:
+    """What a run will do: grid, decomposition, solver chain, memory (dry run and log header)."""
+    g, n = scene["geometry"], grid.nx * grid.ny
+    size = grid.mpi_comm.Get_size()
+    fft_points = n * (4 if not grid.periodic else 1)
+    # FFT buffers (~5 doubles per transform point) + solver vectors (~20 doubles per node)
+    per_rank = (5 * fft_points + 20 * n) * 8 / size
+    return [f"scene {scene['name']}: {g['kind']} surface, E* = {scene['material']['e_star']:g} Pa, "
+            f"law {scene['interaction']['law']}",
+            f"  {grid}",
+            f"  rows per rank {[b - a for a, b in grid.y_ranges]}",
+            f"  solver: SNES vinewtonrsls (prefix contact_), KSP cg, preconditioner "
+            f"{scene['solver']['preconditioner']}, tol {scene['solver']['tol']:g}",
+            f"  protocol: {scene['protocol']['control']} x {len(scene['protocol']['values'])} steps",
+            f"  memory estimate: {per_rank / 2**20:.0f} MiB per rank"]
+
+
+def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=None) -> list:
+    """Run ``scene``; returns the list of ContactState (empty for a dry run)."""
+    from .solvers import ContactProblem
+    say = PETSc.Sys.Print
+    grid = build_grid(scene, comm)
+    for line in plan(scene, grid):
+        say(line)
+    if dry_run:
+        return []
+    opts = PETSc.Options("contact_")
+    for key, value in scene["solver"]["options"].items():
+        if not opts.hasName(key):  # the command line wins over the scene
+            opts.setValue(key, str(value))
+    h = build_heights(scene, grid)
+    g = scene["geometry"]
+    e_star = scene["material"]["e_star"]
+    hertz = g["kind"] == "sphere" and not g["periodic"] and scene["interaction"]["law"] == "none"
+    problem = ContactProblem(grid, h, e_star, tol=scene["solver"]["tol"],
+                             preconditioner=scene["solver"]["preconditioner"],
+                             length_scale=(max(scene["protocol"]["values"]) if hertz
+                                           and scene["protocol"]["control"] == "approach" else None))
+    control = scene["protocol"]["control"]
+    values = scene["protocol"]["values"]
+    out_dir = output or scene["output"]["directory"]
+    rank0 = grid.mpi_comm.Get_rank() == 0
+    if rank0:
+        os.makedirs(out_dir, exist_ok=True)
+    grid.mpi_comm.Barrier()
+    header = f"  {'step':>4} {'approach [m]':>12} {'force [N]':>11} {'contact':>8} {'error':>9} {'Newton':>6} {'time [s]':>8}"
+    if hertz:
+        header += f" {'F/F_Hertz':>9} {'a/a_Hertz':>9}"
+    say(header)
+    states, rows = [], []
+    for k, value in enumerate(values, 1):
+        st = problem.solve(**{control: value}, raise_on_failure=False)
+        states.append(st)
+        line = (f"  {k:4d} {st.approach:12.4e} {st.force:11.4e} {st.contact_fraction:8.4f} "
+                f"{st.complementarity_error:9.2e} {st.newton_iterations:6d} {st.wall_time:8.2f}")
+        if hertz:
+            R, delta = g["radius"], st.approach
+            f_h = 4.0 / 3.0 * e_star * np.sqrt(R) * max(delta, 0.0) ** 1.5
+            a_num = np.sqrt(st.contact_fraction * grid.lengths[0] * grid.lengths[1] / np.pi)
+            a_h = np.sqrt(R * max(delta, 0.0))
+            line += f" {st.force / f_h:9.5f} {a_num / a_h:9.4f}" if f_h > 0 else ""
+        say(line + ("" if st.converged else f"  NOT CONVERGED: {st.reason}"))
+        rows.append([k, st.approach, st.force, st.mean_pressure, st.contact_fraction,
+                     st.complementarity_error, st.load_error, st.converged, st.reason,
+                     st.newton_iterations, st.linear_iterations, st.fft_pairs, st.wall_time])
+        if rank0:  # rewrite after every step: a finished step is never lost
+            _write_csv(os.path.join(out_dir, "curve.csv"), CURVE_COLUMNS, rows)
+            problem.history.write_csv(os.path.join(out_dir, "history.csv"))
+    say(f"  wrote {out_dir}/curve.csv and {out_dir}/history.csv")
+    return states
+
+
+def _write_csv(path: str, columns: list, rows: list) -> None:
+    tmp = path + ".tmp"
+    with open(tmp, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(columns)
+        w.writerows(rows)
+    os.replace(tmp, path)  # atomic: readers never see a half-written file

@@ -1,0 +1,166 @@
+"""Scenes: what to solve, as a TOML file or a dict, validated against ``SCHEMA``.
+
+SI units throughout.  Every key is checked: unknown keys, wrong types and
+values outside the accepted range raise ``SceneError`` naming the key, the
+value and what is accepted.  The built-in default scene (``DEFAULT_SCENE``)
+is a scene like any other.  Sections and keys are documented in
+docs/scenes.md (generated from ``SCHEMA`` by ``schema_markdown``).
+"""
+from __future__ import annotations
+
+import math
+import tomllib
+
+POS = (0.0, math.inf, False)      # (low, high, low included?)
+NONNEG = (0.0, math.inf, True)
+
+
+class SceneError(ValueError):
+    """An invalid scene (raised identically on every rank: scenes are read by all)."""
+
+
+def _k(kind, default, unit, doc, rng=None, choices=None):
+    return dict(kind=kind, default=default, unit=unit, doc=doc, range=rng, choices=choices)
+
+
+SCHEMA = {
+    "name": _k(str, "scene", "", "label used in outputs"),
+    "geometry": {
+        "kind": _k(str, "sphere", "", "composite surface", choices=("sphere", "self-affine", "file")),
+        "nx": _k(int, 128, "", "nodes along x", (2, 2**31 - 1, True)),
+        "ny": _k(int, None, "", "nodes along y (default nx)", (2, 2**31 - 1, True)),
+        "dx": _k(float, None, "m", "grid spacing along x (required)", POS),
+        "dy": _k(float, None, "m", "grid spacing along y (default dx)", POS),
+        "periodic": _k(bool, None, "", "periodic cell (default: false for a sphere, true otherwise)"),
+        "radius": _k(float, None, "m", "sphere radius (kind = sphere)", POS),
+        "hurst": _k(float, 0.8, "", "Hurst exponent (self-affine)", (0.0, 1.0, False)),
+        "rms_height": _k(float, None, "m", "rms height (self-affine; or rms_slope)", NONNEG),
+        "rms_slope": _k(float, None, "", "rms slope (self-affine; or rms_height)", NONNEG),
+        "rolloff_wavelength": _k(float, None, "m", "roll-off wavelength (default: cell size)", POS),
+        "short_cutoff_wavelength": _k(float, None, "m", "short cut-off (default: 2 dx)", POS),
+        "seed": _k(int, 0, "", "random seed (self-affine)", (0, 2**63 - 1, True)),
+        "path": _k(str, None, "", "height file, .npy or HDF5 (kind = file), heights in m"),
+        "dataset": _k(str, "heights", "", "HDF5 dataset name (kind = file)"),
+    },
+    "material": {
+        "e_star": _k(float, None, "Pa", "effective modulus E* (required)", POS),
+    },
+    "interaction": {
+        "law": _k(str, "none", "", "interaction law (adhesive laws: coming with issue 4)", choices=("none",)),
+    },
+    "protocol": {
+        "control": _k(str, "approach", "", "what the values prescribe",
+                      choices=("approach", "mean_pressure", "force")),
+        "values": _k(list, None, "m, Pa or N", "the sequence of approaches or loads, solved in order "
+                     "with warm starts (required)"),
+    },
+    "solver": {
+        "preconditioner": _k(str, "spectral", "", "reduced-system preconditioner",
+                             choices=("spectral", "mlmi", "none")),
+        "tol": _k(float, 1e-10, "", "complementarity error relative to the length scale", POS),
+        "options": _k(dict, {}, "", "further PETSc options under the prefix contact_, "
+                      "e.g. {snes_monitor = \"\", ksp_type = \"cg\"}"),
+    },
+    "output": {
+        "directory": _k(str, "contactpetsc-output", "", "where curve.csv and history.csv go"),
+    },
+}
+
+DEFAULT_SCENE = {
+    "name": "hertz-sphere",
+    "geometry": {"kind": "sphere", "radius": 100e-6, "nx": 128, "dx": 5e-8},
+    "material": {"e_star": 50e9},
+    "protocol": {"control": "approach", "values": [(k / 5) ** 2 * 1e-8 for k in range(1, 6)]},
+}
+
+
+def _check_value(path: str, spec: dict, value):
+    kind = spec["kind"]
+    if kind is float and isinstance(value, int) and not isinstance(value, bool):
+        value = float(value)
+    if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
+        raise SceneError(f"{path} = {value!r}: expected {kind.__name__}")
+    if spec["choices"] is not None and value not in spec["choices"]:
+        raise SceneError(f"{path} = {value!r}: accepted values are {', '.join(spec['choices'])}")
+    if spec["range"] is not None:
+        lo, hi, inclusive = spec["range"]
+        ok = (value >= lo if inclusive else value > lo) and value <= hi and math.isfinite(value)
+        if not ok:
+            rng = f"{'[' if inclusive else '('}{lo:g}, {hi:g}]"
+            raise SceneError(f"{path} = {value!r}: accepted range {rng} {spec['unit']}".rstrip())
+    return value
+
+
+def validate(scene: dict) -> dict:
+    """A complete scene (defaults filled in) or SceneError."""
+    if not isinstance(scene, dict):
+        raise SceneError("a scene is a table of sections")
+    out = {}
+    for key in scene:
+        if key not in SCHEMA:
+            raise SceneError(f"unknown key {key!r}; accepted: {', '.join(SCHEMA)}")
+    for key, spec in SCHEMA.items():
+        if "kind" in spec and isinstance(spec["kind"], type):  # a top-level key
+            out[key] = _check_value(key, spec, scene.get(key, spec["default"]))
+            continue
+        given = scene.get(key, {})
+        if not isinstance(given, dict):
+            raise SceneError(f"[{key}] must be a table")
+        for sub in given:
+            if sub not in spec:
+                raise SceneError(f"unknown key {key}.{sub}; accepted: {', '.join(spec)}")
+        section = {}
+        for sub, s in spec.items():
+            value = given.get(sub, s["default"])
+            section[sub] = None if value is None else _check_value(f"{key}.{sub}", s, value)
+        out[key] = section
+    g = out["geometry"]
+    for required in ("geometry.dx", "material.e_star", "protocol.values"):
+        sec, sub = required.split(".")
+        if out[sec][sub] is None:
+            raise SceneError(f"{required} is required")
+    if g["kind"] == "sphere" and g["radius"] is None:
+        raise SceneError("geometry.radius is required for geometry.kind = sphere")
+    if g["kind"] == "file" and g["path"] is None:
+        raise SceneError("geometry.path is required for geometry.kind = file")
+    if g["kind"] == "self-affine" and (g["rms_height"] is None) == (g["rms_slope"] is None):
+        raise SceneError("give exactly one of geometry.rms_height or geometry.rms_slope")
+    values = out["protocol"]["values"]
+    if not values or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                             and math.isfinite(v) for v in values):
+        raise SceneError(f"protocol.values = {values!r}: a non-empty list of finite numbers")
+    if out["protocol"]["control"] != "approach" and min(values) <= 0:
+        raise SceneError(f"protocol.values = {values!r}: loads must be > 0 without adhesion")
+    g["ny"] = g["ny"] or g["nx"]
+    g["dy"] = g["dy"] or g["dx"]
+    if g["periodic"] is None:
+        g["periodic"] = g["kind"] != "sphere"
+    return out
+
+
+def load(path: str) -> dict:
+    """Read and validate a TOML scene file."""
+    try:
+        with open(path, "rb") as f:
+            data = tomllib.load(f)
+    except OSError as exc:
+        raise SceneError(f"cannot read scene {path}: {exc.strerror}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"scene {path} is not valid TOML: {exc}") from None
+    return validate(data)
+
+
+def schema_markdown() -> str:
+    """The schema as Markdown tables (docs/scenes.md)."""
+    lines = []
+    for key, spec in SCHEMA.items():
+        items = [(key, spec)] if isinstance(spec.get("kind"), type) else \
+            [(f"{key}.{sub}", s) for sub, s in spec.items()]
+        lines += [f"### `{key}`", "", "| key | type | unit | default | accepted | meaning |",
+                  "|---|---|---|---|---|---|"]
+        for name, s in items:
+            acc = ", ".join(s["choices"]) if s["choices"] else (
+                f"{'[' if s['range'][2] else '('}{s['range'][0]:g}, {s['range'][1]:g}]" if s["range"] else "")
+            lines.append(f"| `{name}` | {s['kind'].__name__} | {s['unit']} | {s['default']!r} | {acc} | {s['doc']} |")
+        lines.append("")
+    return "\n".join(lines)

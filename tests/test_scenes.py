@@ -1,0 +1,85 @@
+"""Scenes: validation names the key, the value and the accepted range; a run writes its outputs."""
+import csv
+import os
+
+import numpy as np
+import pytest
+from petsc4py import PETSc
+
+from contactpetsc import protocols, scenes
+
+
+def minimal(**geometry):
+    g = dict(kind="sphere", radius=1e-4, nx=32, dx=5e-8)
+    g.update(geometry)
+    return {"geometry": g, "material": {"e_star": 50e9}, "protocol": {"values": [1e-9, 2e-9]}}
+
+
+@pytest.mark.parametrize("scene, message", [
+    ({"foo": 1}, "unknown key 'foo'"),
+    (minimal(radiu=1.0), "unknown key geometry.radiu"),
+    (minimal(dx=-1.0), "geometry.dx = -1.0: accepted range (0, inf] m"),
+    (minimal(nx=1), "geometry.nx = 1: accepted range [2,"),
+    (minimal(nx=32.5), "geometry.nx = 32.5: expected int"),
+    (minimal(kind="cone"), "geometry.kind = 'cone': accepted values are sphere, self-affine, file"),
+    (minimal(hurst=1.5, kind="self-affine", rms_slope=0.1), "geometry.hurst = 1.5: accepted range (0, 1]"),
+    (minimal(kind="self-affine"), "exactly one of geometry.rms_height or geometry.rms_slope"),
+    (dict(minimal(), material={"e_star": 0.0}), "material.e_star = 0.0: accepted range (0, inf] Pa"),
+    (dict(minimal(), material={}), "material.e_star is required"),
+    (dict(minimal(), interaction={"law": "lj"}), "interaction.law = 'lj': accepted values are none"),
+    (dict(minimal(), protocol={"values": []}), "protocol.values = []"),
+    (dict(minimal(), protocol={"control": "force", "values": [-1.0]}), "loads must be > 0"),
+    (dict(minimal(), protocol={"values": [float("nan")]}), "finite numbers"),
+])
+def test_bad_scenes_name_the_key(scene, message):
+    with pytest.raises(scenes.SceneError) as err:
+        scenes.validate(scene)
+    assert message in str(err.value)
+
+
+def test_defaults_are_filled_in_and_the_default_scene_is_valid():
+    s = scenes.validate(minimal())
+    assert s["geometry"]["ny"] == 32 and s["geometry"]["dy"] == 5e-8
+    assert s["geometry"]["periodic"] is False          # a sphere is isolated by default
+    assert scenes.validate(minimal(kind="self-affine", rms_slope=0.1))["geometry"]["periodic"] is True
+    assert scenes.validate(scenes.DEFAULT_SCENE)["name"] == "hertz-sphere"
+
+
+def test_unreadable_and_invalid_toml(tmp_path):
+    with pytest.raises(scenes.SceneError, match="cannot read scene"):
+        scenes.load(str(tmp_path / "missing.toml"))
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[geometry\nnx = 3\n")
+    with pytest.raises(scenes.SceneError, match="not valid TOML"):
+        scenes.load(str(bad))
+
+
+def _run(comm, out):
+    scene = scenes.validate({
+        "name": "test-rough", "geometry": {"kind": "self-affine", "nx": 32, "ny": 24, "dx": 1e-8,
+                                            "rms_slope": 0.1, "seed": 3},
+        "material": {"e_star": 1e9}, "protocol": {"control": "mean_pressure", "values": [5e6, 1e7]},
+        "solver": {"tol": 1e-10}, "output": {"directory": out}})
+    return protocols.run(scene, comm=comm)
+
+
+def test_scene_run_writes_outputs_equal_on_any_rank_count(coll, shared_tmp):
+    world = os.path.join(shared_tmp, "world")
+    states = _run(PETSc.COMM_WORLD, world)
+    assert coll.all(all(st.converged for st in states))
+    with open(os.path.join(world, "curve.csv")) as f:
+        rows = list(csv.DictReader(f))
+    assert [r["step"] for r in rows] == ["1", "2"]
+    assert set(protocols.CURVE_COLUMNS) == set(rows[0])
+    assert all(np.isfinite(float(r[c])) for r in rows for c in ("approach_m", "force_N", "fft_pairs"))
+    assert all(float(r["mean_pressure_Pa"]) == pytest.approx(v, rel=1e-9) for r, v in zip(rows, [5e6, 1e7]))
+    with open(os.path.join(world, "history.csv")) as f:
+        assert len(list(csv.DictReader(f))) >= 2
+    # the same scene on one rank: the same approaches and pressures
+    alone = _run(PETSc.COMM_SELF, os.path.join(shared_tmp, f"self{PETSc.COMM_WORLD.getRank()}"))
+    for a, b in zip(states, alone):
+        assert coll.max(abs(a.approach - b.approach) / abs(b.approach)) <= 1e-10
+        pa = a.pressure.getArray(readonly=True)
+        ys = a.pressure.getOwnershipRange()
+        pb = b.pressure.getArray(readonly=True)[ys[0]:ys[1]]
+        assert coll.max(np.abs(pa - pb).max() / np.abs(pb).max()) <= 1e-10
