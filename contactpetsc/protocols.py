@@ -3,7 +3,8 @@
 A path is a list of approaches or loads solved in order, each warm-started
 from the previous state.  Rank 0 prints progress and writes ``curve.csv``
 (one row per step) and ``history.csv`` (one row per iteration: the error
-against run time).  A smooth sphere on an isolated half-space without
+against run time); all ranks write ``step_NNNN.h5`` fields with an XDMF
+sidecar (``output.fields``, see ``output.py``).  A smooth sphere on an isolated half-space without
 adhesion is also compared with Hertz at each step.
 """
 from __future__ import annotations
@@ -104,6 +105,10 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
         rows.append([k, st.approach, st.force, st.mean_pressure, st.contact_fraction,
                      st.complementarity_error, st.load_error, st.converged, st.reason,
                      st.newton_iterations, st.linear_iterations, st.fft_pairs, st.wall_time])
+        if scene["output"]["fields"]:
+            from .output import write_state
+            from .cli import versions
+            write_state(out_dir, k, grid, h, st, {"scene": scene, "versions": versions()})
         if rank0:  # rewrite after every step: a finished step is never lost
             _write_csv(os.path.join(out_dir, "curve.csv"), CURVE_COLUMNS, rows)
             problem.history.write_csv(os.path.join(out_dir, "history.csv"))

@@ -62,7 +62,9 @@ SCHEMA = {
                       "e.g. {snes_monitor = \"\", ksp_type = \"cg\"}"),
     },
     "output": {
-        "directory": _k(str, "contactpetsc-output", "", "where curve.csv and history.csv go"),
+        "directory": _k(str, "contactpetsc-output", "", "where curve.csv, history.csv and the fields go"),
+        "fields": _k(bool, True, "", "write step_NNNN.h5 (pressure, gap, displacement, heights, "
+                     "contact mask) and step_NNNN.xdmf for ParaView, per step"),
     },
 }
 

@@ -83,3 +83,28 @@ def test_scene_run_writes_outputs_equal_on_any_rank_count(coll, shared_tmp):
         ys = a.pressure.getOwnershipRange()
         pb = b.pressure.getArray(readonly=True)[ys[0]:ys[1]]
         assert coll.max(np.abs(pa - pb).max() / np.abs(pb).max()) <= 1e-10
+
+
+def test_fields_hdf5_and_xdmf_equal_on_any_rank_count(coll, shared_tmp):
+    import h5py
+    world = os.path.join(shared_tmp, "world")
+    _run(PETSc.COMM_WORLD, world)
+    alone = os.path.join(shared_tmp, f"self{PETSc.COMM_WORLD.getRank()}")
+    _run(PETSc.COMM_SELF, alone)
+    worst = 0.0
+    for step in (1, 2):
+        with h5py.File(os.path.join(world, f"step_{step:04d}.h5"), "r") as a, \
+                h5py.File(os.path.join(alone, f"step_{step:04d}.h5"), "r") as b:
+            assert set(a) == {"pressure", "gap", "displacement", "heights", "contact"}
+            assert a["pressure"].shape == (24, 32) and a["pressure"].attrs["unit"] == "Pa"
+            assert "test-rough" in a.attrs["scene"] and "PETSc" in a.attrs["versions"]
+            for k in a:
+                x, y = a[k][:], b[k][:]
+                assert np.all(np.isfinite(x))
+                worst = max(worst, np.abs(x - y).max() / max(np.abs(y).max(), 1e-300))
+            # the contact mask is the set p > 0, and the gap vanishes there
+            assert np.array_equal(a["contact"][:] > 0, a["pressure"][:] > 0)
+        xdmf = open(os.path.join(world, f"step_{step:04d}.xdmf")).read()
+        assert f"step_{step:04d}.h5:/pressure" in xdmf and 'Dimensions="24 32"' in xdmf
+    assert not [f for f in os.listdir(world) if f.endswith(".tmp")]
+    assert coll.max(worst) <= 1e-10

@@ -1,0 +1,94 @@
+"""Field output: one HDF5 file per step, written in parallel, with an XDMF sidecar for ParaView.
+
+Each rank writes its own rows of every field straight into the shared file
+(h5py's MPI-IO driver under mpirun; Debian's h5py picks its MPI build when
+the process runs under an MPI launcher).  Datasets are stored (ny, nx), row j
+at y = j dy, so that the XDMF ``2DCoRectMesh`` (which lists the slowest axis
+first) shows x horizontally.  Files are written to a temporary name and
+renamed when complete: a reader never sees half a step, and an interrupted
+run keeps every finished step.
+"""
+from __future__ import annotations
+
+import json
+import os
+
+import h5py
+import numpy as np
+
+FIELDS = ("pressure", "gap", "displacement", "heights", "contact")
+UNITS = {"pressure": "Pa", "gap": "m", "displacement": "m", "heights": "m", "contact": "1"}
+
+
+def _open(path: str, comm):
+    if comm.Get_size() > 1:
+        if not h5py.get_config().mpi:
+            raise RuntimeError("parallel HDF5 output needs h5py built with MPI "
+                               "(Debian: python3-h5py-mpi, run under mpirun)")
+        return h5py.File(path, "w", driver="mpio", comm=comm)
+    return h5py.File(path, "w")
+
+
+def write_state(directory: str, step: int, grid, heights, state, attrs: dict) -> str:
+    """Write step ``step`` of ``state`` (a ContactState) to ``directory/step_NNNN.h5`` (+ ``.xdmf``).
+
+    Collective over the grid's communicator.  Returns the HDF5 path.
+    """
+    comm = grid.mpi_comm
+    name = f"step_{step:04d}.h5"
+    final = os.path.join(directory, name)
+    tmp = final + ".tmp"
+    rows = {
+        "pressure": grid.rows(state.pressure, readonly=True),
+        "gap": grid.rows(state.gap, readonly=True),
+        "displacement": grid.rows(state.displacement, readonly=True),
+        "heights": grid.rows(heights, readonly=True),
+    }
+    rows["contact"] = (rows["pressure"] > 0).astype(np.float64)
+    with _open(tmp, comm) as f:
+        for key, value in attrs.items():
+            f.attrs[key] = value if isinstance(value, (int, float, str)) else json.dumps(value)
+        for field in ("approach", "mean_pressure", "force", "contact_fraction",
+                      "complementarity_error", "converged"):
+            f.attrs[field] = getattr(state, field)
+        f.attrs["dx"], f.attrs["dy"] = grid.dx, grid.dy
+        for field in FIELDS:
+            dset = f.create_dataset(field, (grid.ny, grid.nx), dtype="f8")
+            dset.attrs["unit"] = UNITS[field]
+            if comm.Get_size() > 1:
+                with dset.collective:  # one MPI-IO write for all ranks
+                    dset[grid.ys:grid.ye, :] = rows[field]
+            else:
+                dset[grid.ys:grid.ye, :] = rows[field]
+    comm.Barrier()
+    if comm.Get_rank() == 0:
+        os.replace(tmp, final)
+        _write_xdmf(os.path.join(directory, f"step_{step:04d}.xdmf"), name, grid)
+    comm.Barrier()
+    return final
+
+
+def _write_xdmf(path: str, h5name: str, grid) -> None:
+    dims = f"{grid.ny} {grid.nx}"
+    attrs = "\n".join(
+        f'      <Attribute Name="{field}" AttributeType="Scalar" Center="Node">\n'
+        f'        <DataItem Dimensions="{dims}" NumberType="Float" Precision="8" Format="HDF">'
+        f'{h5name}:/{field}</DataItem>\n      </Attribute>' for field in FIELDS)
+    text = f"""<?xml version="1.0" ?>
+<Xdmf Version="3.0">
+  <Domain>
+    <Grid Name="surface" GridType="Uniform">
+      <Topology TopologyType="2DCoRectMesh" Dimensions="{dims}"/>
+      <Geometry GeometryType="ORIGIN_DXDY">
+        <DataItem Dimensions="2" NumberType="Float" Format="XML">0 0</DataItem>
+        <DataItem Dimensions="2" NumberType="Float" Format="XML">{grid.dy!r} {grid.dx!r}</DataItem>
+      </Geometry>
+{attrs}
+    </Grid>
+  </Domain>
+</Xdmf>
+"""
+    tmp = path + ".tmp"
+    with open(tmp, "w") as f:
+        f.write(text)
+    os.replace(tmp, path)
