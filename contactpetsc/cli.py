@@ -27,6 +27,8 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("scene", nargs="?", help="scene file (TOML, see docs/scenes.md)")
     run.add_argument("--output", default=None,
                      help="output directory (default: the scene's output.directory)")
+    run.add_argument("--restart", action="store_true",
+                     help="keep the steps already in the output directory and resume after the last")
     run.add_argument("--dry-run", action="store_true",
                      help="print the plan (grid, decomposition, solver, memory) and exit")
     return p
@@ -85,7 +87,7 @@ def main(argv=None) -> int:
     try:
         from . import protocols, scenes
         scene = scenes.load(args.scene) if args.scene else scenes.validate(scenes.DEFAULT_SCENE)
-        states = protocols.run(scene, output=args.output, dry_run=args.dry_run)
+        states = protocols.run(scene, output=args.output, dry_run=args.dry_run, restart=args.restart)
         return 0 if all(st.converged for st in states) else 3
     except Exception as exc:  # noqa: BLE001 - reported, then the whole job ends
         sys.stderr.write(f"contactpetsc [rank {comm.Get_rank()}]: error: {exc}\n")

@@ -13,6 +13,7 @@ import csv
 import os
 
 import numpy as np
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import surfaces
@@ -57,8 +58,33 @@ def plan(scene: dict, grid: SurfaceGrid) -> list[str]:
             f"  memory estimate: {per_rank / 2**20:.0f} MiB per rank"]
 
 
-def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=None) -> list:
-    """Run ``scene``; returns the list of ContactState (empty for a dry run)."""
+def _read_step(path: str, grid: SurfaceGrid) -> tuple[PETSc.Vec, float]:
+    """(pressure Vec, approach) of a step file written by ``output.write_state``; every rank reads its rows."""
+    import h5py
+    err, rows, approach = None, None, None
+    try:
+        with h5py.File(path, "r") as f:
+            rows = np.asarray(f["pressure"][grid.ys:grid.ye, :])
+            approach = float(f.attrs["approach"])
+            if f["pressure"].shape != (grid.ny, grid.nx):
+                raise ValueError(f"shape {f['pressure'].shape} does not fit the scene's grid")
+    except Exception as exc:  # noqa: BLE001 - re-raised collectively
+        err = f"cannot restart from {path}: {exc}"
+    errors = [e for e in grid.mpi_comm.allgather(err) if e]
+    if errors:
+        raise RuntimeError(errors[0])
+    p = grid.create_vec()
+    grid.rows(p)[...] = rows
+    return p, approach
+
+
+def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=None,
+        restart: bool = False) -> list:
+    """Run ``scene``; returns the list of ContactState of the steps solved (empty for a dry run).
+
+    With ``restart``, steps already in ``curve.csv`` are kept and the path
+    resumes from the last one's field file (``step_NNNN.h5``).
+    """
     from .solvers import ContactProblem
     say = PETSc.Sys.Print
     grid = build_grid(scene, comm)
@@ -89,8 +115,27 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
     if hertz:
         header += f" {'F/F_Hertz':>9} {'a/a_Hertz':>9}"
     say(header)
-    states, rows = [], []
+    states, rows, done, old_history = [], [], 0, ""
+    curve_path, history_path = os.path.join(out_dir, "curve.csv"), os.path.join(out_dir, "history.csv")
+    if restart:
+        if not scene["output"]["fields"]:
+            raise RuntimeError("restart needs the field files: set output.fields = true")
+        if rank0 and os.path.exists(curve_path):
+            # rank 0 reads and broadcasts: every rank must take the same path
+            with open(curve_path) as f:
+                rows = [r for r in csv.reader(f)][1:]
+            if os.path.exists(history_path):
+                with open(history_path) as f:
+                    old_history = f.read()
+        rows = grid.mpi_comm.bcast(rows, root=0)
+        done = len(rows)
+        if done:
+            problem.warm_start(*_read_step(os.path.join(out_dir, f"step_{done:04d}.h5"), grid))
+        say(f"  restart: {done} of {len(values)} steps already done")
+    t_start = MPI.Wtime()
     for k, value in enumerate(values, 1):
+        if k <= done:
+            continue
         st = problem.solve(**{control: value}, raise_on_failure=False)
         states.append(st)
         line = (f"  {k:4d} {st.approach:12.4e} {st.force:11.4e} {st.contact_fraction:8.4f} "
@@ -101,7 +146,10 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
             a_num = np.sqrt(st.contact_fraction * grid.lengths[0] * grid.lengths[1] / np.pi)
             a_h = np.sqrt(R * max(delta, 0.0))
             line += f" {st.force / f_h:9.5f} {a_num / a_h:9.4f}" if f_h > 0 else ""
-        say(line + ("" if st.converged else f"  NOT CONVERGED: {st.reason}"))
+        elapsed = MPI.Wtime() - t_start
+        left = elapsed / (k - done) * (len(values) - k)
+        say(line + f"  [step {k}/{len(values)}, {elapsed:.1f} s, ~{left:.1f} s left]"
+            + ("" if st.converged else f"  NOT CONVERGED: {st.reason}"))
         rows.append([k, st.approach, st.force, st.mean_pressure, st.contact_fraction,
                      st.complementarity_error, st.load_error, st.converged, st.reason,
                      st.newton_iterations, st.linear_iterations, st.fft_pairs, st.wall_time])
@@ -110,8 +158,17 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
             from .cli import versions
             write_state(out_dir, k, grid, h, st, {"scene": scene, "versions": versions()})
         if rank0:  # rewrite after every step: a finished step is never lost
-            _write_csv(os.path.join(out_dir, "curve.csv"), CURVE_COLUMNS, rows)
-            problem.history.write_csv(os.path.join(out_dir, "history.csv"))
+            _write_csv(curve_path, CURVE_COLUMNS, rows)
+            problem.history.write_csv(history_path + ".new")
+            with open(history_path + ".new") as f:
+                new = f.read()
+            if old_history:  # keep the interrupted run's iterations, one header
+                new = old_history + new.split("\n", 1)[1]
+            with open(history_path + ".tmp", "w") as f:
+                f.write(new)
+            os.replace(history_path + ".tmp", history_path)
+            os.remove(history_path + ".new")
+    grid.mpi_comm.Barrier()  # the outputs are complete when run() returns, on every rank
     say(f"  wrote {out_dir}/curve.csv and {out_dir}/history.csv")
     return states
 

@@ -54,13 +54,13 @@ def test_unreadable_and_invalid_toml(tmp_path):
         scenes.load(str(bad))
 
 
-def _run(comm, out):
+def _run(comm, out, values=(5e6, 1e7), restart=False):
     scene = scenes.validate({
         "name": "test-rough", "geometry": {"kind": "self-affine", "nx": 32, "ny": 24, "dx": 1e-8,
                                             "rms_slope": 0.1, "seed": 3},
-        "material": {"e_star": 1e9}, "protocol": {"control": "mean_pressure", "values": [5e6, 1e7]},
+        "material": {"e_star": 1e9}, "protocol": {"control": "mean_pressure", "values": list(values)},
         "solver": {"tol": 1e-10}, "output": {"directory": out}})
-    return protocols.run(scene, comm=comm)
+    return protocols.run(scene, comm=comm, restart=restart)
 
 
 def test_scene_run_writes_outputs_equal_on_any_rank_count(coll, shared_tmp):
@@ -108,3 +108,19 @@ def test_fields_hdf5_and_xdmf_equal_on_any_rank_count(coll, shared_tmp):
         assert f"step_{step:04d}.h5:/pressure" in xdmf and 'Dimensions="24 32"' in xdmf
     assert not [f for f in os.listdir(world) if f.endswith(".tmp")]
     assert coll.max(worst) <= 1e-10
+
+
+def test_interrupted_sweep_resumes_after_its_last_step(coll, shared_tmp):
+    full = _run(PETSc.COMM_WORLD, os.path.join(shared_tmp, "full"))
+    cut = os.path.join(shared_tmp, "cut")
+    _run(PETSc.COMM_WORLD, cut, values=(5e6,))            # a sweep stopped after step 1
+    resumed = _run(PETSc.COMM_WORLD, cut, restart=True)     # the whole sweep, restarted
+    assert len(resumed) == 1                                # only step 2 was solved again
+    with open(os.path.join(cut, "curve.csv")) as f:
+        rows = list(csv.DictReader(f))
+    assert [r["step"] for r in rows] == ["1", "2"]
+    a, b = resumed[0], full[1]
+    assert coll.all(a.converged)
+    assert coll.max(abs(a.approach - b.approach) / abs(b.approach)) <= 1e-8
+    pa, pb = a.pressure.getArray(readonly=True), b.pressure.getArray(readonly=True)
+    assert coll.max(np.abs(pa - pb).max() / np.abs(pb).max()) <= 1e-8

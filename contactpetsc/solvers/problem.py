@@ -489,6 +489,11 @@ class ContactProblem:
         return True
 
     # -- public API ------------------------------------------------------------------
+    def warm_start(self, pressure: PETSc.Vec, approach: float) -> None:
+        """Start the next solve from this state (e.g. a step read back on restart)."""
+        pressure.copy(self._pressure)
+        self._approach = float(approach)
+
     def snes(self) -> PETSc.SNES:
         """The SNES (built on first request), for PETSc users."""
         return self._build()
