@@ -20,7 +20,7 @@ from . import surfaces
 from .grid import SurfaceGrid
 
 CURVE_COLUMNS = ["step", "approach_m", "force_N", "mean_pressure_Pa", "contact_fraction",
-                 "complementarity_error", "load_error", "converged", "reason", "newton_iterations",
+                 "complementarity_error", "load_error", "converged", "reason", "solver", "newton_iterations",
                  "krylov_iterations", "fft_pairs", "wall_time_s"]
 
 
@@ -152,7 +152,7 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
             + ("" if st.converged else f"  NOT CONVERGED: {st.reason}"))
         rows.append([k, st.approach, st.force, st.mean_pressure, st.contact_fraction,
                      st.complementarity_error, st.load_error, st.converged, st.reason,
-                     st.newton_iterations, st.linear_iterations, st.fft_pairs, st.wall_time])
+                     "snes-vi+" + problem.preconditioner, st.newton_iterations, st.linear_iterations, st.fft_pairs, st.wall_time])
         if scene["output"]["fields"]:
             from .output import write_state
             from .cli import versions

@@ -124,3 +124,24 @@ def test_interrupted_sweep_resumes_after_its_last_step(coll, shared_tmp):
     assert coll.max(abs(a.approach - b.approach) / abs(b.approach)) <= 1e-8
     pa, pb = a.pressure.getArray(readonly=True), b.pressure.getArray(readonly=True)
     assert coll.max(np.abs(pa - pb).max() / np.abs(pb).max()) <= 1e-8
+
+
+EXAMPLES = sorted(os.path.join(os.path.dirname(__file__), "..", "examples", "scenes", f)
+                  for f in os.listdir(os.path.join(os.path.dirname(__file__), "..", "examples", "scenes"))
+                  if f.endswith(".toml"))
+
+
+@pytest.mark.parametrize("path", EXAMPLES, ids=os.path.basename)
+def test_example_scenes_run_at_reduced_size(coll, shared_tmp, path):
+    """Every example scene, on a 32 x 32 grid of the same physical size, converges and writes its files."""
+    scene = scenes.load(path)
+    g = scene["geometry"]
+    g["dx"], g["dy"] = g["dx"] * g["nx"] / 32, g["dy"] * g["ny"] / 32
+    g["nx"] = g["ny"] = 32
+    out = os.path.join(shared_tmp, os.path.basename(path))
+    states = protocols.run(scene, output=out, comm=PETSc.COMM_WORLD)
+    assert coll.all(all(st.converged for st in states))
+    assert coll.all(all(np.isfinite(st.force) and st.force > 0 for st in states))
+    n = len(scene["protocol"]["values"])
+    for name in ["curve.csv", "history.csv"] + [f"step_{k:04d}.h5" for k in range(1, n + 1)]:
+        assert os.path.exists(os.path.join(out, name)), name
