@@ -18,6 +18,24 @@ import traceback
 from mpi4py import MPI
 
 
+def collective_call(comm, exc_type, message: str, fn, *args, **kwargs):
+    """fn(*args, **kwargs) on every rank of ``comm``; if it raised on any rank, raise
+    ``exc_type(message.format(error=...))`` on every rank (the first failing rank's error).
+
+    For work that can fail on some ranks only (reading a file, a user's
+    function): the others must not walk on into the next collective.
+    """
+    err, result = None, None
+    try:
+        result = fn(*args, **kwargs)
+    except Exception as exc:  # noqa: BLE001 - re-raised collectively below
+        err = message.format(error=exc)
+    errors = [e for e in comm.allgather(err) if e]
+    if errors:
+        raise exc_type(errors[0])
+    return result
+
+
 def collective_guard(method):
     """Decorate a PETSc callback method (see the module docstring)."""
 

@@ -17,6 +17,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import surfaces
+from .errors import collective_call
 from .grid import SurfaceGrid
 
 CURVE_COLUMNS = ["step", "approach_m", "force_N", "mean_pressure_Pa", "contact_fraction",
@@ -61,18 +62,15 @@ def plan(scene: dict, grid: SurfaceGrid) -> list[str]:
 def _read_step(path: str, grid: SurfaceGrid) -> tuple[PETSc.Vec, float]:
     """(pressure Vec, approach) of a step file written by ``output.write_state``; every rank reads its rows."""
     import h5py
-    err, rows, approach = None, None, None
-    try:
+
+    def read():
         with h5py.File(path, "r") as f:
-            rows = np.asarray(f["pressure"][grid.ys:grid.ye, :])
-            approach = float(f.attrs["approach"])
             if f["pressure"].shape != (grid.ny, grid.nx):
                 raise ValueError(f"shape {f['pressure'].shape} does not fit the scene's grid")
-    except Exception as exc:  # noqa: BLE001 - re-raised collectively
-        err = f"cannot restart from {path}: {exc}"
-    errors = [e for e in grid.mpi_comm.allgather(err) if e]
-    if errors:
-        raise RuntimeError(errors[0])
+            return np.asarray(f["pressure"][grid.ys:grid.ye, :]), float(f.attrs["approach"])
+
+    rows, approach = collective_call(grid.mpi_comm, RuntimeError,
+                                     f"cannot restart from {path}: {{error}}", read)
     p = grid.create_vec()
     grid.rows(p)[...] = rows
     return p, approach

@@ -14,6 +14,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from .errors import collective_call
 from .fft import SlabRFFT
 from .grid import GridError, SurfaceGrid
 
@@ -44,23 +45,19 @@ def from_file(grid: SurfaceGrid, path: str, dataset: str = "heights") -> PETSc.V
     or wrongly shaped files) are raised on every rank.
     """
     ext = os.path.splitext(path)[1].lower()
-    err, local = None, None
-    try:
+
+    def read():
         if ext == ".npy":
-            local = _local_rows(grid, np.load(path, mmap_mode="r"), path)
-        elif ext in (".h5", ".hdf5", ".hdf"):
+            return _local_rows(grid, np.load(path, mmap_mode="r"), path)
+        if ext in (".h5", ".hdf5", ".hdf"):
             import h5py
             with h5py.File(path, "r") as f:
                 if dataset not in f:
                     raise KeyError(f"no dataset {dataset!r} in {path} (has {sorted(f.keys())})")
-                local = _local_rows(grid, f[dataset], path)
-        else:
-            raise ValueError(f"unknown height file type {ext!r} (accepted: .npy, .h5, .hdf5)")
-    except Exception as exc:  # noqa: BLE001 - re-raised collectively below
-        err = f"cannot read heights from {path}: {exc}"
-    errors = [e for e in grid.mpi_comm.allgather(err) if e]
-    if errors:
-        raise GridError(errors[0])
+                return _local_rows(grid, f[dataset], path)
+        raise ValueError(f"unknown height file type {ext!r} (accepted: .npy, .h5, .hdf5)")
+
+    local = collective_call(grid.mpi_comm, GridError, f"cannot read heights from {path}: {{error}}", read)
     v = grid.create_vec()
     grid.local_array(v)[...] = local
     return _check_finite(grid, v, path)
@@ -70,14 +67,8 @@ def from_function(grid: SurfaceGrid, func) -> PETSc.Vec:
     """Heights [m] = func(x, y) on the local nodes; x, y [m] arrays of shape (nx, ny_local)."""
     x, y = grid.coordinates()
     v = grid.create_vec()
-    err = None
-    try:
-        grid.local_array(v)[...] = func(x, y)
-    except Exception as exc:  # noqa: BLE001 - re-raised collectively below
-        err = f"height function failed: {exc!r}"
-    errors = [e for e in grid.mpi_comm.allgather(err) if e]
-    if errors:
-        raise GridError(errors[0])
+    values = collective_call(grid.mpi_comm, GridError, "height function failed: {error!r}", func, x, y)
+    grid.local_array(v)[...] = values
     return _check_finite(grid, v, "height function")
 
 

@@ -44,7 +44,7 @@ Method
   one untimed warm-up of each measurement follows.
 * The machine is noisy, so the measurements are interleaved (apply, Mat mult,
   FFT pair[, 1-rank apply]; the order rotates every repeat) for at least K repeats and at
-  least --min-time seconds (default 1), and medians are quoted.  Default K:
+  least --min-time seconds (default 3), and medians are quoted.  Default K:
   15 for n <= 1024, 9 for n = 2048, 5 for n = 4096.
 * Other processes: the CPU time the whole machine used during a case
   (/proc/stat) minus the benchmark's own, per second, is the "foreign load"
@@ -97,8 +97,8 @@ def parse_args(argv):
     p.add_argument("--kinds", nargs="+", choices=KINDS, default=list(KINDS))
     p.add_argument("--repeats", type=int, default=None,
                    help="repeats per case (default 15 for n <= 1024, 9 for 2048, 5 above)")
-    p.add_argument("--min-time", type=float, default=1.0,
-                   help="repeat until at least this many seconds were measured per case (default 1)")
+    p.add_argument("--min-time", type=float, default=3.0,
+                   help="repeat until at least this many seconds were measured per case (default 3)")
     p.add_argument("--max-foreign", type=float, default=0.25,
                    help="measure a case again if other processes used more than this many "
                         "cores meanwhile (default 0.25)")
