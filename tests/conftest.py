@@ -6,6 +6,7 @@ the error on each rank, reduce it over COMM_WORLD (``Collective.max``,
 make sense on one rank are marked ``@pytest.mark.serial`` and skipped under MPI.
 """
 import shutil
+import os
 import sys
 import tempfile
 from pathlib import Path
@@ -21,6 +22,12 @@ from mpi4py import MPI  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
 WORLD = PETSc.COMM_WORLD.tompi4py()
+
+if WORLD.Get_size() > 1:
+    # pytest prunes old numbered temp dirs under one root per user: give each rank its own
+    _root = os.path.join(tempfile.gettempdir(), f"contactpetsc-pytest-rank{WORLD.Get_rank()}")
+    os.makedirs(_root, exist_ok=True)
+    os.environ.setdefault("PYTEST_DEBUG_TEMPROOT", _root)
 
 
 @pytest.hookimpl(trylast=True)
