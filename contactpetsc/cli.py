@@ -34,28 +34,6 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-def versions() -> dict:
-    import numpy
-    import mpi4py
-    import pyfftw
-    import h5py
-    import petsc4py
-    from mpi4py import MPI
-    from petsc4py import PETSc
-    from . import __version__
-    return {
-        "contactpetsc": __version__,
-        "PETSc": "%d.%d.%d" % PETSc.Sys.getVersion(),
-        "PETSc index bits": 8 * PETSc.IntType(0).itemsize,
-        "petsc4py": petsc4py.__version__,
-        "mpi4py": mpi4py.__version__,
-        "MPI": MPI.Get_library_version().replace("\x00", "").splitlines()[0].strip(),
-        "pyfftw": pyfftw.__version__,
-        "h5py": h5py.__version__,
-        "numpy": numpy.__version__,
-    }
-
-
 def _without_petsc_options(words, petsc_options: dict) -> list:
     """The command-line words minus PETSc options and their values (as PETSc parsed them)."""
     out, i = [], 0
@@ -77,6 +55,7 @@ def main(argv=None) -> int:
     from petsc4py import PETSc
     args = _parser().parse_args(_without_petsc_options(argv[1:], PETSc.Options().getAll()))
     if args.version:
+        from .output import versions
         for k, v in versions().items():
             PETSc.Sys.Print(f"{k}: {v}")
         return 0

@@ -20,6 +20,36 @@ FIELDS = ("pressure", "gap", "displacement", "heights", "contact")
 UNITS = {"pressure": "Pa", "gap": "m", "displacement": "m", "heights": "m", "contact": "1"}
 
 
+def versions() -> dict:
+    import numpy
+    import mpi4py
+    import pyfftw
+    import h5py
+    import petsc4py
+    from mpi4py import MPI
+    from petsc4py import PETSc
+    from . import __version__
+    return {
+        "contactpetsc": __version__,
+        "PETSc": "%d.%d.%d" % PETSc.Sys.getVersion(),
+        "PETSc index bits": 8 * PETSc.IntType(0).itemsize,
+        "petsc4py": petsc4py.__version__,
+        "mpi4py": mpi4py.__version__,
+        "MPI": MPI.Get_library_version().replace("\x00", "").splitlines()[0].strip(),
+        "pyfftw": pyfftw.__version__,
+        "h5py": h5py.__version__,
+        "numpy": numpy.__version__,
+    }
+
+
+def write_text_atomic(path: str, text: str) -> None:
+    """Write ``text`` to a temporary name, then rename: readers never see half a file."""
+    tmp = path + ".tmp"
+    with open(tmp, "w", newline="") as f:
+        f.write(text)
+    os.replace(tmp, path)
+
+
 def _open(path: str, comm):
     if comm.Get_size() > 1:
         if not h5py.get_config().mpi:
@@ -88,7 +118,4 @@ def _write_xdmf(path: str, h5name: str, grid) -> None:
   </Domain>
 </Xdmf>
 """
-    tmp = path + ".tmp"
-    with open(tmp, "w") as f:
-        f.write(text)
-    os.replace(tmp, path)
+    write_text_atomic(path, text)

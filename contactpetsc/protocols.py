@@ -10,6 +10,7 @@ adhesion is also compared with Hertz at each step.
 from __future__ import annotations
 
 import csv
+import io
 import os
 
 import numpy as np
@@ -19,6 +20,7 @@ from petsc4py import PETSc
 from . import surfaces
 from .errors import collective_call
 from .grid import SurfaceGrid
+from .output import versions, write_state, write_text_atomic
 
 CURVE_COLUMNS = ["step", "approach_m", "force_N", "mean_pressure_Pa", "contact_fraction",
                  "complementarity_error", "load_error", "converged", "reason", "solver", "newton_iterations",
@@ -130,6 +132,7 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
         if done:
             problem.warm_start(*_read_step(os.path.join(out_dir, f"step_{done:04d}.h5"), grid))
         say(f"  restart: {done} of {len(values)} steps already done")
+    provenance = {"scene": scene, "versions": versions()} if scene["output"]["fields"] else None
     t_start = MPI.Wtime()
     for k, value in enumerate(values, 1):
         if k <= done:
@@ -151,30 +154,21 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
         rows.append([k, st.approach, st.force, st.mean_pressure, st.contact_fraction,
                      st.complementarity_error, st.load_error, st.converged, st.reason,
                      "snes-vi+" + problem.preconditioner, st.newton_iterations, st.linear_iterations, st.fft_pairs, st.wall_time])
-        if scene["output"]["fields"]:
-            from .output import write_state
-            from .cli import versions
-            write_state(out_dir, k, grid, h, st, {"scene": scene, "versions": versions()})
+        if provenance is not None:
+            write_state(out_dir, k, grid, h, st, provenance)
         if rank0:  # rewrite after every step: a finished step is never lost
             _write_csv(curve_path, CURVE_COLUMNS, rows)
-            problem.history.write_csv(history_path + ".new")
-            with open(history_path + ".new") as f:
-                new = f.read()
-            if old_history:  # keep the interrupted run's iterations, one header
-                new = old_history + new.split("\n", 1)[1]
-            with open(history_path + ".tmp", "w") as f:
-                f.write(new)
-            os.replace(history_path + ".tmp", history_path)
-            os.remove(history_path + ".new")
+            # an interrupted run's iterations stay in front, under one header
+            write_text_atomic(history_path,
+                              old_history + problem.history.csv_text(header=not old_history))
     grid.mpi_comm.Barrier()  # the outputs are complete when run() returns, on every rank
     say(f"  wrote {out_dir}/curve.csv and {out_dir}/history.csv")
     return states
 
 
 def _write_csv(path: str, columns: list, rows: list) -> None:
-    tmp = path + ".tmp"
-    with open(tmp, "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(columns)
-        w.writerows(rows)
-    os.replace(tmp, path)  # atomic: readers never see a half-written file
+    out = io.StringIO()
+    w = csv.writer(out)
+    w.writerow(columns)
+    w.writerows(rows)
+    write_text_atomic(path, out.getvalue())

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import csv
+import io
 import time
 from dataclasses import dataclass, field, asdict
 
@@ -50,11 +51,17 @@ class SolveHistory:
     def column(self, name: str) -> list:
         return [getattr(r, name) for r in self.records]
 
+    def csv_text(self, header: bool = True) -> str:
+        """All records as CSV text, one row per iteration."""
+        out = io.StringIO()
+        w = csv.DictWriter(out, fieldnames=list(HistoryRecord.__dataclass_fields__))
+        if header:
+            w.writeheader()
+        for r in self.records:
+            w.writerow(asdict(r))
+        return out.getvalue()
+
     def write_csv(self, path: str) -> None:
         """Write all records to ``path`` (call on one rank only)."""
-        names = list(HistoryRecord.__dataclass_fields__)
         with open(path, "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=names)
-            w.writeheader()
-            for r in self.records:
-                w.writerow(asdict(r))
+            f.write(self.csv_text())
