@@ -26,6 +26,8 @@ class HistoryRecord:
     mean_pressure: float  #: [Pa]
     contact_fraction: float
     solver: str = ""
+    adhesive_error: float = float("nan")  #: max K_ii |a - a(g)| / z0 (adhesive solves)
+    total_error: float = float("nan")     #: the reference paper's E_Total / z0 (relaxation solver)
 
 
 @dataclass

@@ -1,0 +1,507 @@
+"""``AdhesiveProblem``: adhesive contact (reference paper, sections 2 and 3.1) by SNES VI Newton.
+
+Unknowns (argued in docs/formulation.md): the contact pressure q >= 0 and
+the adhesive pressure a, stored apart as in the paper, p = q + a.  For the
+full Lennard-Jones curve (eq. 8) there is no wall and a alone is the
+pressure.  The residual is
+
+    F_q = g = h + K p - delta          (q >= 0, g >= 0, q g = 0: eq. 7a)
+    F_a = kappa (a - a(g))             (a(g): the law, nodal or element-integrated)
+
+so the bound q >= 0 is a plain variable bound of ``SNESVINEWTONRSLS`` and the
+VI is exactly eq. (7) (or eq. 8).  ``adhesive_jacobian.py`` has the Jacobian,
+its reduced version and the block preconditioner (spectral or MLMI on the
+contact-like rows).
+
+Globalisation: the problem is non-convex.  Newton runs with a backtracking
+line search (``bt``) on the VI residual norm -- a trust region would also
+do, but the line search keeps the full Newton step whenever it reduces the
+residual, which is what warm-started steps along a loading path need, and
+Newton steps only ever start from a converged neighbouring state.  Every
+converged state is checked for stability (``stability.py``): the smallest
+eigenvalue of the displacement-space Hessian relative to the elastic one,
+1 - lambda_max(A S), by Lanczos; an unstable state is reported as such
+(``AdhesiveState.stable`` False), never passed off as a point of the path.
+
+Controls: ``approach`` delta [m] (displacement control) or ``central_gap``
+[m] (the gap at the apex node is prescribed and delta follows: Greenwood's
+device, which traces the unstable branch of the S-shaped curve of a sphere).
+
+Errors (all in units of z0, the law's range): the complementarity error
+max |min(K_ii q, g)|, the self-consistency error max K_ii |a - a(g)|, and the
+paper's E_Total (rms of the gap change when a is replaced by a(g), steps 1-4 of
+section 2), computed for every converged state.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from ..errors import collective_guard
+from ..grid import SurfaceGrid
+from ..lifetime import destroy_at_exit
+from ..operators.elastic import HalfSpaceOperator, half_space
+from ..physics.interactions import InteractionLaw
+from ..physics.traction import AdhesiveTraction
+from .adhesive_jacobian import AdhesiveJacobian, minloc
+from .history import SolveHistory
+from .problem import ContactSolveError, _reason_name
+
+
+class AdhesiveSolveError(ContactSolveError):
+    """An adhesive solve that did not converge (same message on every rank)."""
+
+
+@dataclass
+class AdhesiveState:
+    """A solved adhesive contact state; Vecs on the problem's grid."""
+    pressure: PETSc.Vec           #: total p = q + a [Pa]
+    contact_pressure: PETSc.Vec   #: q >= 0 [Pa] (zero for the full LJ curve)
+    adhesive_pressure: PETSc.Vec  #: a [Pa]
+    gap: PETSc.Vec                #: g [m]
+    displacement: PETSc.Vec       #: v = K p [m]
+    approach: float               #: delta [m]
+    central_gap: float            #: gap at the centre node [m]
+    mean_pressure: float          #: [Pa]
+    force: float                  #: net normal force [N] (negative = tensile)
+    adhesive_force: float         #: sum of the negative pressures times the element area [N]
+    contact_fraction: float       #: fraction of nodes with p > 0
+    complementarity_error: float  #: [z0]
+    adhesive_error: float         #: max K_ii |a - a(g)| [z0]
+    total_error: float            #: the paper's E_Total [z0]
+    stable: bool | None           #: None when not checked
+    stability_margin: float       #: 1 - lambda_max(A S): > 0 stable, < 0 unstable
+    stiffness: float              #: tangent dF/d delta [N/m] (displacement control), NaN if not computed
+    converged: bool
+    reason: str
+    newton_iterations: int
+    linear_iterations: int
+    fft_pairs: float
+    wall_time: float
+    solver: str = "newton"
+
+
+class AdhesiveProblem:
+    """Adhesive contact of an elastic half-space with a rigid composite surface h.
+
+    Parameters
+    ----------
+    grid : SurfaceGrid
+    heights : PETSc.Vec
+        Composite surface h [m].
+    e_star : float
+        Effective modulus E* [Pa].
+    law : InteractionLaw
+        ``hardwall-lj``, ``lj``, ``exponential`` or ``dugdale`` (``none``: use ``ContactProblem``).
+    element_integration : bool
+        Code default of ``-<prefix>element_integration`` (off).
+    prefix : str
+        Options prefix of the SNES, KSP and PC (default ``adhesion_``).
+    tol : float
+        Code default of ``-<prefix>tol``: the errors above, in z0 (1e-8).
+    preconditioner : str
+        Code default of ``-<prefix>preconditioner``: spectral (default), mlmi or none.
+    stability_check : bool
+        Code default of ``-<prefix>stability_check`` (on).
+    centre : (i, j), optional
+        Node of the central-gap control; default: the lowest node of h.
+    """
+
+    def __init__(self, grid: SurfaceGrid, heights: PETSc.Vec, e_star: float, law: InteractionLaw, *,
+                 element_integration: bool | None = None, prefix: str = "adhesion_",
+                 operator: HalfSpaceOperator | None = None, tol: float | None = None,
+                 preconditioner: str | None = None, stability_check: bool | None = None,
+                 centre: tuple[int, int] | None = None):
+        if law.name == "none":
+            raise ValueError("law 'none' has no adhesion: use ContactProblem")
+        self.grid, self.heights, self.law, self.prefix = grid, heights, law, prefix
+        self.op = operator if operator is not None else half_space(grid, e_star, prefix=prefix)
+        if not np.isclose(self.op.e_star, e_star, rtol=1e-12, atol=0.0):
+            raise ValueError(f"e_star = {e_star!r} Pa differs from the operator's E* = {self.op.e_star!r} Pa")
+        self.e_star = self.op.e_star
+        self.kappa = self.op.self_influence
+        self.z0 = law.length_scale()
+        opts = PETSc.Options(prefix)
+        self.element_integration = opts.getBool(
+            "element_integration", bool(element_integration) if element_integration is not None else False)
+        self.traction = AdhesiveTraction(law, grid, self.element_integration)
+        self.hard_wall = law.hard_wall
+        self.n_blocks = 2 if self.hard_wall else 1
+        self._defaults = dict(tol=tol, preconditioner=preconditioner, stability_check=stability_check)
+        comm = grid.mpi_comm
+        n_local = self.n_blocks * grid.nx * grid.ny_local
+        self.offset = comm.scan(n_local) - n_local
+        self.n_local, self.n_global = n_local, comm.allreduce(n_local)
+        # the centre node: where h is lowest (the apex of a sphere), smallest index on ties
+        if centre is None:
+            h = grid.rows(heights, readonly=True)
+            k = int(np.argmin(h))
+            _, centre_index = minloc(comm, h.reshape(-1)[k], k + grid.nx * grid.ys)
+        else:
+            i, j = centre
+            if not (0 <= i < grid.nx and 0 <= j < grid.ny):
+                raise ValueError(f"centre node {centre} outside the {grid.nx} x {grid.ny} grid")
+            centre_index = int(j) * grid.nx + int(i)
+        self.centre_index = centre_index
+        j_c, i_c = divmod(centre_index, grid.nx)
+        self._centre_local = (j_c - grid.ys, i_c) if grid.ys <= j_c < grid.ye else None
+        self._centre_rank = comm.allreduce(comm.Get_rank() if self._centre_local else 0)
+        self.centre_owner = None        # set while central-gap control is active
+        self.shift = 0.0                # pseudo-transient continuation shift (0: plain Newton)
+        self._tangent = None            # dx/d delta at the last converged state
+        self.history = SolveHistory()
+        self._snes = None
+        self._n_solves = 0
+        self._x = None
+        self._approach = None
+        self._central_gap = None
+        self._g = np.zeros((grid.ny_local, grid.nx))
+        self._v = np.zeros_like(self._g)
+
+    # -- layout ------------------------------------------------------------------------
+    def blocks(self, vec: PETSc.Vec, readonly: bool = False) -> np.ndarray:
+        """The rank's part of an unknown Vec as (n_blocks, ny_loc, nx): [q,] a."""
+        return vec.getArray(readonly=readonly).reshape(self.n_blocks, self.grid.ny_local, self.grid.nx)
+
+    def create_unknown(self) -> PETSc.Vec:
+        v = PETSc.Vec().createMPI((self.n_local, self.n_global), comm=self.grid.comm)
+        v.set(0.0)
+        return v
+
+    def centre_value(self, rows: np.ndarray) -> float:
+        """rows[centre] broadcast from its owner (collective)."""
+        local = float(rows[self._centre_local]) if self._centre_local else 0.0
+        return self.grid.mpi_comm.bcast(local, root=self._centre_rank)
+
+    # -- set-up ---------------------------------------------------------------------------
+    def _build(self):
+        if self._snes is not None:
+            return self._snes
+        g = self.grid
+        d = self._defaults
+        opts = PETSc.Options(self.prefix)
+        self.tol = opts.getReal("tol", 1e-8 if d["tol"] is None else d["tol"])
+        self.max_it = opts.getInt("max_it", 100)
+        self.stability_check = opts.getBool(
+            "stability_check", True if d["stability_check"] is None else d["stability_check"])
+        self.stability_steps = opts.getInt("stability_steps", 30)
+        self.ptc_shift0 = opts.getReal("ptc_shift", 1.0)
+        self.ptc_max_it = opts.getInt("ptc_max_it", 2000)
+        self.use_predictor = opts.getBool("predictor", True)
+        choice = opts.getString("preconditioner", d["preconditioner"] or "spectral").lower()
+        if choice not in ("spectral", "mlmi", "none"):
+            raise ValueError(f"-{self.prefix}preconditioner must be spectral, mlmi or none, got {choice!r}")
+        self.preconditioner = choice
+        self._jac = AdhesiveJacobian(self)
+        J = destroy_at_exit(PETSc.Mat().createPython(((self.n_local, self.n_global),) * 2,
+                                                     self._jac, comm=g.comm))
+        J.setUp()
+        snes = destroy_at_exit(PETSc.SNES().create(comm=g.comm))
+        snes.setOptionsPrefix(self.prefix)
+        snes.setType("vinewtonrsls")
+        self._x, self._f = self.create_unknown(), self.create_unknown()
+        snes.setFunction(self._residual, self._f)
+        lower, upper = self.create_unknown(), self.create_unknown()
+        upper.set(PETSc.INFINITY)
+        lower.set(PETSc.NINFINITY)
+        if self.hard_wall:
+            self.blocks(lower)[0] = 0.0
+        snes.setVariableBounds(lower, upper)
+        snes.setJacobian(self._jacobian, J, J)
+        snes.setTolerances(rtol=0.0, atol=0.0, stol=0.0, max_it=self.max_it)
+        snes.setConvergenceTest(self._converged)
+        if not opts.hasName("snes_linesearch_type"):
+            opts.setValue("snes_linesearch_type", "bt")
+        ksp = snes.getKSP()
+        ksp.setType("gmres")
+        ksp.setTolerances(rtol=opts.getReal("newton_ksp_rtol", 1e-2), max_it=1000)
+        ksp.setGMRESRestart(100) if hasattr(ksp, "setGMRESRestart") else None
+        pc = ksp.getPC()
+        if choice == "none":
+            pc.setType("none")
+        else:
+            pc.setType("python")
+            pc.setPythonType("contactpetsc.solvers.adhesive_jacobian.AdhesivePC")
+        snes.setFromOptions()
+        self._snes = snes
+        return snes
+
+    # -- SNES callbacks -----------------------------------------------------------------
+    def _gap(self, blocks: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """g = h + K p - delta for the unknowns ``blocks``; sets delta under central-gap control."""
+        p = blocks.sum(axis=0) if self.n_blocks > 1 else blocks[0]
+        self.op.apply(p, self._v)
+        h = self.grid.rows(self.heights, readonly=True)
+        if self.centre_owner is not None:
+            self._approach = self.centre_value(h + self._v) - self._central_gap
+        np.add(h, self._v, out=out)
+        out -= self._approach
+        return out
+
+    @collective_guard
+    def _residual(self, snes, x, f):
+        xb, fb = self.blocks(x, readonly=True), self.blocks(f)
+        g = self._gap(xb, self._g)
+        if self.hard_wall:
+            fb[0] = g
+        self.traction.pressure(g, out=fb[-1])
+        np.subtract(xb[-1], fb[-1], out=fb[-1])
+        fb[-1] *= self.kappa
+
+    @collective_guard
+    def _jacobian(self, snes, x, J, P):
+        self._gap(self.blocks(x, readonly=True), self._g)
+        self.traction.linearise(self._g)
+        if self.shift:
+            # switched evolution relaxation: the shift falls with the residual
+            err = self._last_error
+            self.shift = self.ptc_shift0 * min(1.0, err / self._ptc_err0) if self._ptc_err0 > 0 else 0.0
+
+    def _measures(self, x, f):
+        """(complementarity error [z0], self-consistency error [z0], mean p, contact fraction)."""
+        comm = self.grid.mpi_comm
+        xb, fb = self.blocks(x, readonly=True), self.blocks(f, readonly=True)
+        p = xb.sum(axis=0)
+        if self.hard_wall:
+            err_c = float(np.abs(np.minimum(self.kappa * xb[0], fb[0])).max())
+        else:
+            err_c = 0.0
+        err_a = float(np.abs(fb[-1]).max())
+        errs = comm.allreduce(np.array([err_c, err_a]), op=MPI.MAX) / self.z0
+        sums = comm.allreduce(np.array([p.sum(), np.count_nonzero(p > 0)], float))
+        n = self.grid.nx * self.grid.ny
+        return errs[0], errs[1], sums[0] / n, sums[1] / n
+
+    def _fft_pairs(self) -> float:
+        return float(self.op.fft_pairs)
+
+    @collective_guard
+    def _converged(self, snes, it, norms):
+        x, f = snes.getSolution(), snes.getFunction()[0]
+        err_c, err_a, mean_p, frac = self._measures(x, f)
+        self.history.append(
+            solve=self._n_solves, iteration=it, fft_pairs=self._fft_pairs(),
+            linear_iterations=self._lin0 + snes.getLinearSolveIterations(),
+            complementarity_error=err_c, load_error=float("nan"), approach=self._approach,
+            mean_pressure=mean_p, contact_fraction=frac, solver=self.solver_name,
+            adhesive_error=err_a)
+        err = max(err_c, err_a)
+        self._last_error = err
+        if it == 0:
+            self._ptc_err0 = err
+        if not np.isfinite(err):
+            return PETSc.SNES.ConvergedReason.DIVERGED_FNORM_NAN
+        if err <= self.tol:
+            return PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS
+        if it >= snes.getTolerances()[3]:
+            return PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT
+        return PETSc.SNES.ConvergedReason.ITERATING
+
+    @property
+    def solver_name(self) -> str:
+        return f"newton-vi+{self.preconditioner}"
+
+    # -- initial guesses --------------------------------------------------------------------
+    def _rigid_guess(self, approach: float) -> None:
+        """Undeformed bodies at ``approach``: a = a(h - delta), q = 0."""
+        xb = self.blocks(self._x)
+        xb[...] = 0.0
+        g = self.grid.rows(self.heights, readonly=True) - approach
+        self.traction.pressure(np.maximum(g, 0.0) if self.hard_wall else g, out=xb[-1])
+
+    def warm_start(self, state: "AdhesiveState") -> None:
+        """Start the next solve from ``state`` (a previous step, or one read back on restart)."""
+        self._build()
+        xb = self.blocks(self._x)
+        g = self.grid
+        if self.hard_wall:
+            xb[0] = g.rows(state.contact_pressure, readonly=True)
+        xb[-1] = g.rows(state.adhesive_pressure, readonly=True)
+        self._approach = float(state.approach)
+        self._started = True
+
+    # -- public API --------------------------------------------------------------------------
+    def snes(self) -> PETSc.SNES:
+        """The SNES (built on first request), for PETSc users."""
+        return self._build()
+
+    def solve(self, *, approach: float | None = None, central_gap: float | None = None,
+              raise_on_failure: bool = True, check_stability: bool | None = None) -> AdhesiveState:
+        """Solve at one approach delta [m] or one central gap [m].
+
+        Starts from the previous solution (warm start along a loading path), or
+        from the undeformed bodies for the first solve.
+        """
+        if (approach is None) == (central_gap is None):
+            raise ValueError("give exactly one of approach (m) or central_gap (m)")
+        for name, v in (("approach", approach), ("central_gap", central_gap)):
+            if v is not None and not np.isfinite(v):
+                raise ValueError(f"{name} must be finite, got {v!r}")
+        snes = self._build()
+        if not getattr(self, "_started", False):
+            if approach is not None:
+                self._rigid_guess(approach)
+            else:
+                h_c = self.centre_value(self.grid.rows(self.heights, readonly=True))
+                self._rigid_guess(h_c - central_gap)
+            self._started = True
+        if central_gap is not None:
+            self.centre_owner = self._centre_rank
+            self._central_gap = float(central_gap)
+        else:
+            self.centre_owner = None
+            self._approach = float(approach)
+        pairs0, t0 = self._fft_pairs(), self.history.elapsed()
+        x_start = self._x.copy()
+        if approach is not None and self.use_predictor and self._tangent is not None:
+            # Euler predictor along the branch: x + dx/d delta * (delta - delta_prev)
+            self._x.axpy(float(approach) - self._tangent[0], self._tangent[1])
+            if self.hard_wall:
+                q = self.blocks(self._x)[0]
+                np.maximum(q, 0.0, out=q)
+        check = self.stability_check if check_stability is None else check_stability
+        converged, reason, newton, linear = self._run_snes()
+        solver = self.solver_name
+        margin = self._stability() if (converged and check) else float("nan")
+        if approach is not None and (not converged or margin <= 0):
+            # Newton found no state on this branch, or an unstable one (the branch has
+            # ended: a jump).  Pseudo-transient continuation from the last converged
+            # state follows the relaxation path to a stable state.
+            x_start.copy(self._x)
+            self.shift = self.ptc_shift0
+            snes.setTolerances(max_it=self.ptc_max_it)
+            ok, reason, n2, l2 = self._run_snes()
+            snes.setTolerances(max_it=self.max_it)
+            self.shift = 0.0
+            converged, newton, linear = ok, newton + n2, linear + l2
+            solver += "+ptc"
+            margin = self._stability() if (converged and check) else float("nan")
+        if not converged:
+            x_start.copy(self._x)   # keep the last good state as the next start
+        x_start.destroy()
+        state = self._state(converged, reason, newton, linear, pairs0, t0, margin,
+                            solver, tangent=approach is not None and converged)
+        self.centre_owner = None
+        PETSc.garbage_cleanup(self.grid.comm)
+        if not converged and raise_on_failure:
+            ksp_reason = _reason_name(snes.getKSP().getConvergedReason(), PETSc.KSP.ConvergedReason)
+            raise AdhesiveSolveError(
+                f"adhesive solve did not converge: {reason} after {newton} Newton iterations "
+                f"(last KSP: {ksp_reason}); complementarity error {state.complementarity_error:.3e}, "
+                f"self-consistency error {state.adhesive_error:.3e} z0 (tol {self.tol:.1e} z0)")
+        return state
+
+    def _run_snes(self):
+        snes = self._snes
+        self._lin0 = self.history[-1].linear_iterations if len(self.history) else 0
+        snes.solve(None, self._x)
+        self._n_solves += 1
+        code = snes.getConvergedReason()
+        return code > 0, _reason_name(code), snes.getIterationNumber(), snes.getLinearSolveIterations()
+
+    def _inactive_set(self) -> PETSc.IS:
+        """Global indices of the unknowns off their bounds: q > 0 (contact) and every a."""
+        xb = self.blocks(self._x, readonly=True)
+        local = [np.flatnonzero(xb[0] > 0)] if self.hard_wall else []
+        local.append(np.arange(xb[-1].size) + (xb[-1].size if self.hard_wall else 0))
+        idx = (np.concatenate(local) + self.offset).astype(PETSc.IntType)
+        return PETSc.IS().createGeneral(idx, comm=self.grid.comm)
+
+    def tangent(self) -> tuple[PETSc.Vec, float]:
+        """(dx/d delta, dF/d delta [N/m]) at the current state: J_II t = -dF/d delta on the
+        inactive set (contact nodes keep zero gap: dq from it, da from the law)."""
+        g = self.grid
+        self._jacobian(None, self._x, None, None)
+        iset = self._inactive_set()
+        J = self._snes.getJacobian()[0]
+        A = J.createSubMatrix(iset, iset)
+        ctx = A.getPythonContext()
+        rhs = np.zeros_like(ctx.full_in)
+        ones = np.ones((g.ny_local, g.nx))
+        if self.hard_wall:
+            rhs[0] = 1.0
+        self.traction.apply_derivative(ones, rhs[-1])
+        rhs[-1] *= -self.kappa
+        b, t = A.createVecs()
+        ctx.from_full(rhs, b)
+        ksp = PETSc.KSP().create(comm=g.comm)
+        ksp.setOptionsPrefix(self.prefix + "tangent_")
+        ksp.setType("gmres")
+        ksp.setTolerances(rtol=1e-6, max_it=1000)
+        ksp.getPC().setType("python")
+        ksp.getPC().setPythonType("contactpetsc.solvers.adhesive_jacobian.AdhesivePC")
+        ksp.setOperators(A, A)
+        ksp.setFromOptions()
+        ksp.solve(b, t)
+        full = np.zeros_like(ctx.full_in)
+        ctx.to_full(t, full)
+        tv = self.create_unknown()
+        self.blocks(tv)[...] = full
+        ok = ksp.getConvergedReason() > 0
+        for obj in (ksp, b, t, A, iset):
+            obj.destroy()
+        area = g.lengths[0] * g.lengths[1]
+        stiffness = g.mpi_comm.allreduce(float(full.sum())) / (g.nx * g.ny) * area if ok else float("nan")
+        return tv, stiffness
+
+    # -- results ---------------------------------------------------------------------------------
+    def _stability(self) -> float:
+        """1 - lambda_max(A S) at the current state (see ``stability.py``); collective."""
+        from .stability import stability_margin
+        xb = self.blocks(self._x, readonly=True)
+        self._gap(xb, self._g)
+        return stability_margin(self, q_rows=xb[0] if self.hard_wall else None,
+                                steps=self.stability_steps)
+
+    def _state(self, converged, reason, newton, linear, pairs0, t0, margin, solver,
+               tangent=False) -> AdhesiveState:
+        g = self.grid
+        comm = g.mpi_comm
+        xb = self.blocks(self._x, readonly=True)
+        q, a, p, gap, v = (g.create_vec(0.0) for _ in range(5))
+        if self.hard_wall:
+            g.rows(q)[...] = xb[0]
+        g.rows(a)[...] = xb[-1]
+        g.rows(p)[...] = xb.sum(axis=0)
+        gap_rows = self._gap(xb, g.rows(gap))
+        g.rows(v)[...] = self._v
+        f = self.create_unknown()
+        self._residual(None, self._x, f)
+        err_c, err_a, mean_p, frac = self._measures(self._x, f)
+        f.destroy()
+        total = self.total_error(a_rows=xb[-1], gap_rows=gap_rows)
+        prow = g.rows(p, readonly=True)
+        adhesive_force = comm.allreduce(float(prow[prow < 0].sum())) * g.element_area
+        beyond = comm.allreduce(self.traction.beyond_safe_range(gap_rows), op=MPI.LOR)
+        if beyond and converged:
+            converged, reason = False, "LJ_BEYOND_SAFE_RANGE (z < 0.5 z0: pressure beyond the law's sane range)"
+        stable = None if not np.isfinite(margin) else bool(margin > 0)
+        stiffness = float("nan")
+        if self._tangent is not None:
+            self._tangent[1].destroy()
+            self._tangent = None
+        if tangent and converged:
+            tv, stiffness = self.tangent()
+            self._tangent = (self._approach, tv)
+        area = g.lengths[0] * g.lengths[1]
+        return AdhesiveState(
+            pressure=p, contact_pressure=q, adhesive_pressure=a, gap=gap, displacement=v,
+            approach=self._approach, central_gap=self.centre_value(gap_rows),
+            mean_pressure=mean_p, force=mean_p * area, adhesive_force=adhesive_force,
+            contact_fraction=frac, complementarity_error=err_c, adhesive_error=err_a,
+            total_error=total, stable=stable, stability_margin=margin, stiffness=stiffness,
+            converged=converged,
+            reason=reason, newton_iterations=newton, linear_iterations=linear,
+            fft_pairs=self._fft_pairs() - pairs0, wall_time=self.history.elapsed() - t0,
+            solver=solver)
+
+    def total_error(self, a_rows: np.ndarray, gap_rows: np.ndarray) -> float:
+        """The paper's E_Total [z0]: rms of K (a(g) - a), the gap change when the trial
+        adhesive pressures a are replaced by the law's values at the current gap g."""
+        g = self.grid
+        da = self.traction.pressure(gap_rows) - a_rows
+        dg = self.op.apply(da, np.empty_like(da))
+        return float(np.sqrt(g.mpi_comm.allreduce(float(np.sum(dg * dg))) / (g.nx * g.ny))) / self.z0

@@ -1,0 +1,184 @@
+"""Matrix-free Jacobian of the adhesive contact VI, its reduced version and its preconditioner.
+
+Unknowns per node (``AdhesiveProblem``): the contact pressure q >= 0 (hard-wall
+laws only) and the adhesive pressure a, stored apart as in the reference
+paper; the total pressure is p = q + a.  Residual, in length units:
+
+    F_q = g = h + K p - delta                  (Signorini part, eq. 7a)
+    F_a = kappa (a - a(g))                     (self-consistency, eq. 2 / 8)
+
+with kappa = K_ii the self-influence.  Jacobian, for (dq, da), w = K (dq + da):
+
+    J_q = w,        J_a = kappa (da - A w)
+
+where A = da/dg is the traction's linearisation (diagonal, or the 5-point
+coupling of element integration).  Under central-gap control delta depends on
+p (delta = h_c + v_c - g_c), which subtracts w_c from w: a rank-one term.
+The layout of a local block of the unknown Vec is [q rows, a rows].
+"""
+from __future__ import annotations
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from ..errors import collective_guard
+from ..lifetime import destroy_at_exit
+
+
+class AdhesiveJacobian:
+    """Python-context Mat of the full adhesive Jacobian."""
+
+    def __init__(self, problem):
+        self.problem = problem
+        self.op = problem.op
+        self.grid = problem.grid
+        self.prefix = problem.prefix
+        self.cache = {}   # shared with the preconditioners (spectral kernels, MLMI levels)
+        g = self.grid
+        shape = (g.ny_local, g.nx)
+        self.w = np.zeros(shape)
+        self.aw = np.zeros(shape)
+
+    def apply_full(self, blocks_in: np.ndarray, blocks_out: np.ndarray) -> np.ndarray:
+        """J on (nb, ny_loc, nx) arrays."""
+        pb = self.problem
+        p = blocks_in.sum(axis=0) if blocks_in.shape[0] > 1 else blocks_in[0]
+        w = self.op.apply(p, self.w)
+        if pb.centre_owner is not None:
+            w -= pb.centre_value(w)
+        if pb.hard_wall:
+            blocks_out[0] = w
+        a_out = blocks_out[-1]
+        pb.traction.apply_derivative(w, self.aw)
+        np.subtract(blocks_in[-1], self.aw, out=a_out)
+        a_out *= pb.kappa
+        if pb.shift:
+            # pseudo-transient continuation: J + shift * kappa I
+            blocks_out += (pb.shift * pb.kappa) * blocks_in
+        return blocks_out
+
+    @collective_guard
+    def mult(self, mat, x, y):
+        pb = self.problem
+        self.apply_full(pb.blocks(x, readonly=True), pb.blocks(y))
+
+    @collective_guard
+    def createSubMatrix(self, mat, isrow, iscol=None, reuse=None, submat=None):
+        ctx = ReducedAdhesiveJacobian(self, isrow)
+        n = self.grid.mpi_comm.allreduce(ctx.n_local)
+        sub = PETSc.Mat().createPython(((ctx.n_local, n), (ctx.n_local, n)), ctx, comm=mat.getComm())
+        sub.setUp()
+        return destroy_at_exit(sub)
+
+
+class ReducedAdhesiveJacobian:
+    """J restricted to the VI's inactive set (q at contact nodes, every a)."""
+
+    def __init__(self, parent: AdhesiveJacobian, index_set: PETSc.IS):
+        self.parent = parent
+        pb = self.problem = parent.problem
+        g = self.grid = parent.grid
+        nb = pb.n_blocks
+        self.idx = (index_set.getIndices() - pb.offset).astype(np.intp)
+        self.n_local = self.idx.size
+        self.full_in = np.zeros((nb, g.ny_local, g.nx))
+        self.full_out = np.zeros_like(self.full_in)
+        self.masks = np.zeros((nb, g.ny_local, g.nx), bool)
+        self.masks.reshape(-1)[self.idx] = True
+
+    def to_full(self, x: PETSc.Vec, out: np.ndarray) -> np.ndarray:
+        out.reshape(-1)[self.idx] = x.getArray(readonly=True)
+        return out
+
+    def from_full(self, full: np.ndarray, y: PETSc.Vec) -> None:
+        np.take(full.reshape(-1), self.idx, out=y.getArray())
+
+    @collective_guard
+    def mult(self, mat, x, y):
+        self.full_in[...] = 0.0
+        self.to_full(x, self.full_in)
+        self.parent.apply_full(self.full_in, self.full_out)
+        self.from_full(self.full_out, y)
+
+
+class _SetView:
+    """What a pressure-space preconditioner (``SpectralPC``, ``MLMIPC``) needs of a set."""
+
+    def __init__(self, parent: AdhesiveJacobian, mask: np.ndarray):
+        self.parent, self.op, self.grid, self.mask = parent, parent.op, parent.grid, mask
+        self.full_in = np.zeros(mask.shape)
+
+
+class AdhesivePC:
+    """Block preconditioner of the reduced adhesive Jacobian.
+
+    Rows that behave like contact rows, where K dominates (q at contact
+    nodes; a where the traction is stiff, -kappa A_ii > 1, the repulsive part
+    of the full LJ curve or the wall side of the attraction), are solved
+    together by the pressure-space preconditioner of the non-adhesive solver
+    (the Fourier inverse or an MLMI cycle) on their union S, the a rows
+    scaled by 1 / (-kappa A_ii) (their row is ~ -kappa A_ii (K da)_i).  The
+    remaining a rows are near the identity and get the local (Jacobi) factor
+    1 / (kappa (1 - A_ii K_ii)), kept away from zero where A_ii > 0.
+    ``-<prefix>preconditioner spectral|mlmi`` chooses the inner one.
+    """
+
+    @collective_guard
+    def setUp(self, pc):
+        _, P = pc.getOperators()
+        ctx = self.ctx = P.getPythonContext()
+        pb = ctx.problem
+        kappa = pb.kappa
+        d = pb.traction.diagonal
+        self.kappa = kappa
+        masks = ctx.masks
+        stiff = masks[-1] & (-kappa * d > 1.0)
+        q_set = masks[0] if pb.hard_wall else np.zeros_like(stiff)
+        stiff &= ~q_set
+        self.q_set, self.stiff = q_set, stiff
+        self.union = q_set | stiff
+        scale = np.where(stiff, -kappa * d, 1.0)
+        self.inv_scale = 1.0 / scale
+        local = kappa * (1.0 + pb.shift - d * kappa)
+        floor = 0.1 * kappa
+        local = np.where(np.abs(local) < floor, np.copysign(floor, local), local)
+        self.jacobi = 1.0 / local
+        n_union = ctx.grid.mpi_comm.allreduce(int(self.union.sum()))
+        self.inner_pc = None
+        if n_union:
+            from .mlmi import MLMIPC
+            from .preconditioners import SpectralPC
+            cls = MLMIPC if pb.preconditioner == "mlmi" else SpectralPC
+            self.inner_pc = cls()
+            self.inner_pc.prepare(_SetView(ctx.parent, self.union))
+        self.f = np.zeros(self.union.shape)
+        self.z = np.zeros(self.union.shape)
+        self.full = np.zeros_like(ctx.full_in)
+        self.out = np.zeros_like(ctx.full_in)
+
+    @collective_guard
+    def apply(self, pc, x, y):
+        ctx = self.ctx
+        full = self.full
+        full[...] = 0.0
+        ctx.to_full(x, full)
+        a_in = full[-1]
+        out = self.out
+        out[-1] = a_in * self.jacobi
+        if self.inner_pc is not None:
+            f = self.f
+            np.multiply(a_in, self.inv_scale, out=f)
+            f *= self.stiff
+            if ctx.problem.hard_wall:
+                f += full[0] * self.q_set
+            self.inner_pc.inner(f, self.z)
+            if ctx.problem.hard_wall:
+                out[0] = self.z * self.q_set
+            np.copyto(out[-1], self.z, where=self.stiff)
+        ctx.from_full(out, y)
+
+
+def minloc(comm: MPI.Comm, value: float, index: int) -> tuple[float, int]:
+    """Global (min value, its index), the smallest index on ties (rank-count independent)."""
+    return comm.allreduce((float(value), int(index)), op=MPI.MINLOC)

@@ -1,0 +1,118 @@
+"""Stability of a converged adhesive state: a Lanczos estimate.
+
+Equilibria of adhesive contact are stationary points of the elastic plus
+interaction energy.  In displacement space, with the contact nodes C held at
+zero gap (their pressure is the multiplier), the Hessian on the other nodes N is
+
+    H = (K^-1)_NN - A_N,      A = da/dg (the law's derivative),
+
+and ((K^-1)_NN)^-1 = S = K_NN - K_NC K_CC^-1 K_CN, the compliance of N with C
+clamped.  H is positive definite iff every eigenvalue of A S is below one
+(congruence with S^1/2).  A S is self-adjoint in the S inner product, so
+Lanczos in that inner product (one S product per step) gives its largest
+eigenvalue, the well separated end of the spectrum: an instability is a
+smooth mode over the attractive zone beyond the force peak, where A > 0.
+The reported margin is 1 - lambda_max(A S), the smallest eigenvalue of
+S^1/2 H S^1/2: positive = stable, negative = unstable.
+
+S costs one FFT pair, plus (with contact nodes) a CG solve on K_CC
+preconditioned by the Fourier inverse.  The nodal law derivative is used
+also with element integration (its linearisation is not symmetric).
+"""
+from __future__ import annotations
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from ..lifetime import destroy_at_exit
+
+
+class _Compliance:
+    """S x on full (ny_loc, nx) arrays vanishing outside N."""
+
+    def __init__(self, problem, contact: np.ndarray):
+        self.op, self.grid = problem.op, problem.grid
+        g = self.grid
+        self.n_contact = g.mpi_comm.allreduce(int(contact.sum()))
+        self.contact = contact
+        self.ksp = None
+        if self.n_contact:
+            from .reduced import ContactJacobian
+            jac = ContactJacobian(self.op, problem.prefix + "stability_")
+            J = destroy_at_exit(PETSc.Mat().createPython(
+                ((g.nx * g.ny_local, g.nx * g.ny),) * 2, jac, comm=g.comm))
+            J.setUp()
+            local = (np.flatnonzero(contact) + g.nx * g.ys).astype(PETSc.IntType)
+            self.iset = PETSc.IS().createGeneral(local, comm=g.comm)
+            self.A = J.createSubMatrix(self.iset, self.iset)
+            self.J = J
+            ksp = self.ksp = PETSc.KSP().create(comm=g.comm)
+            ksp.setOptionsPrefix(problem.prefix + "stability_")
+            ksp.setType("cg")
+            ksp.setTolerances(rtol=1e-10, max_it=500)
+            ksp.getPC().setType("python")
+            ksp.getPC().setPythonType("contactpetsc.solvers.preconditioners.SpectralPC")
+            ksp.setOperators(self.A, self.A)
+            ksp.setFromOptions()
+            self.b, self.y = self.A.createVecs()
+            self.ctx = self.A.getPythonContext()
+        self.tmp = np.zeros((g.ny_local, g.nx))
+
+    def __call__(self, x: np.ndarray, out: np.ndarray) -> np.ndarray:
+        self.op.apply(x, out)
+        if self.ksp is not None:
+            # pressures on C that bring the displacement there back to zero
+            self.ctx.from_full(-out, self.b)
+            self.ksp.solve(self.b, self.y)
+            self.tmp[...] = 0.0
+            self.ctx.to_full(self.y, self.tmp)
+            out += self.op.apply(self.tmp, np.empty_like(out))
+            out[self.contact] = 0.0
+        return out
+
+    def destroy(self):
+        if self.ksp is not None:
+            for obj in (self.ksp, self.A, self.iset, self.b, self.y, self.J):
+                obj.destroy()
+
+
+def stability_margin(problem, q_rows: np.ndarray | None, steps: int = 30, tol: float = 1e-6) -> float:
+    """1 - lambda_max(A S) at the problem's last gap (see the module doc); collective."""
+    g = problem.grid
+    comm = g.mpi_comm
+    gap = problem._g
+    d = problem.traction._derivative(gap)
+    contact = (q_rows > 0) if q_rows is not None else np.zeros(gap.shape, bool)
+    d = np.where(contact, 0.0, d)
+    if comm.allreduce(float(d.max()), op=MPI.MAX) <= 0.0:
+        return 1.0   # A <= 0: A S has no positive eigenvalue
+    S = _Compliance(problem, contact)
+    dot = lambda u, w: comm.allreduce(float(np.vdot(u, w)))  # noqa: E731
+    # start: the positive part of A (the attractive zone beyond the force peak)
+    v = np.maximum(d, 0.0)
+    sv = S(v, np.empty_like(v))
+    nrm = np.sqrt(dot(v, sv))
+    V, SV = [v / nrm], [sv / nrm]
+    alphas, betas = [], []
+    lam = -np.inf
+    for k in range(steps):
+        w = d * SV[-1]                       # T v_k = A S v_k
+        alphas.append(dot(w, SV[-1]))
+        for vi, svi in zip(V, SV):           # full re-orthogonalisation in the S product
+            w -= dot(w, svi) * vi
+        sw = S(w, np.empty_like(w))
+        beta2 = dot(w, sw)
+        T = np.diag(alphas) + np.diag(betas, 1) + np.diag(betas, -1)
+        new = float(np.linalg.eigvalsh(T)[-1])
+        done = beta2 <= 1e-28 * max(1.0, abs(new)) or abs(new - lam) <= tol * max(1.0, abs(new))
+        lam = new
+        if done:
+            break
+        beta = np.sqrt(beta2)
+        betas.append(beta)
+        V.append(w / beta)
+        SV.append(sw / beta)
+    S.destroy()
+    return 1.0 - lam
+
