@@ -199,34 +199,45 @@ class AdhesiveProblem:
         J = destroy_at_exit(PETSc.Mat().createPython(((self.n_local, self.n_global),) * 2,
                                                      self._jac, comm=g.comm))
         J.setUp()
-        snes = destroy_at_exit(PETSc.SNES().create(comm=g.comm))
-        snes.setOptionsPrefix(self.prefix)
-        snes.setType("vinewtonrsls")
         self._x, self._f = self.create_unknown(), self.create_unknown()
-        snes.setFunction(self._residual, self._f)
         lower, upper = self.create_unknown(), self.create_unknown()
         upper.set(PETSc.INFINITY)
         lower.set(PETSc.NINFINITY)
         if self.hard_wall:
             self.blocks(lower)[0] = 0.0
-        snes.setVariableBounds(lower, upper)
-        snes.setJacobian(self._jacobian, J, J)
-        snes.setTolerances(rtol=0.0, atol=0.0, stol=0.0, max_it=self.max_it)
+        self._bounds = (lower, upper)
+        self._J = J
+        self._snes = self._make_snes(self.prefix, "bt", self.max_it)
+        # pseudo-transient continuation takes full (shifted) steps: the residual norm
+        # need not fall monotonically along the relaxation path
+        self._ptc = self._make_snes(self.prefix + "ptc_", "basic", self.ptc_max_it)
+        return self._snes
+
+    def _make_snes(self, prefix: str, linesearch: str, max_it: int) -> PETSc.SNES:
+        """A VI Newton SNES on the shared unknowns, Jacobian and bounds; options under ``prefix``."""
+        g = self.grid
+        snes = destroy_at_exit(PETSc.SNES().create(comm=g.comm))
+        snes.setOptionsPrefix(prefix)
+        snes.setType("vinewtonrsls")
+        snes.setFunction(self._residual, self._f)
+        snes.setVariableBounds(*self._bounds)
+        snes.setJacobian(self._jacobian, self._J, self._J)
+        snes.setTolerances(rtol=0.0, atol=0.0, stol=0.0, max_it=max_it)
         snes.setConvergenceTest(self._converged)
+        opts = PETSc.Options(prefix)
+        # petsc4py 3.18 has no SNESLineSearch object: the default goes into the options
         if not opts.hasName("snes_linesearch_type"):
-            opts.setValue("snes_linesearch_type", "bt")
+            opts.setValue("snes_linesearch_type", linesearch)
         ksp = snes.getKSP()
         ksp.setType("gmres")
-        ksp.setTolerances(rtol=opts.getReal("newton_ksp_rtol", 1e-2), max_it=1000)
-        ksp.setGMRESRestart(100) if hasattr(ksp, "setGMRESRestart") else None
+        ksp.setTolerances(rtol=PETSc.Options(self.prefix).getReal("newton_ksp_rtol", 1e-2), max_it=1000)
         pc = ksp.getPC()
-        if choice == "none":
+        if self.preconditioner == "none":
             pc.setType("none")
         else:
             pc.setType("python")
             pc.setPythonType("contactpetsc.solvers.adhesive_jacobian.AdhesivePC")
         snes.setFromOptions()
-        self._snes = snes
         return snes
 
     # -- SNES callbacks -----------------------------------------------------------------
@@ -328,12 +339,31 @@ class AdhesiveProblem:
         """The SNES (built on first request), for PETSc users."""
         return self._build()
 
+    def snapshot(self):
+        """The current unknowns, approach and tangent: to come back to (e.g. to bisect a jump)."""
+        self._build()
+        tangent = None if self._tangent is None else (self._tangent[0], self._tangent[1].copy())
+        return self._x.copy(), self._approach, tangent
+
+    def restore(self, snap) -> None:
+        x, approach, tangent = snap
+        x.copy(self._x)
+        self._approach = approach
+        if self._tangent is not None:
+            self._tangent[1].destroy()
+        self._tangent = None if tangent is None else (tangent[0], tangent[1].copy())
+        self._started = True
+
     def solve(self, *, approach: float | None = None, central_gap: float | None = None,
-              raise_on_failure: bool = True, check_stability: bool | None = None) -> AdhesiveState:
+              raise_on_failure: bool = True, check_stability: bool | None = None,
+              fallback: bool = True) -> AdhesiveState:
         """Solve at one approach delta [m] or one central gap [m].
 
-        Starts from the previous solution (warm start along a loading path), or
-        from the undeformed bodies for the first solve.
+        Starts from the previous solution (warm start along a loading path, with
+        the tangent predictor under displacement control), or from the undeformed
+        bodies for the first solve.  Under displacement control, when Newton
+        fails or lands on an unstable state, ``fallback`` continues with
+        pseudo-transient continuation from the previous state (a jump).
         """
         if (approach is None) == (central_gap is None):
             raise ValueError("give exactly one of approach (m) or central_gap (m)")
@@ -366,15 +396,13 @@ class AdhesiveProblem:
         converged, reason, newton, linear = self._run_snes()
         solver = self.solver_name
         margin = self._stability() if (converged and check) else float("nan")
-        if approach is not None and (not converged or margin <= 0):
+        if fallback and approach is not None and (not converged or margin <= 0):
             # Newton found no state on this branch, or an unstable one (the branch has
             # ended: a jump).  Pseudo-transient continuation from the last converged
             # state follows the relaxation path to a stable state.
             x_start.copy(self._x)
             self.shift = self.ptc_shift0
-            snes.setTolerances(max_it=self.ptc_max_it)
-            ok, reason, n2, l2 = self._run_snes()
-            snes.setTolerances(max_it=self.max_it)
+            ok, reason, n2, l2 = self._run_snes(self._ptc)
             self.shift = 0.0
             converged, newton, linear = ok, newton + n2, linear + l2
             solver += "+ptc"
@@ -394,8 +422,8 @@ class AdhesiveProblem:
                 f"self-consistency error {state.adhesive_error:.3e} z0 (tol {self.tol:.1e} z0)")
         return state
 
-    def _run_snes(self):
-        snes = self._snes
+    def _run_snes(self, snes: PETSc.SNES | None = None):
+        snes = snes or self._snes
         self._lin0 = self.history[-1].linear_iterations if len(self.history) else 0
         snes.solve(None, self._x)
         self._n_solves += 1

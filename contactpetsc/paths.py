@@ -1,0 +1,180 @@
+"""Quasi-static loading paths of adhesive contacts: sweeps, jumps, pull-off, S-curves.
+
+Displacement control follows a branch of stable equilibria from one approach
+to the next (each step warm-started from the previous state with the
+tangent predictor).  A branch ends at a fold; the contact then jumps
+(jump-on while loading, jump-off while unloading) to another branch, which
+``AdhesiveProblem.solve`` reaches by pseudo-transient continuation.  A step
+is a jump when that fallback was needed, or when the force differs from the
+tangent prediction by more than ``jump_tol`` times the force scale; the
+jump is then located by bisection of the approach (``refine`` halvings,
+each trying Newton only from the last state on the old branch) and
+reported with the approach and the force just before and just after.
+
+Central-gap control (Greenwood 1997; the reference paper's Fig. 4c) keeps
+every state, stable or not, and marks the unstable ones: that traces the
+whole S-shaped curve of a sphere.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class PathPoint:
+    """A point of a loading path (scalars only; fields live in the solver's state)."""
+    step: int
+    branch: str               #: loading | unloading | central-gap
+    approach: float           #: [m]
+    central_gap: float        #: [m]
+    force: float              #: net force [N], negative = tensile
+    adhesive_force: float     #: [N]
+    contact_fraction: float
+    stable: bool | None
+    converged: bool
+    solver: str
+    fft_pairs: float
+    wall_time: float
+    complementarity_error: float
+    adhesive_error: float
+    total_error: float
+
+
+@dataclass
+class Jump:
+    """A jump between branches, located within [approach_before, approach_after]."""
+    kind: str                 #: jump-on | jump-off
+    approach_before: float    #: last approach on the old branch [m]
+    approach_after: float     #: first approach on the new branch [m]
+    force_before: float       #: [N]
+    force_after: float        #: [N]
+
+
+@dataclass
+class Path:
+    points: list = field(default_factory=list)
+    jumps: list = field(default_factory=list)
+
+    @property
+    def pull_off_force(self) -> float:
+        """The most tensile force [N] of the stable, converged unloading states (of all
+        stable states when there is no unloading branch), refined by the parabola
+        through the sampled minimum and its neighbours on the same branch."""
+        pts = [p for p in self.points if p.converged and p.stable is not False]
+        unloading = [p for p in pts if p.branch == "unloading"]
+        use = unloading or pts
+        if not use:
+            return float("nan")
+        k = int(np.argmin([p.force for p in use]))
+        w = use[k].force
+        if 0 < k < len(use) - 1:
+            jumped = {j.approach_after for j in self.jumps}
+            (d0, w0), (d1, w1), (d2, w2) = ((p.approach, p.force) for p in use[k - 1:k + 2])
+            if d1 not in jumped and d2 not in jumped:
+                c = np.polyfit([d0, d1, d2], [w0, w1, w2], 2)
+                if c[0] > 0:
+                    vertex = -c[1] / (2 * c[0])
+                    if min(d0, d2) <= vertex <= max(d0, d2):
+                        w = min(w, float(np.polyval(c, vertex)))
+        return w
+
+    def column(self, name: str) -> np.ndarray:
+        return np.array([getattr(p, name) for p in self.points])
+
+
+def _point(step, branch, st) -> PathPoint:
+    return PathPoint(step=step, branch=branch, approach=st.approach, central_gap=st.central_gap,
+                     force=st.force, adhesive_force=st.adhesive_force,
+                     contact_fraction=st.contact_fraction, stable=st.stable, converged=st.converged,
+                     solver=st.solver, fft_pairs=st.fft_pairs, wall_time=st.wall_time,
+                     complementarity_error=st.complementarity_error,
+                     adhesive_error=st.adhesive_error, total_error=st.total_error)
+
+
+def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0.05,
+          refine: int = 6, on_state=None, path: Path | None = None) -> Path:
+    """Displacement-controlled path through ``approaches`` [m] (loading where they rise,
+    unloading where they fall).  ``on_state(step, state, point)`` is called for each
+    converged step (e.g. to write fields).  Returns the Path with its jumps."""
+    path = Path() if path is None else path
+    approaches = [float(a) for a in approaches]
+    prev = None          # (approach, force, stiffness) of the last state
+    for k, delta in enumerate(approaches):
+        snap = problem.snapshot() if prev is not None else None
+        st = problem.solve(approach=delta, raise_on_failure=False)
+        here = branch or ("loading" if prev is None or delta >= prev[0] else "unloading")
+        if prev is not None and st.converged:
+            d0, w0, k0 = prev
+            predicted = w0 + (k0 if np.isfinite(k0) else 0.0) * (delta - d0)
+            scale = max(abs(w0), abs(st.force), np.finfo(float).tiny)
+            # the fallback was needed, or the force missed the tangent prediction by
+            # more than the predicted change itself: another branch
+            if "+ptc" in st.solver or abs(st.force - predicted) > max(jump_tol * scale, abs(predicted - w0)):
+                jump = _locate_jump(problem, snap, prev, st, refine)
+                if abs(jump.force_after - jump.force_before) > jump_tol * scale:
+                    jump.kind = "jump-on" if delta > d0 else "jump-off"
+                    path.jumps.append(jump)
+        if snap is not None:
+            _free(snap)
+        pt = _point(k, here, st)
+        path.points.append(pt)
+        if st.converged:
+            prev = (st.approach, st.force, st.stiffness)
+            if on_state is not None:
+                on_state(k, st, pt)
+    return path
+
+
+def _free(snap) -> None:
+    snap[0].destroy()
+    if snap[2] is not None:
+        snap[2][1].destroy()
+
+
+def _locate_jump(problem, snap, prev, after, refine) -> Jump | None:
+    """Bisect [prev approach, after.approach] with Newton from the old branch only."""
+    d_lo, w_lo, _ = prev
+    d_hi, w_hi = after.approach, after.force
+    new_branch = problem.snapshot()
+    problem.restore(snap)
+    snap = problem.snapshot()   # our own copy: the caller frees its own
+    for _ in range(refine):
+        mid = 0.5 * (d_lo + d_hi)
+        problem.restore(snap)
+        st = problem.solve(approach=mid, raise_on_failure=False, fallback=False)
+        # still on the old branch: converged from it, stable, and nearer the old force
+        on_old = (st.converged and st.stable is not False
+                  and abs(st.force - w_lo) < 0.5 * abs(w_hi - w_lo))
+        if on_old:
+            _free(snap)
+            snap = problem.snapshot()
+            d_lo, w_lo = mid, st.force
+            prev = (mid, st.force, st.stiffness)
+        else:
+            d_hi = mid
+    problem.restore(new_branch)
+    _free(new_branch)
+    if refine and abs(d_hi - after.approach) > 0:
+        # the force just after the jump, on the new branch, at the bisected approach
+        st = problem.solve(approach=d_hi, raise_on_failure=False)
+        w_after = st.force
+        problem.solve(approach=after.approach, raise_on_failure=False)
+    else:
+        w_after = w_hi
+    _free(snap)
+    return Jump(kind="", approach_before=d_lo, approach_after=d_hi, force_before=w_lo,
+                force_after=w_after)
+
+
+def central_gap_path(problem, central_gaps, *, on_state=None, path: Path | None = None) -> Path:
+    """Prescribed central gaps [m] (Greenwood's device): every state kept, unstable ones marked."""
+    path = Path() if path is None else path
+    for k, gc in enumerate(central_gaps):
+        st = problem.solve(central_gap=float(gc), raise_on_failure=False)
+        pt = _point(k, "central-gap", st)
+        path.points.append(pt)
+        if st.converged and on_state is not None:
+            on_state(k, st, pt)
+    return path
