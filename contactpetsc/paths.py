@@ -111,7 +111,7 @@ def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0
             scale = max(abs(w0), abs(st.force), np.finfo(float).tiny)
             # the fallback was needed, or the force missed the tangent prediction by
             # more than the predicted change itself: another branch
-            if "+ptc" in st.solver or abs(st.force - predicted) > max(jump_tol * scale, abs(predicted - w0)):
+            if st.fallback or abs(st.force - predicted) > max(jump_tol * scale, abs(predicted - w0)):
                 jump = _locate_jump(problem, snap, prev, st, refine)
                 if abs(jump.force_after - jump.force_before) > jump_tol * scale:
                     jump.kind = "jump-on" if delta > d0 else "jump-off"

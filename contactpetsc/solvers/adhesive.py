@@ -82,6 +82,7 @@ class AdhesiveState:
     fft_pairs: float
     wall_time: float
     solver: str = "newton"
+    fallback: bool = False        #: Newton from the previous state failed: a relaxation path was followed
 
 
 class AdhesiveProblem:
@@ -190,6 +191,7 @@ class AdhesiveProblem:
         self.stability_steps = opts.getInt("stability_steps", 30)
         self.ptc_shift0 = opts.getReal("ptc_shift", 1.0)
         self.ptc_max_it = opts.getInt("ptc_max_it", 2000)
+        self.fallback_tol = opts.getReal("fallback_tol", 1e-3)
         self.use_predictor = opts.getBool("predictor", True)
         choice = opts.getString("preconditioner", d["preconditioner"] or "spectral").lower()
         if choice not in ("spectral", "mlmi", "none"):
@@ -223,6 +225,8 @@ class AdhesiveProblem:
         snes.setVariableBounds(*self._bounds)
         snes.setJacobian(self._jacobian, self._J, self._J)
         snes.setTolerances(rtol=0.0, atol=0.0, stol=0.0, max_it=max_it)
+        # an inexact step (Krylov limit reached) is still a step: let the line search judge it
+        snes.setMaxLinearSolveFailures(max_it)
         snes.setConvergenceTest(self._converged)
         opts = PETSc.Options(prefix)
         # petsc4py 3.18 has no SNESLineSearch object: the default goes into the options
@@ -267,9 +271,12 @@ class AdhesiveProblem:
         self._gap(self.blocks(x, readonly=True), self._g)
         self.traction.linearise(self._g)
         if self.shift:
-            # switched evolution relaxation: the shift falls with the residual
-            err = self._last_error
-            self.shift = self.ptc_shift0 * min(1.0, err / self._ptc_err0) if self._ptc_err0 > 0 else 0.0
+            # switched evolution relaxation: the shift follows the residual, falling as
+            # it falls (towards Newton), rising when a step made it worse
+            err, prev = self._last_error, self._ptc_prev
+            if prev > 0 and np.isfinite(err):
+                self.shift = float(np.clip(self.shift * err / prev, 1e-8, 1e8))
+            self._ptc_prev = err
 
     def _measures(self, x, f):
         """(complementarity error [z0], self-consistency error [z0], mean p, contact fraction)."""
@@ -301,8 +308,6 @@ class AdhesiveProblem:
             adhesive_error=err_a)
         err = max(err_c, err_a)
         self._last_error = err
-        if it == 0:
-            self._ptc_err0 = err
         if not np.isfinite(err):
             return PETSc.SNES.ConvergedReason.DIVERGED_FNORM_NAN
         if err <= self.tol:
@@ -316,12 +321,21 @@ class AdhesiveProblem:
         return f"newton-vi+{self.preconditioner}"
 
     # -- initial guesses --------------------------------------------------------------------
-    def _rigid_guess(self, approach: float) -> None:
-        """Undeformed bodies at ``approach``: a = a(h - delta), q = 0."""
+    def _initial_guess(self, approach: float) -> None:
+        """First state at ``approach``: the non-adhesive (Signorini) solution where the
+        bodies overlap, the undeformed bodies otherwise; a = a(g) of that state."""
+        g = self.grid
         xb = self.blocks(self._x)
         xb[...] = 0.0
-        g = self.grid.rows(self.heights, readonly=True) - approach
-        self.traction.pressure(np.maximum(g, 0.0) if self.hard_wall else g, out=xb[-1])
+        gap = g.rows(self.heights, readonly=True) - approach
+        if g.mpi_comm.allreduce(float(gap.min()), op=MPI.MIN) < 0:
+            from .problem import ContactProblem
+            cp = ContactProblem(g, self.heights, self.e_star, operator=self.op,
+                                prefix=self.prefix + "initial_", tol=1e-6, length_scale=self.z0)
+            st = cp.solve(approach=approach)
+            gap = g.rows(st.gap, readonly=True).copy()
+            xb[0 if self.hard_wall else -1] = g.rows(st.pressure, readonly=True)
+        xb[-1] += self.traction.pressure(np.maximum(gap, 0.0) if self.hard_wall else gap)
 
     def warm_start(self, state: "AdhesiveState") -> None:
         """Start the next solve from ``state`` (a previous step, or one read back on restart)."""
@@ -373,10 +387,10 @@ class AdhesiveProblem:
         snes = self._build()
         if not getattr(self, "_started", False):
             if approach is not None:
-                self._rigid_guess(approach)
+                self._initial_guess(approach)
             else:
                 h_c = self.centre_value(self.grid.rows(self.heights, readonly=True))
-                self._rigid_guess(h_c - central_gap)
+                self._initial_guess(h_c - central_gap)
             self._started = True
         if central_gap is not None:
             self.centre_owner = self._centre_rank
@@ -398,14 +412,24 @@ class AdhesiveProblem:
         margin = self._stability() if (converged and check) else float("nan")
         if fallback and approach is not None and (not converged or margin <= 0):
             # Newton found no state on this branch, or an unstable one (the branch has
-            # ended: a jump).  Pseudo-transient continuation from the last converged
-            # state follows the relaxation path to a stable state.
+            # ended: a jump).  From the last converged state, follow a relaxation path
+            # to a stable state, then polish by Newton: the paper's relaxation for
+            # hard-wall laws, pseudo-transient continuation for the full LJ curve.
             x_start.copy(self._x)
-            self.shift = self.ptc_shift0
-            ok, reason, n2, l2 = self._run_snes(self._ptc)
-            self.shift = 0.0
+            if self.hard_wall:
+                from .relaxation import RelaxationSolver
+                relax = RelaxationSolver(self, tol=self.fallback_tol)
+                ok, reason, n2, l2 = relax.relax(approach)
+                solver += "+relaxation"
+                if ok:
+                    ok, reason, n3, l3 = self._run_snes()
+                    n2, l2 = n2 + n3, l2 + l3
+            else:
+                self.shift, self._ptc_prev = self.ptc_shift0, 0.0
+                ok, reason, n2, l2 = self._run_snes(self._ptc)
+                self.shift = 0.0
+                solver += "+ptc"
             converged, newton, linear = ok, newton + n2, linear + l2
-            solver += "+ptc"
             margin = self._stability() if (converged and check) else float("nan")
         if not converged:
             x_start.copy(self._x)   # keep the last good state as the next start
@@ -524,7 +548,7 @@ class AdhesiveProblem:
             converged=converged,
             reason=reason, newton_iterations=newton, linear_iterations=linear,
             fft_pairs=self._fft_pairs() - pairs0, wall_time=self.history.elapsed() - t0,
-            solver=solver)
+            solver=solver, fallback=solver.endswith(("+ptc", "+relaxation")))
 
     def total_error(self, a_rows: np.ndarray, gap_rows: np.ndarray) -> float:
         """The paper's E_Total [z0]: rms of K (a(g) - a), the gap change when the trial

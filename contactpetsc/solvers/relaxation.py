@@ -1,0 +1,181 @@
+"""The reference paper's own solver (Fig. 2b, section 2): MLMI relaxation of adhesive contact.
+
+Contact (positive) pressures q and adhesive pressures a are stored apart and
+summed only for the displacement.  Each adhesive cycle
+
+1. relaxes q to convergence for the current a: projected multilevel
+   relaxation q <- max(0, q - omega_c M_I g) on the set I of loaded or
+   penetrating nodes, M_I one MLMI V-cycle (``mlmi.py``) on I, until the rms
+   residual at the positive-pressure nodes is below ``contact_tol``;
+2. measures the self-consistency error E_Total (steps 1-4 of section 2):
+   the rms of K (a(g) - a), the change of the gaps if the trial adhesive
+   pressures were replaced by the law's values at the current gaps;
+3. relaxes the adhesive pressures, a <- a + omega_a (a(g) - a).
+
+Both relaxation coefficients adapt independently (the paper monitors and
+optimises them): omega_c is halved when the contact residual grows and
+recovers by 10 % per step otherwise; omega_a starts at
+1 / (1 + K_ii max |da/dg|) and is halved when E_Total grows, growing 5 %
+per cycle otherwise.  Convergence: both errors below 1e-4 z0 (the paper's
+values; ``-<prefix>relax_tol``, ``-<prefix>relax_contact_tol``).  The paper
+notes that high Tabor parameters need small adhesive relaxation
+coefficients; so it is here, which is why Newton is the default.
+
+Hard-wall laws only (hardwall-lj, exponential, dugdale): the full
+Lennard-Jones curve has no contact pressure to relax apart.
+Every cycle is recorded in the problem's history (``total_error`` is
+E_Total), like the Newton iterations.
+"""
+from __future__ import annotations
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from .adhesive_jacobian import _SetView
+
+
+class RelaxationSolver:
+    """Solve an ``AdhesiveProblem`` by the paper's relaxation, sharing its grid, law and history.
+
+    Options (prefix ``<problem prefix>relax_``): ``tol`` and ``contact_tol`` (z0, 1e-4),
+    ``max_cycles`` (adhesive cycles, 20000), ``max_inner`` (contact relaxations per
+    cycle, 200), ``omega_max`` (1).
+    """
+
+    def __init__(self, problem, *, tol: float | None = None, contact_tol: float | None = None,
+                 max_cycles: int | None = None):
+        if not problem.hard_wall:
+            raise ValueError(f"the relaxation solver needs a hard-wall law (hardwall-lj, exponential, "
+                             f"dugdale); law {problem.law.name!r} is solved by Newton (solver = 'newton')")
+        self.pb = problem
+        opts = PETSc.Options(problem.prefix + "relax_")
+        self.tol = opts.getReal("tol", 1e-4 if tol is None else tol)
+        self.contact_tol = opts.getReal("contact_tol", 1e-4 if contact_tol is None else contact_tol)
+        self.max_cycles = opts.getInt("max_cycles", 20000 if max_cycles is None else max_cycles)
+        self.max_inner = opts.getInt("max_inner", 200)
+        self.omega_max = opts.getReal("omega_max", 1.0)
+        self.solver_name = "relaxation-mlmi"
+        self._mlmi = None
+        self._mask = None
+
+    # -- the multilevel contact relaxation ------------------------------------------------
+    def _cycle(self, mask: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """One MLMI V-cycle on the set ``mask`` applied to the gap residual r (pressure units)."""
+        from .mlmi import MLMIPC
+        pb = self.pb
+        if self._mlmi is None:
+            self._mlmi = MLMIPC()
+            self._jac_cache = type("Parent", (), {})()
+            self._jac_cache.cache, self._jac_cache.prefix = {}, pb.prefix
+            self._jac_cache.op, self._jac_cache.grid = pb.op, pb.grid
+        view = _SetView(self._jac_cache, mask)
+        self._mlmi.prepare(view)
+        out = np.empty_like(r)
+        self._mlmi.inner(r * mask, out)
+        return out
+
+    def _gap(self, q, a, delta, out):
+        g = self.pb.grid
+        self.pb.op.apply(q + a, out)
+        out += g.rows(self.pb.heights, readonly=True)
+        out -= delta
+        return out
+
+    def _relax_contact(self, q, a, delta, g):
+        """Step 1: q to convergence for fixed a; returns (rms residual [z0], relaxations)."""
+        pb = self.pb
+        comm = pb.grid.mpi_comm
+        omega, prev = 1.0, np.inf
+        rms = np.inf
+        for it in range(self.max_inner + 1):
+            self._gap(q, a, delta, g)
+            active = (q > 0) | (g < 0)
+            sums = comm.allreduce(np.array([float(np.sum(g[active] ** 2)), float(active.sum())]))
+            rms = np.sqrt(sums[0] / max(sums[1], 1.0)) / pb.z0
+            if rms <= self.contact_tol or it == self.max_inner or sums[1] == 0:
+                return rms, it
+            omega = max(0.5 * omega, 0.05) if rms > prev else min(1.0, 1.1 * omega)
+            prev = rms
+            dq = self._cycle(active, g)
+            q -= omega * dq
+            np.maximum(q, 0.0, out=q)
+        return rms, self.max_inner
+
+    # -- public ------------------------------------------------------------------------------
+    def relax(self, approach: float) -> tuple[bool, str, int, int]:
+        """Relax the problem's unknowns in place to the state at approach delta [m];
+        returns (converged, reason, adhesive cycles, contact relaxations)."""
+        pb = self.pb
+        pb._build()
+        comm = pb.grid.mpi_comm
+        delta = float(approach)
+        pb.centre_owner = None
+        if not getattr(pb, "_started", False):
+            pb._initial_guess(delta)
+            pb._started = True
+        pb._approach = delta
+        xb = pb.blocks(pb._x)
+        q, a = xb[0].copy(), xb[1].copy()
+        g = np.empty_like(q)
+        n = pb.grid.nx * pb.grid.ny
+        d = pb.traction
+        omega_a = None
+        e_prev = e_total = rms_c = np.inf
+        inner_total = cycle = 0
+        converged, reason = False, f"DIVERGED_MAX_CYCLES ({self.max_cycles})"
+        for cycle in range(self.max_cycles):
+            rms_c, inner = self._relax_contact(q, a, delta, g)
+            inner_total += inner
+            target = d.pressure(g)
+            dg = pb.op.apply(target - a, np.empty_like(g))
+            e_total = float(np.sqrt(comm.allreduce(float(np.sum(dg * dg))) / n)) / pb.z0
+            err_a = comm.allreduce(float(np.abs(target - a).max()), op=MPI.MAX) * pb.kappa / pb.z0
+            p = q + a
+            sums = comm.allreduce(np.array([p.sum(), np.count_nonzero(p > 0)], float))
+            pb.history.append(
+                solve=pb._n_solves, iteration=cycle, fft_pairs=pb._fft_pairs(),
+                linear_iterations=inner_total, complementarity_error=rms_c, load_error=float("nan"),
+                approach=delta, mean_pressure=sums[0] / n, contact_fraction=sums[1] / n,
+                solver=self.solver_name, adhesive_error=err_a, total_error=e_total)
+            if not np.isfinite(e_total):
+                reason = "DIVERGED_NAN"
+                break
+            if e_total <= self.tol and rms_c <= self.contact_tol:
+                converged, reason = True, "CONVERGED_E_TOTAL"
+                break
+            if omega_a is None:
+                d.linearise(g)
+                stiff = comm.allreduce(float(np.abs(d.diagonal).max()), op=MPI.MAX) * pb.kappa
+                omega_a = min(self.omega_max, 1.0 / (1.0 + stiff))
+            elif e_total > e_prev:
+                omega_a *= 0.5
+            else:
+                omega_a = min(self.omega_max, 1.05 * omega_a)
+            e_prev = e_total
+            a += omega_a * (target - a)
+        pb._n_solves += 1
+        self.errors = (e_total, rms_c, omega_a)
+        if converged:
+            xb[0], xb[1] = q, a
+        return converged, reason, cycle + 1, inner_total
+
+    def solve(self, *, approach: float, raise_on_failure: bool = True, check_stability: bool | None = None):
+        """Relax to the state at approach delta [m] from the problem's current state;
+        returns an ``AdhesiveState`` (solver ``relaxation-mlmi``)."""
+        pb = self.pb
+        pairs0, t0 = pb._fft_pairs(), pb.history.elapsed()
+        converged, reason, cycles, inner = self.relax(approach)
+        check = pb.stability_check if check_stability is None else check_stability
+        margin = pb._stability() if (converged and check) else float("nan")
+        state = pb._state(converged, reason, cycles, inner, pairs0, t0, margin,
+                          self.solver_name, tangent=False)
+        PETSc.garbage_cleanup(pb.grid.comm)
+        if not converged and raise_on_failure:
+            from .adhesive import AdhesiveSolveError
+            e_total, rms_c, omega_a = self.errors
+            raise AdhesiveSolveError(
+                f"relaxation did not converge: {reason}; E_Total {e_total:.3e} z0 (tol {self.tol:.1e}), "
+                f"contact rms residual {rms_c:.3e} z0 (tol {self.contact_tol:.1e}), "
+                f"adhesive relaxation coefficient {omega_a}")
+        return state
