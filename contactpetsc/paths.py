@@ -57,28 +57,18 @@ class Path:
     points: list = field(default_factory=list)
     jumps: list = field(default_factory=list)
 
+    refined_pull_off: float | None = None   #: set by ``refine_pull_off``
+    _best: tuple | None = None               #: (point index, snapshot) of the most tensile stable state
+
     @property
     def pull_off_force(self) -> float:
-        """The most tensile force [N] of the stable, converged unloading states (of all
-        stable states when there is no unloading branch), refined by the parabola
-        through the sampled minimum and its neighbours on the same branch."""
+        """The most tensile force [N] on the path's stable states (unloading states when there
+        are any), or the golden-section refinement of it (``refine_pull_off``)."""
+        if self.refined_pull_off is not None:
+            return self.refined_pull_off
         pts = [p for p in self.points if p.converged and p.stable is not False]
-        unloading = [p for p in pts if p.branch == "unloading"]
-        use = unloading or pts
-        if not use:
-            return float("nan")
-        k = int(np.argmin([p.force for p in use]))
-        w = use[k].force
-        if 0 < k < len(use) - 1:
-            jumped = {j.approach_after for j in self.jumps}
-            (d0, w0), (d1, w1), (d2, w2) = ((p.approach, p.force) for p in use[k - 1:k + 2])
-            if d1 not in jumped and d2 not in jumped:
-                c = np.polyfit([d0, d1, d2], [w0, w1, w2], 2)
-                if c[0] > 0:
-                    vertex = -c[1] / (2 * c[0])
-                    if min(d0, d2) <= vertex <= max(d0, d2):
-                        w = min(w, float(np.polyval(c, vertex)))
-        return w
+        use = [p for p in pts if p.branch == "unloading"] or pts
+        return min(p.force for p in use) if use else float("nan")
 
     def column(self, name: str) -> np.ndarray:
         return np.array([getattr(p, name) for p in self.points])
@@ -122,9 +112,58 @@ def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0
         path.points.append(pt)
         if st.converged:
             prev = (st.approach, st.force, st.stiffness)
+            if st.stable is not False:
+                best = path._best
+                if best is None or st.force < path.points[best[0]].force:
+                    if best is not None:
+                        _free(best[1])
+                    path._best = (len(path.points) - 1, problem.snapshot())
             if on_state is not None:
                 on_state(k, st, pt)
     return path
+
+
+def refine_pull_off(problem, path: Path, xtol: float, max_solves: int = 30) -> float:
+    """Golden-section search of the most tensile force between the neighbours of the sampled
+    minimum, each solve by Newton from the sampled minimum's state (so it stays on that
+    branch); ``xtol`` [m] is the final bracket width.  Sets ``path.refined_pull_off``."""
+    if path._best is None:
+        return path.pull_off_force
+    k, snap = path._best
+    pts = path.points
+    lo = pts[k - 1].approach if k > 0 and pts[k - 1].branch == pts[k].branch else pts[k].approach
+    hi = pts[k + 1].approach if k + 1 < len(pts) and pts[k + 1].branch == pts[k].branch else pts[k].approach
+    lo, hi = min(lo, hi), max(lo, hi)
+    end = problem.snapshot()
+    best = pts[k].force
+
+    def force(delta):
+        nonlocal best
+        problem.restore(snap)
+        st = problem.solve(approach=delta, raise_on_failure=False, fallback=False)
+        if not (st.converged and st.stable is not False):
+            return np.inf
+        best = min(best, st.force)
+        return st.force
+
+    gr = (np.sqrt(5.0) - 1.0) / 2.0
+    c, d = hi - gr * (hi - lo), lo + gr * (hi - lo)
+    fc, fd = force(c), force(d)
+    for _ in range(max_solves):
+        if hi - lo <= xtol:
+            break
+        if fc < fd:
+            hi, d, fd = d, c, fc
+            c = hi - gr * (hi - lo)
+            fc = force(c)
+        else:
+            lo, c, fc = c, d, fd
+            d = lo + gr * (hi - lo)
+            fd = force(d)
+    problem.restore(end)
+    _free(end)
+    path.refined_pull_off = best
+    return best
 
 
 def _free(snap) -> None:

@@ -288,7 +288,9 @@ class AdhesiveProblem:
         else:
             err_c = 0.0
         err_a = float(np.abs(fb[-1]).max())
-        errs = comm.allreduce(np.array([err_c, err_a]), op=MPI.MAX) / self.z0
+        errs = np.array([err_c, err_a])
+        comm.Allreduce(MPI.IN_PLACE, errs, op=MPI.MAX)
+        errs /= self.z0
         sums = comm.allreduce(np.array([p.sum(), np.count_nonzero(p > 0)], float))
         n = self.grid.nx * self.grid.ny
         return errs[0], errs[1], sums[0] / n, sums[1] / n

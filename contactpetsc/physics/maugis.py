@@ -1,0 +1,96 @@
+"""Closed-form adhesive sphere contact: Hertz, DMT, JKR and Maugis-Dugdale.
+
+Units: SI.  K = 4 E* / 3.  Maugis-Dugdale in the nondimensional form of
+Johnson & Greenwood (1997): A = a (K / (pi w R^2))^(1/3),
+P_bar = P / (pi w R), lambda = 2 sigma0 (R / (pi w K^2))^(1/3), m = c / a:
+
+    lambda A^2 / 2 [sqrt(m^2-1) + (m^2-2) arctan sqrt(m^2-1)]
+      + 4 lambda^2 A / 3 [sqrt(m^2-1) arctan sqrt(m^2-1) - m + 1] = 1,
+    P_bar = A^3 - lambda A^2 [sqrt(m^2-1) + m^2 arctan sqrt(m^2-1)].
+
+The Lennard-Jones law corresponds to lambda = 1.16 mu (Johnson & Greenwood;
+the Dugdale stress equal to the LJ peak attraction gives 1.157 mu).
+Pull-off (the most tensile load on the curve) runs from -2 pi R w (DMT,
+lambda -> 0) to -1.5 pi R w (JKR, lambda -> infinity).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def hertz_force(e_star: float, radius: float, approach):
+    """Hertz load (4/3) E* R^1/2 delta^3/2 [N] (zero for delta <= 0)."""
+    d = np.maximum(np.asarray(approach, dtype=float), 0.0)
+    return 4.0 / 3.0 * e_star * np.sqrt(radius) * d ** 1.5
+
+
+def hertz_gap_outside(radius: float, contact_radius: float, r):
+    """Gap [m] outside a Hertz contact of radius a, at r >= a (Maugis 1992):
+    h = a^2 / (pi R) [sqrt(m^2 - 1) + (m^2 - 2) arccos(1/m)], m = r / a."""
+    m = np.asarray(r, dtype=float) / contact_radius
+    return contact_radius ** 2 / (np.pi * radius) * (np.sqrt(m * m - 1.0) + (m * m - 2.0) * np.arccos(1.0 / m))
+
+
+def dmt_force(law, e_star: float, radius: float, approach: float) -> tuple[float, float]:
+    """(total load, adhesive force) [N] of the DMT model of Muller, Yushchenko and Derjaguin:
+    the Hertz solution at approach delta, plus the law's traction integrated over the Hertz gap
+    outside the contact (the surfaces are not deformed by adhesion).  For delta <= 0: the rigid
+    sphere, 2 pi R Phi(-delta) by Derjaguin's approximation."""
+    if approach <= 0:
+        return 2.0 * np.pi * radius * float(law.energy(-approach)), 2.0 * np.pi * radius * float(law.energy(-approach))
+    a = np.sqrt(radius * approach)
+    m = 1.0 + np.logspace(-10, 5, 300001)
+    h = hertz_gap_outside(radius, a, m * a)
+    adhesive = float(np.trapz(law.pressure(h) * 2.0 * np.pi * m * a * a, m))
+    # beyond m = 1e5 the gap is r^2 / 2R: Derjaguin for the rest of the tail
+    adhesive += 2.0 * np.pi * radius * float(law.energy(h[-1]))
+    return float(hertz_force(e_star, radius, approach)) + adhesive, adhesive
+
+
+def dmt_pull_off(radius: float, work_of_adhesion: float) -> float:
+    """-2 pi R w [N]."""
+    return -2.0 * np.pi * radius * work_of_adhesion
+
+
+def jkr_pull_off(radius: float, work_of_adhesion: float) -> float:
+    """-1.5 pi R w [N]."""
+    return -1.5 * np.pi * radius * work_of_adhesion
+
+
+def maugis_curve(lam: float, m):
+    """(A, P_bar) of the Maugis-Dugdale solution for ratios m = c/a > 1 (nondimensional)."""
+    m = np.asarray(m, dtype=float)
+    s = np.sqrt(m * m - 1.0)
+    at = np.arctan(s)
+    c2 = 0.5 * lam * (s + (m * m - 2.0) * at)
+    c1 = 4.0 * lam * lam / 3.0 * (s * at - m + 1.0)
+    # c2 A^2 + c1 A - 1 = 0, positive root (written without cancellation)
+    A = 2.0 / (c1 + np.sqrt(c1 * c1 + 4.0 * c2))
+    P = A ** 3 - lam * A * A * (s + m * m * at)
+    return A, P
+
+
+def maugis_pull_off_bar(lam: float) -> float:
+    """The Maugis-Dugdale pull-off load P_bar_c = P_c / (pi w R) for transition parameter lambda."""
+    if not (np.isfinite(lam) and lam > 0):
+        raise ValueError(f"lambda must be finite and > 0, got {lam!r}")
+    # the minimum over m: a log-spaced scan, then golden-section refinement
+    m = 1.0 + np.logspace(-10, 6, 4000)
+    _, P = maugis_curve(lam, m)
+    k = int(np.argmin(P))
+    lo, hi = np.log(m[max(k - 1, 0)] - 1.0), np.log(m[min(k + 1, m.size - 1)] - 1.0)
+    f = lambda t: float(maugis_curve(lam, 1.0 + np.exp(t))[1])  # noqa: E731
+    gr = (np.sqrt(5.0) - 1.0) / 2.0
+    a, b = lo, hi
+    for _ in range(100):
+        c, d = b - gr * (b - a), a + gr * (b - a)
+        if f(c) < f(d):
+            b = d
+        else:
+            a = c
+    return min(f(0.5 * (a + b)), float(P[k]))
+
+
+def maugis_pull_off(radius: float, work_of_adhesion: float, lam: float) -> float:
+    """Maugis-Dugdale pull-off force [N]."""
+    return maugis_pull_off_bar(lam) * np.pi * work_of_adhesion * radius

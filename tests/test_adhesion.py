@@ -1,0 +1,208 @@
+"""Adhesive contact: traction discretisation, Newton VI, relaxation, stability and paths.
+
+Independent truths: the Derjaguin force on a rigid paraboloid (2 pi R Phi(g0)),
+finite differences of the traction, the DMT pull-off -2 pi R w and DMT's
+load offset at small Tabor parameter, the non-adhesive solution as w -> 0,
+the Maugis-Dugdale limits, agreement of two different solvers, COMM_WORLD
+against COMM_SELF.  Units: z0 = 1, E* = 1 (Greenwood's scaling).
+"""
+import numpy as np
+import pytest
+from petsc4py import PETSc
+
+from contactpetsc.grid import SurfaceGrid
+from contactpetsc.paths import central_gap_path, refine_pull_off, sweep
+from contactpetsc.physics.interactions import make_law
+from contactpetsc.physics.maugis import dmt_force, maugis_pull_off_bar
+from contactpetsc.physics.traction import AdhesiveTraction
+from contactpetsc.solvers.adhesive import AdhesiveProblem
+from contactpetsc.solvers.problem import ContactProblem
+from contactpetsc.solvers.relaxation import RelaxationSolver
+from contactpetsc.surfaces import from_function, self_affine, sphere
+
+R = 1000.0
+
+
+def work_for(mu, radius=R):
+    """w giving Tabor parameter mu with E* = z0 = 1."""
+    return np.sqrt(mu ** 3 / radius)
+
+
+def sphere_problem(mu, law="hardwall-lj", n=64, dx=2.0, comm=None, radius=R, **kw):
+    grid = SurfaceGrid(n, n, dx, periodic=False, comm=comm)
+    return AdhesiveProblem(grid, sphere(grid, radius), 1.0,
+                           make_law(law, work_of_adhesion=work_for(mu, radius), z0=1.0), **kw)
+
+
+# -- traction ------------------------------------------------------------------------------------
+@pytest.mark.parametrize("periodic", [True, False])
+@pytest.mark.parametrize("element", [False, True])
+@pytest.mark.parametrize("law", ["lj", "hardwall-lj"])
+def test_traction_derivative_matches_finite_differences(coll, periodic, element, law):
+    grid = SurfaceGrid(24, 19, 0.7, periodic=periodic)
+    tr = AdhesiveTraction(make_law(law, work_of_adhesion=0.3, z0=1.0), grid, element)
+    x, y = grid.coordinates()
+    g = (0.4 + 0.8 * np.sin(0.5 * x) * np.cos(0.3 * y) + 0.3 * np.cos(0.9 * x)).T.copy()
+    dg = (np.cos(0.7 * x + 0.2) * np.sin(0.4 * y)).T.copy()
+    tr.linearise(g)
+    lin = tr.apply_derivative(dg, np.empty_like(g))
+    eps = 1e-6
+    fd = (tr.pressure(g + eps * dg) - tr.pressure(g - eps * dg)) / (2 * eps)
+    assert coll.max(np.abs(lin - fd)) < 1e-6 * coll.max(np.abs(fd))
+
+
+def test_element_integration_is_exact_for_uniform_gaps(coll):
+    grid = SurfaceGrid(8, 6, 1.0)
+    law = make_law("lj", work_of_adhesion=0.3, z0=1.0)
+    g = np.full((grid.ny_local, grid.nx), 0.37)
+    a = AdhesiveTraction(law, grid, True).pressure(g)
+    assert coll.max(np.abs(a - law.pressure(0.37))) < 1e-12
+
+
+def rigid_tip_forces(coll, element, radius, dx, gap0, shifts, n=64):
+    """Total traction [N] on a rigid paraboloid at apex gap ``gap0`` for sub-node apex shifts."""
+    law = make_law("lj", work_of_adhesion=0.01, z0=1.0)
+    grid = SurfaceGrid(n, n, dx, periodic=False)
+    tr = AdhesiveTraction(law, grid, element)
+    out = []
+    for s in shifts:
+        x0, y0 = (n // 2 + 0.5 * s) * dx, (n // 2 + 0.37 * s) * dx
+        h = from_function(grid, lambda x, y: ((x - x0) ** 2 + (y - y0) ** 2) / (2 * radius) + gap0)
+        g = grid.rows(h, readonly=True).copy()
+        out.append(grid.mpi_comm.allreduce(float(tr.pressure(g).sum())) * dx * dx)
+    return np.array(out) / (2 * np.pi * radius * law.energy(gap0))   # Derjaguin: 2 pi R Phi(g0)
+
+
+def test_element_integration_removes_node_position_dependence(coll):
+    """An under-resolved tip (adhesive zone ~ one element): element integration cuts the
+    scatter of the total adhesive force over apex positions by > 4x (reference paper, Fig. 3)."""
+    shifts = np.linspace(0.0, 1.0, 6)
+    nodal = rigid_tip_forces(coll, False, radius=8.0, dx=4.0, gap0=0.0, shifts=shifts)
+    element = rigid_tip_forces(coll, True, radius=8.0, dx=4.0, gap0=0.0, shifts=shifts)
+    assert np.ptp(nodal) > 4 * np.ptp(element)
+    # resolved (and the window wide enough for the z^-2 tail): the Derjaguin force
+    for element in (False, True):
+        resolved = rigid_tip_forces(coll, element, radius=20.0, dx=0.5, gap0=0.2, shifts=[0.0, 0.5], n=128)
+        assert np.max(np.abs(resolved - 1.0)) < 5e-3
+
+
+# -- Newton VI --------------------------------------------------------------------------------------
+def test_small_tabor_parameter_gives_dmt(coll):
+    """mu = 0.02, hard-wall LJ: pull-off -2 pi R w within 2 %; in contact, the adhesive force
+    is the DMT one (the law over the Hertz gap outside the contact, Muller et al.) within 2 %,
+    and the load is the non-adhesive load on the same grid plus that force (2 %)."""
+    pb = sphere_problem(0.02, n=192, dx=2.0)
+    w = work_for(0.02)
+    path = sweep(pb, np.arange(-1.0, 0.41, 0.1))
+    assert coll.all(all(p.converged and p.stable for p in path.points))
+    assert not path.jumps
+    assert abs(refine_pull_off(pb, path, xtol=0.005) / (-2 * np.pi * R * w) - 1) < 0.02
+    signorini = ContactProblem(pb.grid, pb.heights, 1.0, operator=pb.op, prefix="dmt_ref_",
+                               length_scale=1.0, tol=1e-10)
+    for delta in (0.5, 1.0, 2.0):
+        st = pb.solve(approach=delta)
+        _, f_dmt = dmt_force(pb.law, 1.0, R, delta)
+        assert abs(st.adhesive_force / f_dmt - 1) < 0.02
+        plain = signorini.solve(approach=delta).force
+        assert abs(st.force - (plain + f_dmt)) < 0.02 * plain   # one ring of nodes at the edge
+
+
+def test_vanishing_adhesion_gives_the_signorini_solution(coll):
+    pb = sphere_problem(1e-4, n=48, dx=2.0)
+    st = pb.solve(approach=2.0)
+    ref = ContactProblem(pb.grid, pb.heights, 1.0, operator=pb.op, prefix="w0_ref_",
+                         length_scale=1.0, tol=1e-10).solve(approach=2.0)
+    w = work_for(1e-4)
+    # the adhesive force is O(2 pi R w); the pressures differ by at most that much per element
+    assert abs(st.force - ref.force) < 1.1 * 2 * np.pi * R * w
+    dp = pb.grid.rows(st.pressure, readonly=True) - pb.grid.rows(ref.pressure, readonly=True)
+    assert coll.max(np.abs(dp)) < 0.05 * coll.max(pb.grid.rows(ref.pressure, readonly=True))
+
+
+def test_newton_and_relaxation_agree(coll):
+    """The paper's relaxation (E_Total <= 1e-4 z0) and Newton (1e-8 z0) give the same state."""
+    newton = sphere_problem(0.5, n=64, dx=2.0)
+    relaxed = sphere_problem(0.5, n=64, dx=2.0, prefix="relaxed_")
+    sn = newton.solve(approach=1.0)
+    sr = RelaxationSolver(relaxed).solve(approach=1.0)
+    assert sr.converged and sr.total_error <= 1e-4 and sn.total_error < 1e-6
+    g = newton.grid
+    dg = g.rows(sn.gap, readonly=True) - g.rows(sr.gap, readonly=True)
+    rms = np.sqrt(g.mpi_comm.allreduce(float(np.sum(dg ** 2))) / (g.nx * g.ny))
+    assert rms < 1e-4
+    # the same point of the load-approach curve: the force difference, as an approach
+    # difference through the tangent stiffness dW/d delta, is of the order of 1e-4 z0
+    assert abs(sn.force - sr.force) / sn.stiffness < 2e-4
+    # the relaxation's history has E_Total per adhesive cycle, falling to the tolerance
+    e = [r.total_error for r in relaxed.history.records if r.solver == "relaxation-mlmi"]
+    assert e[-1] <= 1e-4 < e[0]
+
+
+def test_relaxation_rejects_the_full_lj_curve(coll):
+    pb = sphere_problem(0.5, law="lj", n=16)
+    coll.raises(ValueError, ["hard-wall law", "Newton"], RelaxationSolver, pb)
+
+
+def test_rank_independence_of_adhesive_states(coll):
+    states = []
+    for comm in (PETSc.COMM_WORLD, PETSc.COMM_SELF):
+        pb = sphere_problem(1.0, law="lj", n=48, dx=1.5, comm=comm, prefix="ranks_")
+        pb.solve(approach=-1.0)
+        st = pb.solve(approach=0.5)
+        states.append(pb.grid.gather(st.gap))
+    assert coll.max(np.abs(states[0] - states[1])) < 1e-7
+
+
+def test_rough_periodic_lj_converges(coll):
+    """The adhesive rough benchmark's setting at reduced size: lj, z0 = dx, w = 0.05 E* dx."""
+    n = 64
+    grid = SurfaceGrid(n, n, 1.0, periodic=True)
+    h = self_affine(grid, hurst=0.8, rms_height=1.0, seed=7)
+    pb = AdhesiveProblem(grid, h, 1.0, make_law("lj", work_of_adhesion=0.05, z0=1.0))
+    hmin = h.min()[1]
+    for delta in (hmin + 0.5, hmin + 1.0):
+        st = pb.solve(approach=delta)
+        assert st.converged and st.stable
+        assert max(st.complementarity_error, st.adhesive_error) <= 1e-8
+    assert 0 < st.contact_fraction < 0.5 and st.adhesive_force < 0
+
+
+# -- stability and paths ------------------------------------------------------------------------------
+def test_loading_unloading_hysteresis_and_jumps(coll):
+    """mu = 1, full LJ: jump-on while loading, jump-off while unloading at a smaller
+    approach (hysteresis), pull-off between the JKR and DMT limits."""
+    r = 100.0   # the window (96 z0) holds the LJ tail: gap 11.5 z0 at its edge
+    pb = sphere_problem(1.0, law="lj", n=96, dx=1.0, radius=r)
+    w = work_for(1.0, r)
+    path = sweep(pb, np.concatenate([np.arange(-2.5, 0.01, 0.25), np.arange(-0.25, -2.51, -0.25)]))
+    kinds = [j.kind for j in path.jumps]
+    assert kinds == ["jump-on", "jump-off"]
+    on, off = path.jumps
+    assert off.approach_before < on.approach_before
+    assert on.force_after < on.force_before < 0      # snaps into tension
+    assert off.force_after > off.force_before         # released
+    bar = refine_pull_off(pb, path, xtol=0.01) / (np.pi * r * w)
+    assert -2.0 < bar < -1.5
+    # every point kept on the path is a stable, converged state
+    assert all(p.converged and p.stable for p in path.points)
+
+
+def test_central_gap_traces_the_unstable_branch(coll):
+    """Greenwood's device: prescribing the central gap passes through states that are unstable
+    under displacement control, where the approach turns back (the S-curve)."""
+    pb = sphere_problem(1.0, law="lj", n=96, dx=1.0)
+    path = central_gap_path(pb, np.arange(2.0, 0.19, -0.1))
+    assert all(p.converged for p in path.points)
+    stable = [p.stable for p in path.points]
+    assert stable[0] and False in stable
+    approach = path.column("approach")
+    k = stable.index(False)
+    # the approach has a maximum on the unstable stretch: the fold of the S-curve
+    assert approach[k - 1] > approach[0] and np.max(approach) > approach[-1]
+
+
+def test_maugis_dugdale_limits():
+    assert abs(maugis_pull_off_bar(1e-4) + 2.0) < 1e-3
+    assert abs(maugis_pull_off_bar(1e4) + 1.5) < 1e-3
+    values = [maugis_pull_off_bar(lam) for lam in (0.1, 0.5, 1.0, 2.0, 5.0)]
+    assert all(np.diff(values) > 0)   # from DMT towards JKR
