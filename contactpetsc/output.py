@@ -17,7 +17,9 @@ import h5py
 import numpy as np
 
 FIELDS = ("pressure", "gap", "displacement", "heights", "contact")
-UNITS = {"pressure": "Pa", "gap": "m", "displacement": "m", "heights": "m", "contact": "1"}
+ADHESIVE_FIELDS = ("contact_pressure", "adhesive_pressure", "adhesive")
+UNITS = {"pressure": "Pa", "gap": "m", "displacement": "m", "heights": "m", "contact": "1",
+         "contact_pressure": "Pa", "adhesive_pressure": "Pa", "adhesive": "1"}
 
 
 def versions() -> dict:
@@ -75,6 +77,13 @@ def write_state(directory: str, step: int, grid, heights, state, attrs: dict) ->
         "heights": grid.rows(heights, readonly=True),
     }
     rows["contact"] = (rows["pressure"] > 0).astype(np.float64)
+    fields = FIELDS
+    if hasattr(state, "adhesive_pressure"):
+        # adhesive states: the two pressures stored apart (restart needs both) and the adhesive mask
+        fields = FIELDS + ADHESIVE_FIELDS
+        rows["contact_pressure"] = grid.rows(state.contact_pressure, readonly=True)
+        rows["adhesive_pressure"] = grid.rows(state.adhesive_pressure, readonly=True)
+        rows["adhesive"] = (rows["pressure"] < 0).astype(np.float64)
     with _open(tmp, comm) as f:
         for key, value in attrs.items():
             f.attrs[key] = value if isinstance(value, (int, float, str)) else json.dumps(value)
@@ -82,7 +91,7 @@ def write_state(directory: str, step: int, grid, heights, state, attrs: dict) ->
                       "complementarity_error", "converged"):
             f.attrs[field] = getattr(state, field)
         f.attrs["dx"], f.attrs["dy"] = grid.dx, grid.dy
-        for field in FIELDS:
+        for field in fields:
             dset = f.create_dataset(field, (grid.ny, grid.nx), dtype="f8")
             dset.attrs["unit"] = UNITS[field]
             if comm.Get_size() > 1:
@@ -93,17 +102,17 @@ def write_state(directory: str, step: int, grid, heights, state, attrs: dict) ->
     comm.Barrier()
     if comm.Get_rank() == 0:
         os.replace(tmp, final)
-        _write_xdmf(os.path.join(directory, f"step_{step:04d}.xdmf"), name, grid)
+        _write_xdmf(os.path.join(directory, f"step_{step:04d}.xdmf"), name, grid, fields)
     comm.Barrier()
     return final
 
 
-def _write_xdmf(path: str, h5name: str, grid) -> None:
+def _write_xdmf(path: str, h5name: str, grid, fields=FIELDS) -> None:
     dims = f"{grid.ny} {grid.nx}"
     attrs = "\n".join(
         f'      <Attribute Name="{field}" AttributeType="Scalar" Center="Node">\n'
         f'        <DataItem Dimensions="{dims}" NumberType="Float" Precision="8" Format="HDF">'
-        f'{h5name}:/{field}</DataItem>\n      </Attribute>' for field in FIELDS)
+        f'{h5name}:/{field}</DataItem>\n      </Attribute>' for field in fields)
     text = f"""<?xml version="1.0" ?>
 <Xdmf Version="3.0">
   <Domain>

@@ -4,8 +4,12 @@ A path is a list of approaches or loads solved in order, each warm-started
 from the previous state.  Rank 0 prints progress and writes ``curve.csv``
 (one row per step) and ``history.csv`` (one row per iteration: the error
 against run time); all ranks write ``step_NNNN.h5`` fields with an XDMF
-sidecar (``output.fields``, see ``output.py``).  A smooth sphere on an isolated half-space without
-adhesion is also compared with Hertz at each step.
+sidecar (``output.fields``, see ``output.py``).  A smooth sphere on an
+isolated half-space without adhesion is also compared with Hertz at each
+step.  With adhesion the path runs through ``paths.sweep`` (or
+``paths.central_gap_path``): jumps are detected and written to
+``jumps.csv``, the pull-off force to ``summary.json``, and spheres are
+reported in Greenwood's alpha* and W* as well.
 """
 from __future__ import annotations
 
@@ -23,8 +27,11 @@ from .grid import SurfaceGrid
 from .output import versions, write_state, write_text_atomic
 
 CURVE_COLUMNS = ["step", "approach_m", "force_N", "mean_pressure_Pa", "contact_fraction",
-                 "complementarity_error", "load_error", "converged", "reason", "solver", "newton_iterations",
+                 "adhesive_force_N", "adhesive_load_ratio", "adhesive_area_ratio", "alpha_star", "W_star",
+                 "central_gap_m", "stable", "complementarity_error", "adhesive_error", "total_error",
+                 "load_error", "converged", "reason", "solver", "newton_iterations",
                  "krylov_iterations", "fft_pairs", "wall_time_s"]
+NAN = float("nan")
 
 
 def build_grid(scene: dict, comm=None) -> SurfaceGrid:
@@ -51,31 +58,49 @@ def plan(scene: dict, grid: SurfaceGrid) -> list[str]:
     fft_points = n * (4 if not grid.periodic else 1)
     # FFT buffers (~5 doubles per transform point) + solver vectors (~20 doubles per node)
     per_rank = (5 * fft_points + 20 * n) * 8 / size
-    return [f"scene {scene['name']}: {g['kind']} surface, E* = {scene['material']['e_star']:g} Pa, "
-            f"law {scene['interaction']['law']}",
+    from .scenes import adhesive
+    sol = scene["solver"]
+    if adhesive(scene):
+        it = scene["interaction"]
+        law = f"law {it['law']}, w = {it['work_of_adhesion']:g} J/m^2" + (
+            ", element-integrated" if it["element_integration"] else "")
+        chain = (f"  solver: SNES vinewtonrsls on (contact, adhesive) pressures (prefix adhesion_), "
+                 f"KSP gmres, preconditioner {sol['preconditioner']}, Lanczos stability check"
+                 if sol["method"] == "newton" else
+                 "  solver: the reference paper's MLMI relaxation (prefix adhesion_relax_), E_Total tol "
+                 f"{sol['tol'] or 1e-4:g} z0")
+    else:
+        law = "no adhesion (Signorini)"
+        chain = (f"  solver: SNES vinewtonrsls (prefix contact_), KSP cg, preconditioner "
+                 f"{sol['preconditioner']}, tol {sol['tol'] or 1e-10:g}")
+    return [f"scene {scene['name']}: {g['kind']} surface, E* = {scene['material']['e_star']:g} Pa, {law}",
             f"  {grid}",
             f"  rows per rank {[b - a for a, b in grid.y_ranges]}",
-            f"  solver: SNES vinewtonrsls (prefix contact_), KSP cg, preconditioner "
-            f"{scene['solver']['preconditioner']}, tol {scene['solver']['tol']:g}",
+            chain,
             f"  protocol: {scene['protocol']['control']} x {len(scene['protocol']['values'])} steps",
             f"  memory estimate: {per_rank / 2**20:.0f} MiB per rank"]
 
 
-def _read_step(path: str, grid: SurfaceGrid) -> tuple[PETSc.Vec, float]:
-    """(pressure Vec, approach) of a step file written by ``output.write_state``; every rank reads its rows."""
+def _read_step(path: str, grid: SurfaceGrid, fields=("pressure",)) -> tuple[list, float]:
+    """([Vec per field], approach) of a step file written by ``output.write_state``; every rank
+    reads its rows."""
     import h5py
 
     def read():
         with h5py.File(path, "r") as f:
-            if f["pressure"].shape != (grid.ny, grid.nx):
-                raise ValueError(f"shape {f['pressure'].shape} does not fit the scene's grid")
-            return np.asarray(f["pressure"][grid.ys:grid.ye, :]), float(f.attrs["approach"])
+            for name in fields:
+                if f[name].shape != (grid.ny, grid.nx):
+                    raise ValueError(f"{name} has shape {f[name].shape}: it does not fit the scene's grid")
+            return [np.asarray(f[name][grid.ys:grid.ye, :]) for name in fields], float(f.attrs["approach"])
 
-    rows, approach = collective_call(grid.mpi_comm, RuntimeError,
-                                     f"cannot restart from {path}: {{error}}", read)
-    p = grid.create_vec()
-    grid.rows(p)[...] = rows
-    return p, approach
+    arrays, approach = collective_call(grid.mpi_comm, RuntimeError,
+                                       f"cannot restart from {path}: {{error}}", read)
+    vecs = []
+    for rows in arrays:
+        v = grid.create_vec()
+        grid.rows(v)[...] = rows
+        vecs.append(v)
+    return vecs, approach
 
 
 def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=None,
@@ -85,6 +110,7 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
     With ``restart``, steps already in ``curve.csv`` are kept and the path
     resumes from the last one's field file (``step_NNNN.h5``).
     """
+    from .scenes import adhesive
     from .solvers import ContactProblem
     say = PETSc.Sys.Print
     grid = build_grid(scene, comm)
@@ -92,6 +118,8 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
         say(line)
     if dry_run:
         return []
+    if adhesive(scene):
+        return _run_adhesive(scene, grid, output=output, restart=restart)
     opts = PETSc.Options("contact_")
     for key, value in scene["solver"]["options"].items():
         if not opts.hasName(key):  # the command line wins over the scene
@@ -100,7 +128,7 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
     g = scene["geometry"]
     e_star = scene["material"]["e_star"]
     hertz = g["kind"] == "sphere" and not g["periodic"] and scene["interaction"]["law"] == "none"
-    problem = ContactProblem(grid, h, e_star, tol=scene["solver"]["tol"],
+    problem = ContactProblem(grid, h, e_star, tol=scene["solver"]["tol"] or 1e-10,
                              preconditioner=scene["solver"]["preconditioner"],
                              length_scale=(max(scene["protocol"]["values"]) if hertz
                                            and scene["protocol"]["control"] == "approach" else None))
@@ -130,7 +158,8 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
         rows = grid.mpi_comm.bcast(rows, root=0)
         done = len(rows)
         if done:
-            problem.warm_start(*_read_step(os.path.join(out_dir, f"step_{done:04d}.h5"), grid))
+            (p,), approach = _read_step(os.path.join(out_dir, f"step_{done:04d}.h5"), grid)
+            problem.warm_start(p, approach)
         say(f"  restart: {done} of {len(values)} steps already done")
     provenance = {"scene": scene, "versions": versions()} if scene["output"]["fields"] else None
     t_start = MPI.Wtime()
@@ -152,8 +181,9 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
         say(line + f"  [step {k}/{len(values)}, {elapsed:.1f} s, ~{left:.1f} s left]"
             + ("" if st.converged else f"  NOT CONVERGED: {st.reason}"))
         rows.append([k, st.approach, st.force, st.mean_pressure, st.contact_fraction,
-                     st.complementarity_error, st.load_error, st.converged, st.reason,
-                     "snes-vi+" + problem.preconditioner, st.newton_iterations, st.linear_iterations, st.fft_pairs, st.wall_time])
+                     0.0, 0.0, 0.0, NAN, NAN, NAN, True, st.complementarity_error, NAN, NAN,
+                     st.load_error, st.converged, st.reason, "snes-vi+" + problem.preconditioner,
+                     st.newton_iterations, st.linear_iterations, st.fft_pairs, st.wall_time])
         if provenance is not None:
             write_state(out_dir, k, grid, h, st, provenance)
         if rank0:  # rewrite after every step: a finished step is never lost
@@ -163,6 +193,125 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
                               old_history + problem.history.csv_text(header=not old_history))
     grid.mpi_comm.Barrier()  # the outputs are complete when run() returns, on every rank
     say(f"  wrote {out_dir}/curve.csv and {out_dir}/history.csv")
+    return states
+
+
+def _run_adhesive(scene: dict, grid: SurfaceGrid, *, output: str | None, restart: bool) -> list:
+    """The adhesive branch of ``run``: sweeps with jumps and pull-off, or central-gap paths."""
+    import json
+
+    from .metrics import adhesion_ratios, greenwood
+    from .paths import central_gap_path, refine_pull_off, sweep
+    from .physics.interactions import make_law
+    from .solvers.adhesive import AdhesiveProblem
+    from .solvers.relaxation import RelaxationSolver
+    say = PETSc.Sys.Print
+    it, sol, proto, g = scene["interaction"], scene["solver"], scene["protocol"], scene["geometry"]
+    opts = PETSc.Options("adhesion_")
+    for key, value in sol["options"].items():
+        if not opts.hasName(key):  # the command line wins over the scene
+            opts.setValue(key, str(value))
+    params = {"hardwall-lj": "z0", "lj": "z0", "exponential": "rho", "dugdale": "sigma0"}[it["law"]]
+    law = make_law(it["law"], work_of_adhesion=it["work_of_adhesion"], **{params: it[params]})
+    h = build_heights(scene, grid)
+    e_star = scene["material"]["e_star"]
+    tol = sol["tol"] if sol["tol"] is not None else (1e-4 if sol["method"] == "relaxation" else None)
+    problem = AdhesiveProblem(grid, h, e_star, law, element_integration=it["element_integration"],
+                              tol=tol if sol["method"] == "newton" else None,
+                              preconditioner=sol["preconditioner"])
+    relax = RelaxationSolver(problem, tol=tol) if sol["method"] == "relaxation" else None
+    sphere = g["kind"] == "sphere" and not g["periodic"]
+    z0 = law.length_scale()
+    out_dir = output or scene["output"]["directory"]
+    rank0 = grid.mpi_comm.Get_rank() == 0
+    if rank0:
+        os.makedirs(out_dir, exist_ok=True)
+    grid.mpi_comm.Barrier()
+    curve_path, history_path = os.path.join(out_dir, "curve.csv"), os.path.join(out_dir, "history.csv")
+    values = [float(v) for v in proto["values"]]
+    rows, done, old_history = [], 0, ""
+    if restart:
+        if not scene["output"]["fields"]:
+            raise RuntimeError("restart needs the field files: set output.fields = true")
+        if rank0 and os.path.exists(curve_path):
+            with open(curve_path) as f:
+                rows = [r for r in csv.reader(f)][1:]
+            if os.path.exists(history_path):
+                with open(history_path) as f:
+                    old_history = f.read()
+        rows = grid.mpi_comm.bcast(rows, root=0)
+        done = len(rows)
+        if done:
+            (q, a), approach = _read_step(os.path.join(out_dir, f"step_{done:04d}.h5"), grid,
+                                          ("contact_pressure", "adhesive_pressure"))
+            problem.warm_start(type("Saved", (), dict(contact_pressure=q, adhesive_pressure=a,
+                                                       approach=approach)))
+        say(f"  restart: {done} of {len(values)} steps already done")
+    provenance = {"scene": scene, "versions": versions()} if scene["output"]["fields"] else None
+    say(f"  {'step':>4} {'approach [m]':>12} {'force [N]':>11} {'contact':>8} {'adh. force':>11} "
+        f"{'error':>9} {'stable':>6} {'time [s]':>8}" + (f" {'alpha*':>8} {'W*':>9}" if sphere else ""))
+    t_start = MPI.Wtime()
+    states = []
+
+    def record(k, st, pt):
+        step = done + k + 1
+        states.append(st)
+        load_ratio, area_ratio = adhesion_ratios(grid, st.pressure, law.peak_attraction)
+        a_star, w_star = (greenwood(st.approach, st.force, g["radius"], law.work_of_adhesion, z0)
+                          if sphere else (NAN, NAN))
+        err = max(st.complementarity_error, st.adhesive_error)
+        elapsed = MPI.Wtime() - t_start
+        left = elapsed / (k + 1) * (len(values) - done - k - 1)
+        say(f"  {step:4d} {st.approach:12.4e} {st.force:11.4e} {st.contact_fraction:8.4f} "
+            f"{st.adhesive_force:11.4e} {err:9.2e} {str(st.stable):>6} {st.wall_time:8.2f}"
+            + (f" {a_star:8.3f} {w_star:9.4f}" if sphere else "")
+            + f"  [step {step}/{len(values)}, {elapsed:.1f} s, ~{left:.1f} s left]"
+            + ("" if st.converged else f"  NOT CONVERGED: {st.reason}"))
+        rows.append([step, st.approach, st.force, st.mean_pressure, st.contact_fraction,
+                     st.adhesive_force, load_ratio, area_ratio, a_star, w_star, st.central_gap,
+                     st.stable, st.complementarity_error, st.adhesive_error, st.total_error, NAN,
+                     st.converged, st.reason, st.solver, st.newton_iterations, st.linear_iterations,
+                     st.fft_pairs, st.wall_time])
+        if provenance is not None:
+            write_state(out_dir, step, grid, h, st, provenance)
+        if rank0:
+            _write_csv(curve_path, CURVE_COLUMNS, rows)
+            write_text_atomic(history_path, old_history + problem.history.csv_text(header=not old_history))
+
+    todo = values[done:]
+    if relax is not None:
+        # the paper's solver, step by step (no jump location: it relaxes wherever it goes)
+        for k, delta in enumerate(todo):
+            st = relax.solve(approach=delta, raise_on_failure=False)
+            record(k, st, None)
+        path = None
+    elif proto["control"] == "central_gap":
+        path = central_gap_path(problem, todo, on_state=record)
+    else:
+        path = sweep(problem, todo, refine=proto["jump_refinement"], on_state=record)
+    summary = {"steps": len(rows), "converged": all(st.converged for st in states)}
+    if path is not None and proto["control"] == "approach":
+        pull = path.pull_off_force
+        if proto["refine_pull_off"] and path._best is not None:
+            step = min(np.diff(values).__abs__()) if len(values) > 1 else z0
+            pull = refine_pull_off(problem, path, xtol=0.01 * step)
+        summary["pull_off_force_N"] = pull
+        if sphere:
+            summary["pull_off_W_star"] = pull / (2 * np.pi * g["radius"] * law.work_of_adhesion)
+        summary["jumps"] = [vars(j) for j in path.jumps]
+        say(f"  pull-off force {pull:.6e} N" + (f" (W* = {summary['pull_off_W_star']:.4f})" if sphere else ""))
+        for j in path.jumps:
+            say(f"  {j.kind} between approaches {j.approach_before:.4e} and {j.approach_after:.4e} m: "
+                f"force {j.force_before:.4e} -> {j.force_after:.4e} N")
+        if rank0:
+            _write_csv(os.path.join(out_dir, "jumps.csv"),
+                       ["kind", "approach_before_m", "approach_after_m", "force_before_N", "force_after_N"],
+                       [[j.kind, j.approach_before, j.approach_after, j.force_before, j.force_after]
+                        for j in path.jumps])
+    if rank0:
+        write_text_atomic(os.path.join(out_dir, "summary.json"), json.dumps(summary, indent=1, default=str))
+    grid.mpi_comm.Barrier()
+    say(f"  wrote {out_dir}/curve.csv, history.csv, summary.json")
     return states
 
 

@@ -46,20 +46,36 @@ SCHEMA = {
         "e_star": _k(float, None, "Pa", "effective modulus E* (required)", POS),
     },
     "interaction": {
-        "law": _k(str, "none", "", "interaction law (adhesive laws: coming with issue 4)", choices=("none",)),
+        "law": _k(str, "none", "", "interaction law (docs/formulation.md): Signorini, the reference "
+                  "paper's eq. 7 and eq. 8, or for comparison exponential and Maugis-Dugdale",
+                  choices=("none", "hardwall-lj", "lj", "exponential", "dugdale")),
+        "work_of_adhesion": _k(float, 0.0, "J/m^2", "w; 0 means no adhesion (law none)", NONNEG),
+        "z0": _k(float, None, "m", "equilibrium separation (hardwall-lj, lj)", POS),
+        "rho": _k(float, None, "m", "decay length (exponential)", POS),
+        "sigma0": _k(float, None, "Pa", "Dugdale stress (dugdale)", POS),
+        "element_integration": _k(bool, False, "", "the paper's element-integrated adhesion (Fig. 3) "
+                                  "instead of nodal sampling"),
     },
     "protocol": {
-        "control": _k(str, "approach", "", "what the values prescribe",
-                      choices=("approach", "mean_pressure", "force")),
-        "values": _k(list, None, "m, Pa or N", "the sequence of approaches or loads, solved in order "
+        "control": _k(str, "approach", "", "what the values prescribe; with adhesion: approach "
+                      "(loading where the values rise, unloading where they fall) or central_gap (the gap "
+                      "at the lowest node, Greenwood's device for the full S-curve of a sphere)",
+                      choices=("approach", "mean_pressure", "force", "central_gap")),
+        "values": _k(list, None, "m, Pa or N", "the sequence of approaches, gaps or loads, solved in order "
                      "with warm starts (required)"),
+        "refine_pull_off": _k(bool, True, "", "adhesive sweeps: refine the most tensile force by golden "
+                              "section (Newton solves on its branch)"),
+        "jump_refinement": _k(int, 6, "", "adhesive sweeps: bisections locating each jump", (0, 40, True)),
     },
     "solver": {
+        "method": _k(str, "newton", "", "with adhesion: SNES VI Newton, or the reference paper's MLMI "
+                     "relaxation (hard-wall laws)", choices=("newton", "relaxation")),
         "preconditioner": _k(str, "spectral", "", "reduced-system preconditioner",
                              choices=("spectral", "mlmi", "none")),
-        "tol": _k(float, 1e-10, "", "complementarity error relative to the length scale", POS),
-        "options": _k(dict, {}, "", "further PETSc options under the prefix contact_, "
-                      "e.g. {snes_monitor = \"\", ksp_type = \"cg\"}"),
+        "tol": _k(float, None, "", "error tolerance: complementarity error relative to the rms height "
+                  "(default 1e-10); with adhesion, the errors in z0 (default 1e-8; relaxation: 1e-4)", POS),
+        "options": _k(dict, {}, "", "further PETSc options under the solver's prefix (contact_, or "
+                      "adhesion_ with adhesion), e.g. {snes_monitor = \"\", ksp_type = \"cg\"}"),
     },
     "output": {
         "directory": _k(str, "contactpetsc-output", "", "where curve.csv, history.csv and the fields go"),
@@ -127,17 +143,37 @@ def validate(scene: dict) -> dict:
         raise SceneError("geometry.path is required for geometry.kind = file")
     if g["kind"] == "self-affine" and (g["rms_height"] is None) == (g["rms_slope"] is None):
         raise SceneError("give exactly one of geometry.rms_height or geometry.rms_slope")
+    it = out["interaction"]
+    if it["law"] != "none" and it["work_of_adhesion"] > 0:
+        needed = {"hardwall-lj": "z0", "lj": "z0", "exponential": "rho", "dugdale": "sigma0"}[it["law"]]
+        if it[needed] is None:
+            raise SceneError(f"interaction.{needed} is required for interaction.law = {it['law']}")
+        if out["protocol"]["control"] in ("mean_pressure", "force"):
+            raise SceneError(f"protocol.control = {out['protocol']['control']!r} with adhesion: load "
+                             f"control is unstable on parts of adhesive paths; use approach or central_gap")
+        if out["solver"]["method"] == "relaxation" and it["law"] == "lj":
+            raise SceneError("solver.method = 'relaxation' needs a hard-wall law (hardwall-lj, "
+                             "exponential, dugdale); the full LJ curve (lj) is solved by newton")
+    elif out["protocol"]["control"] == "central_gap":
+        raise SceneError("protocol.control = 'central_gap' needs adhesion (interaction.law and "
+                         "interaction.work_of_adhesion > 0)")
     values = out["protocol"]["values"]
     if not values or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
                              and math.isfinite(v) for v in values):
         raise SceneError(f"protocol.values = {values!r}: a non-empty list of finite numbers")
-    if out["protocol"]["control"] != "approach" and min(values) <= 0:
+    if out["protocol"]["control"] in ("mean_pressure", "force") and min(values) <= 0:
         raise SceneError(f"protocol.values = {values!r}: loads must be > 0 without adhesion")
     g["ny"] = g["ny"] or g["nx"]
     g["dy"] = g["dy"] or g["dx"]
     if g["periodic"] is None:
         g["periodic"] = g["kind"] != "sphere"
     return out
+
+
+def adhesive(scene: dict) -> bool:
+    """Whether a validated scene has adhesion (a law other than none and w > 0)."""
+    it = scene["interaction"]
+    return it["law"] != "none" and it["work_of_adhesion"] > 0
 
 
 def load(path: str) -> dict:

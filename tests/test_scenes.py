@@ -1,6 +1,9 @@
 """Scenes: validation names the key, the value and the accepted range; a run writes its outputs."""
 import csv
+import json
 import os
+
+import h5py
 
 import numpy as np
 import pytest
@@ -26,7 +29,12 @@ def minimal(**geometry):
     (minimal(kind="self-affine"), "exactly one of geometry.rms_height or geometry.rms_slope"),
     (dict(minimal(), material={"e_star": 0.0}), "material.e_star = 0.0: accepted range (0, inf] Pa"),
     (dict(minimal(), material={}), "material.e_star is required"),
-    (dict(minimal(), interaction={"law": "lj"}), "interaction.law = 'lj': accepted values are none"),
+    (dict(minimal(), interaction={"law": "morse"}), "interaction.law = 'morse': accepted values are none"),
+    (dict(minimal(), interaction={"law": "lj", "work_of_adhesion": 0.1}), "interaction.z0 is required"),
+    (dict(minimal(), interaction={"law": "lj", "work_of_adhesion": -0.1, "z0": 1e-9}),
+     "interaction.work_of_adhesion = -0.1: accepted range"),
+    (dict(minimal(), interaction={"law": "lj", "work_of_adhesion": 0.1, "z0": 1e-9},
+          solver={"method": "relaxation"}), "needs a hard-wall law"),
     (dict(minimal(), protocol={"values": []}), "protocol.values = []"),
     (dict(minimal(), protocol={"control": "force", "values": [-1.0]}), "loads must be > 0"),
     (dict(minimal(), protocol={"values": [float("nan")]}), "finite numbers"),
@@ -141,7 +149,20 @@ def test_example_scenes_run_at_reduced_size(coll, shared_tmp, path):
     out = os.path.join(shared_tmp, os.path.basename(path))
     states = protocols.run(scene, output=out, comm=PETSc.COMM_WORLD)
     assert coll.all(all(st.converged for st in states))
-    assert coll.all(all(np.isfinite(st.force) and st.force > 0 for st in states))
+    if scenes.adhesive(scene):
+        # adhesion: every state is stable, tensile somewhere on the path, and a pull-off is reported
+        assert coll.all(all(np.isfinite(st.force) and st.stable for st in states))
+        assert min(st.force for st in states) < 0
+        with open(os.path.join(out, "summary.json")) as f:
+            summary = json.load(f)
+        assert summary["pull_off_force_N"] <= min(st.force for st in states) + 1e-30
+        with open(os.path.join(out, "curve.csv")) as f:
+            header = next(csv.reader(f))
+        assert {"adhesive_force_N", "adhesive_load_ratio", "W_star", "stable"} <= set(header)
+        with h5py.File(os.path.join(out, "step_0001.h5"), "r") as f:
+            assert {"contact_pressure", "adhesive_pressure", "adhesive"} <= set(f)
+    else:
+        assert coll.all(all(np.isfinite(st.force) and st.force > 0 for st in states))
     n = len(scene["protocol"]["values"])
     for name in ["curve.csv", "history.csv"] + [f"step_{k:04d}.h5" for k in range(1, n + 1)]:
         assert os.path.exists(os.path.join(out, name)), name

@@ -160,6 +160,11 @@ class Exponential(InteractionLaw):
     def length_scale(self) -> float:
         return self.rho
 
+    @property
+    def peak_attraction(self) -> float:
+        """w / rho [Pa], at contact."""
+        return self.work_of_adhesion / self.rho
+
     def energy(self, gap):
         g = np.maximum(np.asarray(gap, dtype=float), 0.0)
         return -self.work_of_adhesion * np.exp(-g / self.rho)
@@ -183,6 +188,11 @@ class Dugdale(InteractionLaw):
 
     def length_scale(self) -> float:
         return self.range
+
+    @property
+    def peak_attraction(self) -> float:
+        """sigma0 [Pa]."""
+        return self.sigma0
 
     def pressure(self, gap):
         g = np.asarray(gap, dtype=float)
