@@ -206,3 +206,18 @@ def test_maugis_dugdale_limits():
     assert abs(maugis_pull_off_bar(1e4) + 1.5) < 1e-3
     values = [maugis_pull_off_bar(lam) for lam in (0.1, 0.5, 1.0, 2.0, 5.0)]
     assert all(np.diff(values) > 0)   # from DMT towards JKR
+
+
+def test_load_control_where_stable(coll):
+    """A prescribed tensile force on the stable branch is met; beyond the pull-off force
+    load control reports why it cannot be met."""
+    pb = sphere_problem(0.5, law="lj", n=64, dx=1.0, radius=100.0)
+    w = work_for(0.5, 100.0)
+    path = sweep(pb, np.arange(-2.0, 1.01, 0.25))
+    target = -1.0 * np.pi * 100.0 * w           # tensile, above the pull-off force (~ -1.78)
+    st = pb.solve_force(target)
+    assert st.converged and st.stable and abs(st.force - target) < 1e-6 * abs(target)
+    pull = path.pull_off_force
+    beyond = pb.solve_force(1.5 * pull, raise_on_failure=False)
+    assert not beyond.converged
+    assert "LOAD_CONTROL_UNSTABLE" in beyond.reason

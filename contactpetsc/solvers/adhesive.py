@@ -192,6 +192,7 @@ class AdhesiveProblem:
         self.ptc_shift0 = opts.getReal("ptc_shift", 1.0)
         self.ptc_max_it = opts.getInt("ptc_max_it", 2000)
         self.fallback_tol = opts.getReal("fallback_tol", 1e-3)
+        self.fallback_max_cycles = opts.getInt("fallback_max_cycles", 5000)
         self.use_predictor = opts.getBool("predictor", True)
         choice = opts.getString("preconditioner", d["preconditioner"] or "spectral").lower()
         if choice not in ("spectral", "mlmi", "none"):
@@ -370,6 +371,44 @@ class AdhesiveProblem:
         self._tangent = None if tangent is None else (tangent[0], tangent[1].copy())
         self._started = True
 
+    def solve_force(self, force: float, *, rel_tol: float = 1e-8, max_updates: int = 30,
+                    raise_on_failure: bool = True) -> AdhesiveState:
+        """Load control where it is stable: Newton on the approach for a net force [N].
+
+        Each update solves in displacement control (tangent predictor) and steps
+        delta by (F - W) / (dW/d delta).  Under load control a state is stable only
+        where dW/d delta > 0; where the slope is not positive (beyond the pull-off
+        force, or on the unstable branch) the solve stops with a reason saying so.
+        """
+        if not np.isfinite(force):
+            raise ValueError(f"force must be finite, got {force!r}")
+        self._build()
+        delta = self._approach
+        if delta is None:
+            delta = float(self.heights.min()[1])
+        scale = max(abs(force), 2.0 * np.pi * self.law.work_of_adhesion * self.z0 * 1e3)
+        st = None
+        for _ in range(max_updates):
+            st = self.solve(approach=delta, raise_on_failure=False)
+            if not st.converged:
+                break
+            miss = force - st.force
+            if abs(miss) <= rel_tol * scale:
+                return st
+            if not (st.stiffness > 0 and st.stable):
+                st.converged = False
+                st.reason = (f"LOAD_CONTROL_UNSTABLE (dW/d delta = {st.stiffness:.3e} N/m at approach "
+                             f"{st.approach:.4e} m, force {st.force:.4e} N): the target is beyond the end of "
+                             f"a stable branch under load control; use displacement control")
+                break
+            delta = st.approach + miss / st.stiffness
+        else:
+            st.converged = False
+            st.reason = f"DIVERGED_LOAD_ITERATION ({max_updates} approach updates)"
+        if raise_on_failure:
+            raise AdhesiveSolveError(f"load-controlled adhesive solve for {force:.4e} N failed: {st.reason}")
+        return st
+
     def solve(self, *, approach: float | None = None, central_gap: float | None = None,
               raise_on_failure: bool = True, check_stability: bool | None = None,
               fallback: bool = True) -> AdhesiveState:
@@ -420,7 +459,7 @@ class AdhesiveProblem:
             x_start.copy(self._x)
             if self.hard_wall:
                 from .relaxation import RelaxationSolver
-                relax = RelaxationSolver(self, tol=self.fallback_tol)
+                relax = RelaxationSolver(self, tol=self.fallback_tol, max_cycles=self.fallback_max_cycles)
                 ok, reason, n2, l2 = relax.relax(approach)
                 solver += "+relaxation"
                 if ok:

@@ -1,0 +1,230 @@
+#!/usr/bin/env python3
+"""Benchmark (issue 4, item 6): adhesive contact, error against run time, ours and the peer.
+
+Cases
+-----
+* ``sphere``: a sphere (R = 1000 z0, E* = z0 = 1, isolated, n = 128, dx = z0) with
+  the hard-wall LJ law at Tabor parameters 0.5 and 2, solved at one approach
+  (delta = z0, in contact) from the undeformed bodies by Newton (SNES VI)
+  and by the reference paper's relaxation.  Their per-iteration histories give
+  the error-vs-time curves (``--plot``).
+* ``rough``: the surface of the non-adhesive benchmark (periodic unit cell,
+  self-affine, Hurst 0.8, rms slope 0.1, roll-off L/4, cut-off 4 dx, seed 1),
+  the full LJ curve with z0 = dx and w = 0.05 E* dx, three approaches giving
+  about 2 %, 10 % and 25 % contact area (calibrated with our solver, untimed),
+  solved in turn with warm starts by Newton, and by ContactMechanics + Adhesion
+  (``run_scripts/peers/cm_adhesion.py`` in the peer venv, same heights, same
+  approaches) with the same law (``--potential vdw82`` is exactly our lj law;
+  lj93 is Adhesion's 9-3 potential with the same w and equilibrium distance).
+  Stronger and shorter-range variants: ``--w 0.2 0.5``, ``--z0 0.25``.
+
+Error: ``error`` is the largest gap difference to a reference solution of
+the same case (ours at tolerance 1e-11), in z0; the solvers' own measures
+are kept in ``own_error``.  One JSON line per case (n, solver, approach,
+time, fft_pairs, error, converged, ...).
+
+    .venv/bin/python run_scripts/bench_adhesion.py [--cases sphere rough] [--sizes 256 512 1024]
+        [--w 0.05] [--z0 1.0] [--potential vdw82] [--no-peer] [--plot docs/figures]
+"""
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+import petsc4py
+
+ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+ap.add_argument("--cases", nargs="+", default=["sphere", "rough"])
+ap.add_argument("--sizes", type=int, nargs="+", default=[256, 512, 1024])
+ap.add_argument("--areas", type=float, nargs="+", default=[0.02, 0.10, 0.25])
+ap.add_argument("--w", type=float, nargs="+", default=[0.05], help="w / (E* dx)")
+ap.add_argument("--z0", type=float, nargs="+", default=[1.0], help="z0 / dx")
+ap.add_argument("--mu", type=float, nargs="+", default=[0.5, 2.0], help="sphere Tabor parameters")
+ap.add_argument("--potential", default="vdw82", choices=["vdw82", "lj93"])
+ap.add_argument("--no-peer", action="store_true")
+ap.add_argument("--peer-maxiter", type=int, default=100000)
+ap.add_argument("--plot", default=None, help="directory for the error-vs-time figures")
+ap.add_argument("--peer-python", default=os.path.join(os.environ.get(
+    "CONTACTPETSC_PEER_VENV_CM", os.path.expanduser("~/.cache/contactpetsc/peer-venv-cm")), "bin", "python"))
+args, petsc_args = ap.parse_known_args()
+petsc4py.init([sys.argv[0]] + petsc_args)
+
+import numpy as np  # noqa: E402
+from petsc4py import PETSc  # noqa: E402
+
+from contactpetsc.grid import SurfaceGrid  # noqa: E402
+from contactpetsc.physics.interactions import make_law  # noqa: E402
+from contactpetsc.solvers.adhesive import AdhesiveProblem  # noqa: E402
+from contactpetsc.solvers.relaxation import RelaxationSolver  # noqa: E402
+from contactpetsc.surfaces import self_affine, sphere  # noqa: E402
+
+rank = PETSc.COMM_WORLD.getRank()
+HERE = os.path.dirname(os.path.abspath(__file__))
+curves = {}
+
+
+def emit(**row):
+    if rank == 0:
+        print(json.dumps(row), flush=True)
+
+
+def gap_error(grid, a, b, z0):
+    d = grid.rows(a, readonly=True) - grid.rows(b, readonly=True)
+    return grid.mpi_comm.allreduce(float(np.abs(d).max()), op=__import__("mpi4py").MPI.MAX) / z0
+
+
+def history_curve(pb, first_solve=0):
+    """(time, FFT pairs, errors) per iteration of a problem's solves from ``first_solve`` on
+    (Newton's include its relaxation fallback, recorded in the same history)."""
+    recs = [r for r in pb.history.records if r.solve >= first_solve]
+    t0 = recs[0].wall_time if recs else 0.0
+    return [(r.wall_time - t0, r.fft_pairs, r.adhesive_error, r.complementarity_error, r.total_error)
+            for r in recs]
+
+
+def sphere_cases():
+    R, n, dx, delta = 1000.0, 128, 1.0, 1.0
+    for mu in args.mu:
+        w = np.sqrt(mu ** 3 / R)
+        grid = SurfaceGrid(n, n, dx, periodic=False)
+        h = sphere(grid, R)
+        law = make_law("hardwall-lj", work_of_adhesion=w, z0=1.0)
+        ref = AdhesiveProblem(grid, h, 1.0, law, tol=1e-11, prefix="ref_", stability_check=False)
+        st_ref = ref.solve(approach=delta)
+        st_ref2 = ref.solve(approach=delta + 0.25)
+        for solver in ("newton", "relaxation"):
+            pb = AdhesiveProblem(grid, h, 1.0, law, prefix=f"s{solver}_")
+            relax = RelaxationSolver(pb) if solver == "relaxation" else None
+            # a cold solve (from rest), then the next point of a loading path (warm start)
+            for stage, d, st_r in (("cold", delta, st_ref), ("path step", delta + 0.25, st_ref2)):
+                first = pb._n_solves
+                t = time.perf_counter()
+                if relax is None:
+                    st = pb.solve(approach=d, raise_on_failure=False)
+                else:
+                    st = relax.solve(approach=d, raise_on_failure=False)
+                elapsed = time.perf_counter() - t
+                err = gap_error(grid, st.gap, st_r.gap, 1.0)
+                curves[("sphere", mu, solver, stage)] = history_curve(pb, first)
+                emit(case="sphere", stage=stage, mu=mu, n=n, solver=st.solver, approach=d, time=elapsed,
+                     fft_pairs=st.fft_pairs, error=err,
+                     own_error=max(st.complementarity_error, st.adhesive_error),
+                     total_error=st.total_error, converged=st.converged, stable=st.stable,
+                     W_star=st.force / (2 * np.pi * R * w))
+
+
+def calibrate(pb, h, areas):
+    """Approaches giving the target contact fractions (secant/bisection on our solver; untimed)."""
+    lo = float(h.min()[1]) - 0.5 * pb.z0
+    hi = float(h.max()[1])
+    out = []
+    for target in areas:
+        a, b = lo, hi
+        for _ in range(30):
+            mid = 0.5 * (a + b)
+            st = pb.solve(approach=mid, raise_on_failure=False, check_stability=False)
+            if not st.converged:
+                b = mid
+                continue
+            if abs(st.contact_fraction - target) < 0.1 * target:
+                break
+            a, b = (mid, b) if st.contact_fraction < target else (a, mid)
+        out.append(mid)
+        lo = mid
+    return out
+
+
+def run_peer(heights_path, dx, w, z0, approaches, outdir):
+    cmd = [args.peer_python, os.path.join(HERE, "peers", "cm_adhesion.py"), "--surface", heights_path,
+           "--dx", repr(dx), "--e-star", "1.0", "--w", repr(w), "--z0", repr(z0),
+           "--potential", args.potential, "--offsets", ",".join(repr(a) for a in approaches),
+           "--maxiter", str(args.peer_maxiter), "--save-fields", outdir]
+    res = subprocess.run(cmd, capture_output=True, text=True)
+    rows = [json.loads(line) for line in res.stdout.splitlines() if line.startswith("{")]
+    if res.returncode != 0 and not rows:
+        return [], res.stderr[-2000:]
+    return rows, ""
+
+
+def rough_cases():
+    comm = PETSc.COMM_WORLD.tompi4py()
+    for n in args.sizes:
+        dx = 1.0 / n
+        grid = SurfaceGrid(n, n, dx, periodic=True)
+        h = self_affine(grid, hurst=0.8, seed=1, rms_slope=0.1, rolloff_wavelength=0.25,
+                        short_cutoff_wavelength=4 * dx)
+        for w_rel in args.w:
+            for z0_rel in args.z0:
+                z0, w = z0_rel * dx, w_rel * dx
+                law = make_law("lj", work_of_adhesion=w, z0=z0)
+                cal = AdhesiveProblem(grid, h, 1.0, law, prefix="cal_", tol=1e-6)
+                approaches = calibrate(cal, h, args.areas)
+                ref = AdhesiveProblem(grid, h, 1.0, law, prefix="ref_", tol=1e-11, stability_check=False)
+                refs = [ref.solve(approach=d, raise_on_failure=False) for d in approaches]
+                pb = AdhesiveProblem(grid, h, 1.0, law, prefix="ours_")
+                for d, st_ref in zip(approaches, refs):
+                    t = time.perf_counter()
+                    st = pb.solve(approach=d, raise_on_failure=False)
+                    elapsed = time.perf_counter() - t
+                    emit(case="rough", n=n, w=w_rel, z0=z0_rel, solver=st.solver, approach=d, time=elapsed,
+                         fft_pairs=st.fft_pairs, error=gap_error(grid, st.gap, st_ref.gap, z0),
+                         own_error=max(st.complementarity_error, st.adhesive_error),
+                         contact_fraction=st.contact_fraction, converged=st.converged, stable=st.stable,
+                         ranks=comm.Get_size())
+                if args.no_peer:
+                    continue
+                hg = grid.gather(h, root=0)
+                ref_gaps = [grid.gather(s.gap, root=0) for s in refs]
+                if rank == 0:
+                    with tempfile.TemporaryDirectory() as tmp:
+                        path = os.path.join(tmp, "heights.npy")
+                        np.save(path, hg)
+                        rows, err = run_peer(path, dx, w, z0, approaches, tmp)
+                        if err:
+                            emit(case="rough", n=n, w=w_rel, z0=z0_rel, solver="contactmechanics+adhesion",
+                                 converged=False, message=err)
+                        for row, gref in zip(rows, ref_gaps):
+                            fld = os.path.join(tmp, f"cm_{row['approach']!r}.npy")
+                            gap_err = float("nan")
+                            if os.path.exists(fld):
+                                data = np.load(fld, allow_pickle=True)
+                                g = data.item()["gap"] if data.dtype == object else data
+                                gap_err = float(np.abs(g - gref).max()) / z0
+                            emit(case="rough", n=n, w=w_rel, z0=z0_rel, solver=f"cm+adhesion-{args.potential}",
+                                 approach=row["approach"], time=row["time"],
+                                 fft_pairs=row.get("iterations", float("nan")), error=gap_err,
+                                 own_error=row.get("error"), contact_fraction=row.get("contact_fraction"),
+                                 converged=row.get("converged"), message=row.get("message", ""))
+                comm.Barrier()
+
+
+def plot(directory):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    os.makedirs(directory, exist_ok=True)
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
+    for ax, stage in zip(axes, ("cold", "path step")):
+        for (case, mu, solver, st), c in curves.items():
+            if st != stage or not c:
+                continue
+            ax.semilogy([r[0] for r in c], [r[2] for r in c], marker="o" if solver == "newton" else ".",
+                        ms=3, label=f"{solver}, Tabor {mu:g}")
+        ax.set_xlabel("wall time [s]")
+        ax.set_title({"cold": "from rest to delta = z0", "path step": "next path step, delta = 1.25 z0"}[stage])
+        ax.legend()
+    axes[0].set_ylabel("self-consistency error max K_ii |a - a(g)| / z0")
+    fig.suptitle("Sphere R = 1000 z0, hard-wall LJ, n = 128 (run_scripts/bench_adhesion.py)")
+    fig.tight_layout()
+    fig.savefig(os.path.join(directory, "adhesion_error_vs_time_sphere.png"), dpi=120)
+
+
+if "sphere" in args.cases:
+    sphere_cases()
+if "rough" in args.cases:
+    rough_cases()
+if args.plot and rank == 0 and curves:
+    plot(args.plot)
