@@ -143,23 +143,13 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
     if hertz:
         header += f" {'F/F_Hertz':>9} {'a/a_Hertz':>9}"
     say(header)
-    states, rows, done, old_history = [], [], 0, ""
-    curve_path, history_path = os.path.join(out_dir, "curve.csv"), os.path.join(out_dir, "history.csv")
+    states = []
+    curve_path, history_path, rows, old_history = _open_outputs(scene, grid, out_dir, restart)
+    done = len(rows)
+    if done:
+        (p,), approach = _read_step(os.path.join(out_dir, f"step_{done:04d}.h5"), grid)
+        problem.warm_start(p, approach)
     if restart:
-        if not scene["output"]["fields"]:
-            raise RuntimeError("restart needs the field files: set output.fields = true")
-        if rank0 and os.path.exists(curve_path):
-            # rank 0 reads and broadcasts: every rank must take the same path
-            with open(curve_path) as f:
-                rows = [r for r in csv.reader(f)][1:]
-            if os.path.exists(history_path):
-                with open(history_path) as f:
-                    old_history = f.read()
-        rows = grid.mpi_comm.bcast(rows, root=0)
-        done = len(rows)
-        if done:
-            (p,), approach = _read_step(os.path.join(out_dir, f"step_{done:04d}.h5"), grid)
-            problem.warm_start(p, approach)
         say(f"  restart: {done} of {len(values)} steps already done")
     provenance = {"scene": scene, "versions": versions()} if scene["output"]["fields"] else None
     t_start = MPI.Wtime()
@@ -196,6 +186,24 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
     return states
 
 
+def _open_outputs(scene: dict, grid: SurfaceGrid, out_dir: str, restart: bool):
+    """(curve path, history path, rows already done, old history text); with ``restart`` the
+    rows of an interrupted run, read on rank 0 and broadcast (every rank takes the same path)."""
+    curve_path, history_path = os.path.join(out_dir, "curve.csv"), os.path.join(out_dir, "history.csv")
+    rows, old_history = [], ""
+    if restart:
+        if not scene["output"]["fields"]:
+            raise RuntimeError("restart needs the field files: set output.fields = true")
+        if grid.mpi_comm.Get_rank() == 0 and os.path.exists(curve_path):
+            with open(curve_path) as f:
+                rows = [r for r in csv.reader(f)][1:]
+            if os.path.exists(history_path):
+                with open(history_path) as f:
+                    old_history = f.read()
+        rows, old_history = grid.mpi_comm.bcast((rows, old_history), root=0)
+    return curve_path, history_path, rows, old_history
+
+
 def _run_adhesive(scene: dict, grid: SurfaceGrid, *, output: str | None, restart: bool) -> list:
     """The adhesive branch of ``run``: sweeps with jumps and pull-off, or central-gap paths."""
     import json
@@ -227,25 +235,14 @@ def _run_adhesive(scene: dict, grid: SurfaceGrid, *, output: str | None, restart
     if rank0:
         os.makedirs(out_dir, exist_ok=True)
     grid.mpi_comm.Barrier()
-    curve_path, history_path = os.path.join(out_dir, "curve.csv"), os.path.join(out_dir, "history.csv")
     values = [float(v) for v in proto["values"]]
-    rows, done, old_history = [], 0, ""
+    curve_path, history_path, rows, old_history = _open_outputs(scene, grid, out_dir, restart)
+    done = len(rows)
+    if done:
+        (q, a), approach = _read_step(os.path.join(out_dir, f"step_{done:04d}.h5"), grid,
+                                      ("contact_pressure", "adhesive_pressure"))
+        problem.warm_start(q, a, approach)
     if restart:
-        if not scene["output"]["fields"]:
-            raise RuntimeError("restart needs the field files: set output.fields = true")
-        if rank0 and os.path.exists(curve_path):
-            with open(curve_path) as f:
-                rows = [r for r in csv.reader(f)][1:]
-            if os.path.exists(history_path):
-                with open(history_path) as f:
-                    old_history = f.read()
-        rows = grid.mpi_comm.bcast(rows, root=0)
-        done = len(rows)
-        if done:
-            (q, a), approach = _read_step(os.path.join(out_dir, f"step_{done:04d}.h5"), grid,
-                                          ("contact_pressure", "adhesive_pressure"))
-            problem.warm_start(type("Saved", (), dict(contact_pressure=q, adhesive_pressure=a,
-                                                       approach=approach)))
         say(f"  restart: {done} of {len(values)} steps already done")
     provenance = {"scene": scene, "versions": versions()} if scene["output"]["fields"] else None
     say(f"  {'step':>4} {'approach [m]':>12} {'force [N]':>11} {'contact':>8} {'adh. force':>11} "

@@ -166,3 +166,28 @@ def test_example_scenes_run_at_reduced_size(coll, shared_tmp, path):
     n = len(scene["protocol"]["values"])
     for name in ["curve.csv", "history.csv"] + [f"step_{k:04d}.h5" for k in range(1, n + 1)]:
         assert os.path.exists(os.path.join(out, name)), name
+
+
+def _run_adhesive(comm, out, values, restart=False):
+    scene = scenes.validate({
+        "name": "test-adhesive", "geometry": {"kind": "sphere", "radius": 30e-9, "nx": 32, "dx": 0.3e-9},
+        "material": {"e_star": 10e9},
+        "interaction": {"law": "lj", "work_of_adhesion": 0.1, "z0": 0.3e-9},
+        "protocol": {"control": "approach", "values": list(values), "refine_pull_off": False},
+        "output": {"directory": out}})
+    return protocols.run(scene, comm=comm, restart=restart)
+
+
+def test_interrupted_adhesive_sweep_resumes_from_both_pressures(coll, shared_tmp):
+    values = (-0.3e-9, 0.0, 0.3e-9)
+    full = _run_adhesive(PETSc.COMM_WORLD, os.path.join(shared_tmp, "afull"), values)
+    cut = os.path.join(shared_tmp, "acut")
+    _run_adhesive(PETSc.COMM_WORLD, cut, values[:2])
+    resumed = _run_adhesive(PETSc.COMM_WORLD, cut, values, restart=True)
+    assert len(resumed) == 1
+    a, b = resumed[0], full[2]
+    assert coll.all(a.converged and a.stable)
+    pa, pb = a.pressure.getArray(readonly=True), b.pressure.getArray(readonly=True)
+    assert coll.max(np.abs(pa - pb).max() / np.abs(pb).max()) <= 1e-6
+    with open(os.path.join(cut, "summary.json")) as f:
+        assert json.load(f)["steps"] == 3

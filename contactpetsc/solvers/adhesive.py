@@ -13,11 +13,14 @@ VI is exactly eq. (7) (or eq. 8).  ``adhesive_jacobian.py`` has the Jacobian,
 its reduced version and the block preconditioner (spectral or MLMI on the
 contact-like rows).
 
-Globalisation: the problem is non-convex.  Newton runs with a backtracking
-line search (``bt``) on the VI residual norm -- a trust region would also
-do, but the line search keeps the full Newton step whenever it reduces the
-residual, which is what warm-started steps along a loading path need, and
-Newton steps only ever start from a converged neighbouring state.  Every
+Globalisation: the problem is non-convex.  Newton steps only ever start from
+a converged neighbouring state (tangent predictor), with a backtracking line
+search (``bt``) on the VI residual norm for hard-wall laws -- a trust region
+would also do, but the line search keeps the full Newton step whenever it
+reduces the residual, which is what warm-started steps need -- and full
+steps (``basic``) for the full LJ curve, whose residual norm is dominated by
+the stiff repulsive rows (measured better).  When Newton fails, a
+relaxation path takes over (``solve``).  Every
 converged state is checked for stability (``stability.py``): the smallest
 eigenvalue of the displacement-space Hessian relative to the elastic one,
 1 - lambda_max(A S), by Lanczos; an unstable state is reported as such
@@ -210,7 +213,11 @@ class AdhesiveProblem:
             self.blocks(lower)[0] = 0.0
         self._bounds = (lower, upper)
         self._J = J
-        self._snes = self._make_snes(self.prefix, "bt", self.max_it)
+        # line search: backtracking for hard-wall laws (contact-set changes need damping);
+        # full steps for the full LJ curve, whose residual norm is dominated by the stiff
+        # repulsive rows and stalls bt (measured on the rough benchmark at 256^2: bt 33-58
+        # Newton steps or a fallback, basic 25-56 steps and none)
+        self._snes = self._make_snes(self.prefix, "bt" if self.hard_wall else "basic", self.max_it)
         # pseudo-transient continuation takes full (shifted) steps: the residual norm
         # need not fall monotonically along the relaxation path
         self._ptc = self._make_snes(self.prefix + "ptc_", "basic", self.ptc_max_it)
@@ -340,15 +347,17 @@ class AdhesiveProblem:
             xb[0 if self.hard_wall else -1] = g.rows(st.pressure, readonly=True)
         xb[-1] += self.traction.pressure(np.maximum(gap, 0.0) if self.hard_wall else gap)
 
-    def warm_start(self, state: "AdhesiveState") -> None:
-        """Start the next solve from ``state`` (a previous step, or one read back on restart)."""
+    def warm_start(self, contact_pressure: PETSc.Vec | None, adhesive_pressure: PETSc.Vec,
+                   approach: float) -> None:
+        """Start the next solve from these pressures [Pa] at this approach [m] (a previous
+        step, or one read back on restart); ``contact_pressure`` is ignored without a wall."""
         self._build()
         xb = self.blocks(self._x)
         g = self.grid
         if self.hard_wall:
-            xb[0] = g.rows(state.contact_pressure, readonly=True)
-        xb[-1] = g.rows(state.adhesive_pressure, readonly=True)
-        self._approach = float(state.approach)
+            xb[0] = g.rows(contact_pressure, readonly=True)
+        xb[-1] = g.rows(adhesive_pressure, readonly=True)
+        self._approach = float(approach)
         self._started = True
 
     # -- public API --------------------------------------------------------------------------

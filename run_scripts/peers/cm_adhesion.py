@@ -6,9 +6,11 @@ Run with the ContactMechanics peer venv (see setup_peers.sh), e.g.::
 
     ~/.cache/contactpetsc/peer-venv-cm/bin/python run_scripts/peers/cm_adhesion.py \
         --surface h.npy --dx 1 --e-star 1 --w 0.05 --z0 1 --potential vdw82 \
-        --offsets 1.2,1.6,2.0 [--gtol 1e-6] [--maxiter 100000] [--save-fields DIR]
+        --offsets -2.4,-1.1,-0.45 [--gtol 1e-6] [--maxiter 100000] \
+        [--maxcor 10] [--core 0.5] [--save-fields DIR]
 
 One JSON line per offset is printed on stdout (nothing else goes to stdout).
+Negative offsets may be written "--offsets -1,-0.5" or "--offsets=-1,-0.5".
 
 Problem solved (our, i.e. contactpetsc, convention)
 ---------------------------------------------------
@@ -29,15 +31,15 @@ Interaction laws (both: minimum at z = z0 with Phi(z0) = -w)
 ``--potential vdw82`` (our ``lj`` law, exact):
     Phi(z) = (w/3) [(z0/z)^8 - 4 (z0/z)^2]
     p(z)   = -Phi'(z) = 8w/(3 z0) [(z0/z)^9 - (z0/z)^3]
-  Adhesion class ``VDW82(c_sr, hamaker)`` (Adhesion/Interactions/VdW82.py)
+  Adhesion class ``VDW82(c_sr, hamaker)`` (Adhesion/Interactions/VdW82.py:101)
   evaluates  V(r) = -hamaker/(12 pi r^2) + c_sr/r^8 ; we set
     c_sr = w z0^8 / 3,   hamaker = 16 pi w z0^2
-  (this is exactly Adhesion's own helper ``Lj82(w, z0)`` in the same file,
+  (this is exactly Adhesion's own helper ``Lj82(w, z0)``, VdW82.py:134-135,
   which we call); then VDW82.r_min = z0 and V(z0) = -w.
 ``--potential lj93``:
     Phi(z) = (w/2) (z0/z)^9 - (3w/2) (z0/z)^3
     p(z)   = -Phi'(z) = 9w/(2 z0) [(z0/z)^10 - (z0/z)^4]
-  Adhesion class ``LJ93(epsilon, sigma)`` (Adhesion/Interactions/LJ93.py)
+  Adhesion class ``LJ93(epsilon, sigma)`` (Adhesion/Interactions/LJ93.py:119)
   evaluates  V(r) = epsilon [ (2/15) (sigma/r)^9 - (sigma/r)^3 ] with the
   minimum at r_min = sigma (2/5)^(1/6) and V(r_min) = -epsilon sqrt(10)/3;
   we set
@@ -106,7 +108,9 @@ Mapping to ContactMechanics/Adhesion (ContactMechanics 1.8.3, Adhesion 0.93)
   ``maxcor`` (default 10), ``maxiter`` and ``maxfun = 2 maxiter + 100``.
   ``converged`` = scipy's ``success`` (and core_nodes == 0 and a finite
   state); ``message`` = scipy's message; ``iterations`` = ``nit``;
-  ``nfev`` = number of energy+gradient evaluations (one FFT pair each).
+  ``nfev`` = number of energy+gradient evaluations (one FFT pair each:
+  substrate.evaluate_force = fft + ifft; the energy reuses that force);
+  ``fft_pairs`` = nfev + 1 (the final ``system.evaluate``).
   Caveat: with ftol = 0 scipy still stops with success=True and "CONVERGENCE:
   RELATIVE REDUCTION OF F <= FACTR*EPSMCH" when the energy no longer
   decreases at all in double precision, possibly before gtol is met.  Hence
@@ -144,9 +148,12 @@ Reported quantities (our units and signs)
   ``mean_disp`` (should be ~0), ``gap_identity_err`` = max|g - (h + v -
   delta)| (should be round-off), ``nfev``.
 
-With ``--save-fields DIR``: DIR/cm_{delta}_gap.npy (our g) and
-DIR/cm_{delta}_pressure.npy (p_law(z), compressive > 0), float64 (nx, ny),
-{delta} formatted with '%.6g'.  Use one DIR per potential.
+With ``--save-fields DIR``: DIR/cm_{delta!r}_gap.npy and
+DIR/cm_{delta!r}_pressure.npy (``repr`` of the float approach, e.g.
+cm_-1.1_gap.npy): our g and p_law(z) (compressive > 0), plain float64
+(nx, ny) arrays -- no pickles, so that any numpy reads them (the peer venv
+has numpy 2, ours Debian's 1.24).  The gap path is reported as ``fields``.
+Use one DIR per potential.
 """
 import argparse
 import json
@@ -275,10 +282,8 @@ def main(argv=None):
                 warnings.simplefilter("ignore", RuntimeWarning)
                 t0 = time.perf_counter()
                 peer_fun = system.objective(offset_r, gradient=True)
-                nev = [0]
 
                 def fun(x):
-                    nev[0] += 1
                     u = x - x.mean()
                     e, g = peer_fun(u)
                     return e, g - g.mean()
@@ -317,6 +322,7 @@ def main(argv=None):
                 "time": t_solve,
                 "iterations": int(sol.nit),
                 "nfev": int(sol.nfev),
+                "fft_pairs": int(sol.nfev) + 1,
                 "converged": converged,
                 "message": msg,
                 "mean_pressure": float(system.compute_normal_force()) / system.area_per_pt
@@ -339,12 +345,11 @@ def main(argv=None):
                 "gap_identity_err": gap_check,
             })
             if args.save_fields:
-                tag = "%.6g" % delta
-                fg = os.path.join(args.save_fields, f"cm_{tag}_gap.npy")
-                fp = os.path.join(args.save_fields, f"cm_{tag}_pressure.npy")
-                np.save(fg, g)
-                np.save(fp, p_law)
-                rec["fields"] = [fg, fp]
+                fn = os.path.join(args.save_fields, f"cm_{delta!r}_gap.npy")
+                np.save(fn, np.asarray(g, dtype=np.float64))
+                np.save(os.path.join(args.save_fields, f"cm_{delta!r}_pressure.npy"),
+                        np.asarray(p_law, dtype=np.float64))
+                rec["fields"] = fn
             if finite:
                 x_prev = u.ravel().copy()
         except Exception as exc:  # never crash: report and go on
