@@ -11,8 +11,8 @@ Cases
 * ``rough``: the surface of the non-adhesive benchmark (periodic unit cell,
   self-affine, Hurst 0.8, rms slope 0.1, roll-off L/4, cut-off 4 dx, seed 1),
   the full LJ curve with z0 = dx and w = 0.05 E* dx, three approaches giving
-  about 2 %, 10 % and 25 % contact area (those of the non-adhesive contact,
-  found by bisection with the Signorini solver, untimed; adhesion enlarges them),
+  about 2 %, 10 % and 25 % contact area (p > 0, i.e. z < z0; interpolated on a
+  loading sweep of our solver, untimed),
   solved in turn with warm starts by Newton, and by ContactMechanics + Adhesion
   (``run_scripts/peers/cm_adhesion.py`` in the peer venv, same heights, same
   approaches) with the same law (``--potential vdw82`` is exactly our lj law;
@@ -111,31 +111,28 @@ def sphere_cases():
                 err = gap_error(grid, st.gap, st_r.gap, 1.0)
                 curves[("sphere", mu, solver, stage)] = history_curve(pb, first)
                 emit(case="sphere", stage=stage, mu=mu, n=n, solver=st.solver, approach=d, time=elapsed,
+                     check_time=st.check_time,
                      fft_pairs=st.fft_pairs, error=err,
                      own_error=max(st.complementarity_error, st.adhesive_error),
                      total_error=st.total_error, converged=st.converged, stable=st.stable,
                      W_star=st.force / (2 * np.pi * R * w))
 
 
-def calibrate(grid, h, areas, length):
-    """Approaches at which the NON-adhesive contact has the target contact fractions (bisection
-    with the Signorini solver: cheap and deterministic; adhesion then enlarges the area somewhat,
-    the fractions reached are reported)."""
-    from contactpetsc.solvers.problem import ContactProblem
-    cp = ContactProblem(grid, h, 1.0, prefix="cal_", tol=1e-6, length_scale=length)
-    out = []
-    lo, hi = float(h.min()[1]), float(h.max()[1])
-    for target in areas:
-        a, b = lo, hi
-        for _ in range(40):
-            mid = 0.5 * (a + b)
-            st = cp.solve(approach=mid, raise_on_failure=False)
-            if abs(st.contact_fraction - target) < 0.02 * target:
-                break
-            a, b = (mid, b) if st.contact_fraction < target else (a, mid)
-        out.append(mid)
-        lo = mid
-    return out
+def calibrate(grid, h, law, areas, steps=40):
+    """Approaches giving the target contact fractions (p > 0, i.e. z < z0) of the adhesive
+    contact on its loading path: a sweep with our solver (untimed) in ``steps`` equal steps
+    across the height range, stopped past the largest target, then linear interpolation."""
+    pb = AdhesiveProblem(grid, h, 1.0, law, prefix="cal_", tol=1e-6, stability_check=False)
+    lo, hi = float(h.min()[1]) - law.z0, float(h.max()[1])
+    deltas, fractions = [], []
+    for d in np.linspace(lo, hi, steps):
+        st = pb.solve(approach=d, raise_on_failure=False)
+        if st.converged:
+            deltas.append(d)
+            fractions.append(st.contact_fraction)
+        if fractions and fractions[-1] > 1.2 * max(areas):
+            break
+    return [float(np.interp(a, fractions, deltas)) for a in areas]
 
 
 def run_peer(heights_path, dx, w, z0, approaches, outdir):
@@ -161,7 +158,7 @@ def rough_cases():
             for z0_rel in args.z0:
                 z0, w = z0_rel * dx, w_rel * dx
                 law = make_law("lj", work_of_adhesion=w, z0=z0)
-                approaches = calibrate(grid, h, args.areas, z0)
+                approaches = calibrate(grid, h, law, args.areas)
                 ref = AdhesiveProblem(grid, h, 1.0, law, prefix="ref_", tol=1e-11, stability_check=False)
                 refs = [ref.solve(approach=d, raise_on_failure=False) for d in approaches]
                 pb = AdhesiveProblem(grid, h, 1.0, law, prefix="ours_")
@@ -170,6 +167,7 @@ def rough_cases():
                     st = pb.solve(approach=d, raise_on_failure=False)
                     elapsed = time.perf_counter() - t
                     emit(case="rough", n=n, w=w_rel, z0=z0_rel, solver=st.solver, approach=d, time=elapsed,
+                         check_time=st.check_time,
                          fft_pairs=st.fft_pairs, error=gap_error(grid, st.gap, st_ref.gap, z0),
                          own_error=max(st.complementarity_error, st.adhesive_error),
                          contact_fraction=st.contact_fraction, converged=st.converged, stable=st.stable,

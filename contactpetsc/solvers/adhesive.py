@@ -84,6 +84,7 @@ class AdhesiveState:
     linear_iterations: int
     fft_pairs: float
     wall_time: float
+    check_time: float = 0.0       #: [s] of wall_time spent on the stability check and the tangent
     solver: str = "newton"
     fallback: bool = False        #: Newton from the previous state failed: a relaxation path was followed
 
@@ -155,6 +156,7 @@ class AdhesiveProblem:
         self._centre_rank = comm.allreduce(comm.Get_rank() if self._centre_local else 0)
         self.centre_owner = None        # set while central-gap control is active
         self.shift = 0.0                # pseudo-transient continuation shift (0: plain Newton)
+        self._check_time = 0.0          # stability check and tangent time of the current solve
         self._tangent = None            # dx/d delta at the last converged state
         self.history = SolveHistory()
         self._snes = None
@@ -449,6 +451,7 @@ class AdhesiveProblem:
             self.centre_owner = None
             self._approach = float(approach)
         pairs0, t0 = self._fft_pairs(), self.history.elapsed()
+        self._check_time = 0.0
         x_start = self._x.copy()
         if approach is not None and self.use_predictor and self._tangent is not None:
             # Euler predictor along the branch: x + dx/d delta * (delta - delta_prev)
@@ -553,10 +556,13 @@ class AdhesiveProblem:
     def _stability(self) -> float:
         """1 - lambda_max(A S) at the current state (see ``stability.py``); collective."""
         from .stability import stability_margin
+        t0 = self.history.elapsed()
         xb = self.blocks(self._x, readonly=True)
         self._gap(xb, self._g)
-        return stability_margin(self, q_rows=xb[0] if self.hard_wall else None,
-                                steps=self.stability_steps)
+        margin = stability_margin(self, q_rows=xb[0] if self.hard_wall else None,
+                                  steps=self.stability_steps)
+        self._check_time += self.history.elapsed() - t0
+        return margin
 
     def _state(self, converged, reason, newton, linear, pairs0, t0, margin, solver,
                tangent=False) -> AdhesiveState:
@@ -586,8 +592,10 @@ class AdhesiveProblem:
             self._tangent[1].destroy()
             self._tangent = None
         if tangent and converged:
+            t_check = self.history.elapsed()
             tv, stiffness = self.tangent()
             self._tangent = (self._approach, tv)
+            self._check_time += self.history.elapsed() - t_check
         area = g.lengths[0] * g.lengths[1]
         return AdhesiveState(
             pressure=p, contact_pressure=q, adhesive_pressure=a, gap=gap, displacement=v,
@@ -598,6 +606,7 @@ class AdhesiveProblem:
             converged=converged,
             reason=reason, newton_iterations=newton, linear_iterations=linear,
             fft_pairs=self._fft_pairs() - pairs0, wall_time=self.history.elapsed() - t0,
+            check_time=self._check_time,
             solver=solver, fallback=solver.endswith(("+ptc", "+relaxation")))
 
     def total_error(self, a_rows: np.ndarray, gap_rows: np.ndarray) -> float:

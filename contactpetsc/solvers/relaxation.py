@@ -165,6 +165,7 @@ class RelaxationSolver:
         returns an ``AdhesiveState`` (solver ``relaxation-mlmi``)."""
         pb = self.pb
         pairs0, t0 = pb._fft_pairs(), pb.history.elapsed()
+        pb._check_time = 0.0
         converged, reason, cycles, inner = self.relax(approach)
         check = pb.stability_check if check_stability is None else check_stability
         margin = pb._stability() if (converged and check) else float("nan")
