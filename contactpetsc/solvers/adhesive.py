@@ -199,6 +199,8 @@ class AdhesiveProblem:
         self.fallback_tol = opts.getReal("fallback_tol", 1e-3)
         self.fallback_max_cycles = opts.getInt("fallback_max_cycles", 5000)
         self.use_predictor = opts.getBool("predictor", True)
+        self.load_from_rest = opts.getBool("load_from_rest", True)
+        self.initial_step = opts.getReal("initial_step", 0.25)
         choice = opts.getString("preconditioner", d["preconditioner"] or "spectral").lower()
         if choice not in ("spectral", "mlmi", "none"):
             raise ValueError(f"-{self.prefix}preconditioner must be spectral, mlmi or none, got {choice!r}")
@@ -382,6 +384,32 @@ class AdhesiveProblem:
         self._tangent = None if tangent is None else (tangent[0], tangent[1].copy())
         self._started = True
 
+    def _load_from_rest(self, approach, raise_on_failure, check_stability) -> AdhesiveState:
+        """The first solve: the state reached by loading from separation (min h - z0) to
+        ``approach`` in steps of at most ``-<prefix>initial_step`` z0, each warm-started.
+        Adhesive contact has many equilibria at one approach; this picks the physical one
+        of a first loading and gives Newton a near start at every step."""
+        start = float(self.heights.min()[1]) - self.z0
+        self._initial_guess(start)
+        self._started = True
+        n = max(1, int(np.ceil((approach - start) / (self.initial_step * self.z0))))
+        pairs0, t0 = self._fft_pairs(), self.history.elapsed()
+        newton = linear = 0
+        st = None
+        for d in np.linspace(start, approach, n + 1)[1:] if approach > start else [approach]:
+            last = d == approach
+            st = self.solve(approach=float(d), raise_on_failure=False,
+                            check_stability=check_stability if last else False)
+            newton, linear = newton + st.newton_iterations, linear + st.linear_iterations
+            if not st.converged:
+                break
+        st.newton_iterations, st.linear_iterations = newton, linear
+        st.fft_pairs, st.wall_time = self._fft_pairs() - pairs0, self.history.elapsed() - t0
+        if not st.converged and raise_on_failure:
+            raise AdhesiveSolveError(f"adhesive solve did not converge while loading from rest to "
+                                     f"{approach:.4e} m: {st.reason} at approach {st.approach:.4e} m")
+        return st
+
     def solve_force(self, force: float, *, rel_tol: float = 1e-8, max_updates: int = 30,
                     raise_on_failure: bool = True) -> AdhesiveState:
         """Load control where it is stable: Newton on the approach for a net force [N].
@@ -426,8 +454,8 @@ class AdhesiveProblem:
         """Solve at one approach delta [m] or one central gap [m].
 
         Starts from the previous solution (warm start along a loading path, with
-        the tangent predictor under displacement control), or from the undeformed
-        bodies for the first solve.  Under displacement control, when Newton
+        the tangent predictor under displacement control); the first solve under
+        displacement control loads from rest (``_load_from_rest``).  Under displacement control, when Newton
         fails or lands on an unstable state, ``fallback`` continues with
         pseudo-transient continuation from the previous state (a jump).
         """
@@ -438,6 +466,8 @@ class AdhesiveProblem:
                 raise ValueError(f"{name} must be finite, got {v!r}")
         snes = self._build()
         if not getattr(self, "_started", False):
+            if approach is not None and self.load_from_rest:
+                return self._load_from_rest(approach, raise_on_failure, check_stability)
             if approach is not None:
                 self._initial_guess(approach)
             else:
