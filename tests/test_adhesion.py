@@ -221,3 +221,21 @@ def test_load_control_where_stable(coll):
     beyond = pb.solve_force(1.5 * pull, raise_on_failure=False)
     assert not beyond.converged
     assert "LOAD_CONTROL_UNSTABLE" in beyond.reason
+
+
+def test_load_from_rest_gives_the_state_of_a_first_loading(coll):
+    """-<prefix>load_from_rest: the first solve is the end of a loading path from separation."""
+    opts = PETSc.Options("rest_")
+    opts.setValue("load_from_rest", "true")
+    try:
+        direct = sphere_problem(1.0, law="lj", n=64, dx=1.0, radius=100.0, prefix="rest_")
+        st = direct.solve(approach=0.5)
+    finally:
+        opts.delValue("load_from_rest")
+    path = sphere_problem(1.0, law="lj", n=64, dx=1.0, radius=100.0, prefix="pathref_")
+    start = float(path.heights.min()[1]) - 1.0
+    for d in np.linspace(start, 0.5, 11)[1:]:
+        ref = path.solve(approach=float(d))
+    g = direct.grid
+    dg = g.rows(st.gap, readonly=True) - g.rows(ref.gap, readonly=True)
+    assert st.converged and coll.max(np.abs(dg)) < 1e-6
