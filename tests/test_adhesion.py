@@ -239,3 +239,19 @@ def test_load_from_rest_gives_the_state_of_a_first_loading(coll):
     g = direct.grid
     dg = g.rows(st.gap, readonly=True) - g.rows(ref.gap, readonly=True)
     assert st.converged and coll.max(np.abs(dg)) < 1e-6
+
+
+def test_mlmi_preconditioner_gives_the_same_state(coll):
+    """The MLMI cycle as the inner preconditioner of the adhesive Newton steps (hard wall and
+    full LJ): the same converged state as with the spectral one."""
+    for law in ("hardwall-lj", "lj"):
+        states = []
+        for pc in ("spectral", "mlmi"):
+            pb = sphere_problem(0.5, law=law, n=64, dx=1.0, radius=100.0, preconditioner=pc,
+                                prefix=f"pc{pc}{law.replace('-', '')}_")
+            pb.solve(approach=-0.5)
+            states.append(pb.solve(approach=0.5))
+        assert all(st.converged for st in states)
+        g = states[0].gap
+        dg = pb.grid.rows(g, readonly=True) - pb.grid.rows(states[1].gap, readonly=True)
+        assert coll.max(np.abs(dg)) < 1e-6
