@@ -157,6 +157,7 @@ class AdhesiveProblem:
         self.centre_owner = None        # set while central-gap control is active
         self.shift = 0.0                # pseudo-transient continuation shift (0: plain Newton)
         self._check_time = 0.0          # stability check and tangent time of the current solve
+        self.level_caches = []          # caches holding MLMI levels whose FFTs count (_fft_pairs)
         self._tangent = None            # dx/d delta at the last converged state
         self.history = SolveHistory()
         self._snes = None
@@ -209,6 +210,7 @@ class AdhesiveProblem:
             raise ValueError(f"-{self.prefix}preconditioner must be spectral, mlmi or none, got {choice!r}")
         self.preconditioner = choice
         self._jac = AdhesiveJacobian(self)
+        self.level_caches.append(self._jac.cache)
         J = destroy_at_exit(PETSc.Mat().createPython(((self.n_local, self.n_global),) * 2,
                                                      self._jac, comm=g.comm))
         J.setUp()
@@ -311,7 +313,14 @@ class AdhesiveProblem:
         return errs[0], errs[1], sums[0] / n, sums[1] / n
 
     def _fft_pairs(self) -> float:
-        return float(self.op.fft_pairs)
+        """FFT pairs so far in fine-grid units: the operator's, plus those of the coarse
+        levels of any MLMI cycle (preconditioner or relaxation), weighted by their size."""
+        ops = {id(self.op): self.op}
+        for cache in self.level_caches:
+            for lev in cache.get("mlmi_levels", ()):
+                ops[id(lev.op)] = lev.op
+        n0 = self.grid.nx * self.grid.ny
+        return float(sum(op.fft_pairs * op.grid.nx * op.grid.ny / n0 for op in ops.values()))
 
     @collective_guard
     def _converged(self, snes, it, norms):

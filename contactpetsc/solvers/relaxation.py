@@ -68,6 +68,7 @@ class RelaxationSolver:
             self._mlmi = MLMIPC()
             self._jac_cache = type("Parent", (), {})()
             self._jac_cache.cache, self._jac_cache.prefix = {}, pb.prefix
+            pb.level_caches.append(self._jac_cache.cache)   # its coarse FFTs count too
             self._jac_cache.op, self._jac_cache.grid = pb.op, pb.grid
         view = _SetView(self._jac_cache, mask)
         self._mlmi.prepare(view)
