@@ -51,7 +51,7 @@ from ..physics.interactions import InteractionLaw
 from ..physics.traction import AdhesiveTraction
 from .adhesive_jacobian import AdhesiveJacobian, minloc
 from .history import SolveHistory
-from .problem import ContactSolveError, _reason_name
+from .problem import ContactSolveError, _reason_name, convergence_verdict
 
 
 class AdhesiveSolveError(ContactSolveError):
@@ -157,7 +157,6 @@ class AdhesiveProblem:
         self.centre_owner = None        # set while central-gap control is active
         self.shift = 0.0                # pseudo-transient continuation shift (0: plain Newton)
         self._check_time = 0.0          # stability check and tangent time of the current solve
-        self.level_caches = []          # caches holding MLMI levels whose FFTs count (_fft_pairs)
         self._tangent = None            # dx/d delta at the last converged state
         self.history = SolveHistory()
         self._snes = None
@@ -210,7 +209,6 @@ class AdhesiveProblem:
             raise ValueError(f"-{self.prefix}preconditioner must be spectral, mlmi or none, got {choice!r}")
         self.preconditioner = choice
         self._jac = AdhesiveJacobian(self)
-        self.level_caches.append(self._jac.cache)
         J = destroy_at_exit(PETSc.Mat().createPython(((self.n_local, self.n_global),) * 2,
                                                      self._jac, comm=g.comm))
         J.setUp()
@@ -316,9 +314,9 @@ class AdhesiveProblem:
         """FFT pairs so far in fine-grid units: the operator's, plus those of the coarse
         levels of any MLMI cycle (preconditioner or relaxation), weighted by their size."""
         ops = {id(self.op): self.op}
-        for cache in self.level_caches:
-            for lev in cache.get("mlmi_levels", ()):
-                ops[id(lev.op)] = lev.op
+        levels = self._jac.cache.get("mlmi_levels", ()) if self._snes is not None else ()
+        for lev in levels:
+            ops[id(lev.op)] = lev.op
         n0 = self.grid.nx * self.grid.ny
         return float(sum(op.fft_pairs * op.grid.nx * op.grid.ny / n0 for op in ops.values()))
 
@@ -334,13 +332,7 @@ class AdhesiveProblem:
             adhesive_error=err_a)
         err = max(err_c, err_a)
         self._last_error = err
-        if not np.isfinite(err):
-            return PETSc.SNES.ConvergedReason.DIVERGED_FNORM_NAN
-        if err <= self.tol:
-            return PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS
-        if it >= snes.getTolerances()[3]:
-            return PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT
-        return PETSc.SNES.ConvergedReason.ITERATING
+        return convergence_verdict(snes, it, err, self.tol)
 
     @property
     def solver_name(self) -> str:

@@ -23,7 +23,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..errors import collective_guard
-from ..lifetime import destroy_at_exit
+from .reduced import python_submatrix
 
 
 class AdhesiveJacobian:
@@ -65,11 +65,7 @@ class AdhesiveJacobian:
 
     @collective_guard
     def createSubMatrix(self, mat, isrow, iscol=None, reuse=None, submat=None):
-        ctx = ReducedAdhesiveJacobian(self, isrow)
-        n = self.grid.mpi_comm.allreduce(ctx.n_local)
-        sub = PETSc.Mat().createPython(((ctx.n_local, n), (ctx.n_local, n)), ctx, comm=mat.getComm())
-        sub.setUp()
-        return destroy_at_exit(sub)
+        return python_submatrix(ReducedAdhesiveJacobian(self, isrow), mat)
 
 
 class ReducedAdhesiveJacobian:

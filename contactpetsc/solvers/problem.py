@@ -265,13 +265,7 @@ class ContactProblem:
             complementarity_error=err, load_error=load_err, approach=self._approach,
             mean_pressure=mean_p, contact_fraction=frac, solver=solver)
         self._last_error = err
-        if not np.isfinite(err):
-            return PETSc.SNES.ConvergedReason.DIVERGED_FNORM_NAN
-        if err <= self._inner_tol:
-            return PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS
-        if it >= snes.getTolerances()[3]:
-            return PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT
-        return PETSc.SNES.ConvergedReason.ITERATING
+        return convergence_verdict(snes, it, err, self._inner_tol)
 
     def _operators(self) -> dict:
         ops = {id(self.op): self.op}
@@ -556,6 +550,18 @@ class ContactProblem:
                 f"(tol {self.tol:.1e}) of length scale {self.length_scale:.3e} m, "
                 f"load error {load_err:.3e} (tol {self.load_tol:.1e})")
         return state
+
+
+def convergence_verdict(snes: PETSc.SNES, it: int, err: float, tol: float) -> int:
+    """The SNES reason for error measure ``err`` at iteration ``it``: NaN diverges, ``tol``
+    converges, the SNES's max_it stops, else iterate (our own measures replace SNES norms)."""
+    if not np.isfinite(err):
+        return PETSc.SNES.ConvergedReason.DIVERGED_FNORM_NAN
+    if err <= tol:
+        return PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS
+    if it >= snes.getTolerances()[3]:
+        return PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT
+    return PETSc.SNES.ConvergedReason.ITERATING
 
 
 def _reason_name(reason: int, kind=PETSc.SNES.ConvergedReason) -> str:

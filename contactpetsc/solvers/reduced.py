@@ -33,11 +33,16 @@ class ContactJacobian:
 
     @collective_guard
     def createSubMatrix(self, mat, isrow, iscol=None, reuse=None, submat=None):
-        ctx = ReducedJacobian(self, isrow)
-        n = self.op.grid.mpi_comm.allreduce(ctx.n_local)
-        sub = PETSc.Mat().createPython(((ctx.n_local, n), (ctx.n_local, n)), ctx, comm=mat.getComm())
-        sub.setUp()
-        return destroy_at_exit(sub)
+        return python_submatrix(ReducedJacobian(self, isrow), mat)
+
+
+def python_submatrix(ctx, mat: PETSc.Mat) -> PETSc.Mat:
+    """A square Python-context Mat on ``mat``'s communicator for a reduced context with
+    ``n_local`` rows on this rank (what ``createSubMatrix`` returns to SNES VI)."""
+    n = mat.getComm().tompi4py().allreduce(ctx.n_local)
+    sub = PETSc.Mat().createPython(((ctx.n_local, n), (ctx.n_local, n)), ctx, comm=mat.getComm())
+    sub.setUp()
+    return destroy_at_exit(sub)
 
 
 class ReducedJacobian:

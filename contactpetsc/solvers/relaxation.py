@@ -57,21 +57,16 @@ class RelaxationSolver:
         self.omega_max = opts.getReal("omega_max", 1.0)
         self.solver_name = "relaxation-mlmi"
         self._mlmi = None
-        self._mask = None
 
     # -- the multilevel contact relaxation ------------------------------------------------
     def _cycle(self, mask: np.ndarray, r: np.ndarray) -> np.ndarray:
         """One MLMI V-cycle on the set ``mask`` applied to the gap residual r (pressure units)."""
         from .mlmi import MLMIPC
-        pb = self.pb
         if self._mlmi is None:
             self._mlmi = MLMIPC()
-            self._jac_cache = type("Parent", (), {})()
-            self._jac_cache.cache, self._jac_cache.prefix = {}, pb.prefix
-            pb.level_caches.append(self._jac_cache.cache)   # its coarse FFTs count too
-            self._jac_cache.op, self._jac_cache.grid = pb.op, pb.grid
-        view = _SetView(self._jac_cache, mask)
-        self._mlmi.prepare(view)
+        # the levels live in the problem's Jacobian cache: shared with an MLMI-preconditioned
+        # Newton, and counted by the problem's FFT-pair tally
+        self._mlmi.prepare(_SetView(self.pb._jac, mask))
         out = np.empty_like(r)
         self._mlmi.inner(r * mask, out)
         return out
