@@ -149,6 +149,36 @@ class AdhesiveTraction:
         """Interaction energy per unit area Phi(g) [J/m^2] at the nodes (nodal rule)."""
         return self._energy(g)
 
+    @property
+    def invertible(self) -> bool:
+        """True when ``repulsive_gap`` applies: the nodal rule of the full LJ curve."""
+        return self.g_safe is not None and not self.element_integration
+
+    def repulsive_gap(self, a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(G(a), G'(a)): the inverse of the nodal law on its repulsive branch (a >= 0) [m, m/Pa].
+
+        With t = (z0/z)^3 the law (eq. 8) reads p = p_s (t^3 - t), a cubic in t
+        that is increasing and convex for t >= 1 (z <= z0): Newton from
+        t = 1 + (a/p_s)^(1/3), which lies above the root, converges monotonically.
+        Below z_safe the linear continuation is inverted exactly.
+        """
+        law = self.law
+        r = np.maximum(a, 0.0) / law.p_scale
+        t = 1.0 + np.cbrt(r)
+        for _ in range(60):
+            dt = (t * (t * t - 1.0) - r) / (3.0 * t * t - 1.0)
+            t -= dt
+            if np.all(np.abs(dt) <= 1e-15 * t):
+                break
+        gap = law.z0 / np.cbrt(t) - law.z0
+        gap = np.where(a > self._p_safe, self.g_safe + (a - self._p_safe) / self._d_safe, gap)
+        slope = 1.0 / self._derivative(gap)
+        # a < 0 has no repulsive preimage: continue G linearly (C1 at a = 0), so that a
+        # node in the wall with an attractive trial pressure still gets a gap-form row
+        # whose only root is on the branch
+        d0 = -6.0 * law.p_scale / law.z0
+        return np.where(a < 0, a / d0, gap), np.where(a < 0, 1.0 / d0, slope)
+
     def beyond_safe_range(self, g: np.ndarray) -> bool:
         """True where the full LJ curve was continued linearly (local; reduce across ranks)."""
         return bool(self.g_safe is not None and np.any(g < self.g_safe))

@@ -53,6 +53,9 @@ class AdhesiveJacobian:
         pb.traction.apply_derivative(w, self.aw)
         np.subtract(blocks_in[-1], self.aw, out=a_out)
         a_out *= pb.kappa
+        if pb._gap_rows is not None:
+            rows = pb._gap_rows
+            a_out[rows] = w[rows] - pb._gap_slope[rows] * blocks_in[-1][rows]
         if pb.shift:
             # pseudo-transient continuation: J + shift * kappa I
             blocks_out += (pb.shift * pb.kappa) * blocks_in
@@ -129,14 +132,19 @@ class AdhesivePC:
         d = pb.traction.diagonal
         self.kappa = kappa
         masks = ctx.masks
-        stiff = masks[-1] & (-kappa * d > 1.0)
+        # gap-form rows w - G'(a) da: stiff like the a rows with da/dg = 1 / G'(a), but
+        # already in K units (no scaling)
+        gap_rows = pb._gap_rows if pb._gap_rows is not None else np.zeros(d.shape, bool)
+        d_eff = np.where(gap_rows, 1.0 / np.where(gap_rows, pb._gap_slope, 1.0), d)
+        stiff = masks[-1] & (-kappa * d_eff > 1.0)
         q_set = masks[0] if pb.hard_wall else np.zeros_like(stiff)
         stiff &= ~q_set
         self.q_set, self.stiff = q_set, stiff
         self.union = q_set | stiff
-        scale = np.where(stiff, -kappa * d, 1.0)
+        scale = np.where(stiff & ~gap_rows, -kappa * d, 1.0)
         self.inv_scale = 1.0 / scale
-        local = kappa * (1.0 + pb.shift - d * kappa)
+        local = np.where(gap_rows, kappa * (1.0 + pb.shift) - pb._gap_slope if pb._gap_rows is not None else 0.0,
+                         kappa * (1.0 + pb.shift - d * kappa))
         floor = 0.1 * kappa
         local = np.where(np.abs(local) < floor, np.copysign(floor, local), local)
         self.jacobi = 1.0 / local
