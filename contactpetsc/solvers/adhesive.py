@@ -52,6 +52,7 @@ from ..physics.traction import AdhesiveTraction
 from .adhesive_jacobian import AdhesiveJacobian, minloc
 from .history import SolveHistory
 from .problem import ContactSolveError, _reason_name, convergence_verdict
+from .transfer import can_halve, halved, prolong_constant, restrict
 
 
 class AdhesiveSolveError(ContactSolveError):
@@ -167,6 +168,8 @@ class AdhesiveProblem:
         self._gap_rows = None           # repulsive rows in gap form at the last Jacobian (mask)
         self._gap_slope = None          # G'(a) on those rows
         self._adhesive_residual = np.nan  # local max kappa |a - a(g)| at the last residual
+        self._coarse = None             # the problem on the 2x coarser grid (nested iteration)
+        self._prev_approach = None
         self._g = np.zeros((grid.ny_local, grid.nx))
         self._v = np.zeros_like(self._g)
         self._v2 = np.zeros_like(self._g)
@@ -214,6 +217,11 @@ class AdhesiveProblem:
         # the gap form needs the law's inverse: the nodal rule of the full LJ curve
         self.gap_form = form == "gap" and self.traction.invertible
         self.step_limit = opts.getReal("step_limit", 0.5 if self.traction.invertible else 0.0)
+        # nested iteration on the first solve: the same problem on 2x coarser grids first
+        self.fmg = opts.getBool("fmg", True)
+        self.fmg_min_size = opts.getInt("fmg_min_size", 32)
+        self.fmg_tol = opts.getReal("fmg_tol", 1e-3)
+        self.fmg_steps = opts.getBool("fmg_steps", True)
         choice = opts.getString("preconditioner", d["preconditioner"] or "spectral").lower()
         if choice not in ("spectral", "mlmi", "none"):
             raise ValueError(f"-{self.prefix}preconditioner must be spectral, mlmi or none, got {choice!r}")
@@ -370,7 +378,10 @@ class AdhesiveProblem:
         for lev in levels:
             ops[id(lev.op)] = lev.op
         n0 = self.grid.nx * self.grid.ny
-        return float(sum(op.fft_pairs * op.grid.nx * op.grid.ny / n0 for op in ops.values()))
+        pairs = float(sum(op.fft_pairs * op.grid.nx * op.grid.ny / n0 for op in ops.values()))
+        if self._coarse:
+            pairs += self._coarse._fft_pairs() / 4.0
+        return pairs
 
     @collective_guard
     def _converged(self, snes, it, norms):
@@ -391,11 +402,72 @@ class AdhesiveProblem:
         return f"newton-vi+{self.preconditioner}"
 
     # -- initial guesses --------------------------------------------------------------------
+    def _coarse_problem(self):
+        """The same problem on the 2x coarser grid (h averaged over 2 x 2 blocks), or None."""
+        if self._coarse is not None:
+            return self._coarse or None
+        self._coarse = False
+        g = self.grid
+        if not self.fmg or not can_halve(g) or min(g.nx, g.ny) // 2 < self.fmg_min_size:
+            return None
+        gc = halved(g)
+        hc = gc.create_vec()
+        gc.rows(hc)[...] = restrict(g.rows(self.heights, readonly=True))
+        # FFTW_MEASURE planning would cost more than the coarse solves themselves
+        op = half_space(gc, self.e_star, prefix=self.prefix, planner="estimate")
+        coarse = AdhesiveProblem(gc, hc, self.e_star, self.law, element_integration=self.element_integration,
+                                 prefix=self.prefix, operator=op, preconditioner=self.preconditioner,
+                                 stability_check=False)
+        coarse._build()
+        coarse.tol = max(self.fmg_tol, self.tol)
+        coarse.use_predictor = False
+        self._coarse = coarse
+        return coarse
+
+    def _nested_guess(self, approach: float) -> bool:
+        """Unknowns from the coarse problem's solution at ``approach``, prolonged piecewise
+        constant (pressures are densities); False when there is none."""
+        coarse = self._coarse_problem()
+        if coarse is None:
+            return False
+        st = coarse.solve(approach=approach, raise_on_failure=False, check_stability=False)
+        if not st.converged:
+            return False
+        xb, xc = self.blocks(self._x), coarse.blocks(coarse._x, readonly=True)
+        for k in range(self.n_blocks):
+            xb[k] = prolong_constant(xc[k])
+        return True
+
+    def _coarse_step(self, approach: float) -> bool:
+        """Predictor from the coarse grid: x + P (x_c(delta) - x_c(delta_prev)), the coarse
+        problem stepped along with this one (full approximation); False when the coarse
+        problem is not at this problem's previous approach or its step failed."""
+        coarse = self._coarse
+        if not (coarse and self.fmg_steps and coarse._approach == self._prev_approach):
+            return False
+        old = coarse._x.copy()
+        st = coarse.solve(approach=approach, raise_on_failure=False, check_stability=False)
+        if st.converged:
+            old.aypx(-1.0, coarse._x)
+            xb, dc = self.blocks(self._x), coarse.blocks(old, readonly=True)
+            for k in range(self.n_blocks):
+                xb[k] += prolong_constant(dc[k])
+            if self.hard_wall:
+                np.maximum(xb[0], 0.0, out=xb[0])
+        else:
+            old.copy(coarse._x)
+            coarse._approach = self._prev_approach
+        old.destroy()
+        return st.converged
+
     def _initial_guess(self, approach: float) -> None:
-        """First state at ``approach``: the non-adhesive (Signorini) solution where the
-        bodies overlap, the undeformed bodies otherwise; a = a(g) of that state."""
+        """First state at ``approach``: the coarse grid's solution (nested iteration), or
+        the non-adhesive (Signorini) solution where the bodies overlap, the undeformed
+        bodies otherwise, with a = a(g) of that state."""
         g = self.grid
         xb = self.blocks(self._x)
+        if self._nested_guess(approach):
+            return
         xb[...] = 0.0
         gap = g.rows(self.heights, readonly=True) - approach
         if g.mpi_comm.allreduce(float(gap.min()), op=MPI.MIN) < 0:
@@ -532,6 +604,8 @@ class AdhesiveProblem:
             if v is not None and not np.isfinite(v):
                 raise ValueError(f"{name} must be finite, got {v!r}")
         snes = self._build()
+        # the first state (coarse grids, Signorini) is part of this solve's cost
+        pairs0, t0 = self._fft_pairs(), self.history.elapsed()
         if not getattr(self, "_started", False):
             if approach is not None and self.load_from_rest:
                 return self._load_from_rest(approach, raise_on_failure, check_stability)
@@ -546,11 +620,12 @@ class AdhesiveProblem:
             self._central_gap = float(central_gap)
         else:
             self.centre_owner = None
-            self._approach = float(approach)
-        pairs0, t0 = self._fft_pairs(), self.history.elapsed()
+            self._prev_approach, self._approach = self._approach, float(approach)
         self._check_time = 0.0
         x_start = self._x.copy()
-        if approach is not None and self.use_predictor and self._tangent is not None:
+        if approach is not None and self._coarse_step(float(approach)):
+            pass
+        elif approach is not None and self.use_predictor and self._tangent is not None:
             # Euler predictor along the branch: x + dx/d delta * (delta - delta_prev)
             self._x.axpy(float(approach) - self._tangent[0], self._tangent[1])
             if self.hard_wall:
