@@ -1,4 +1,5 @@
-"""Command line: ``contactpetsc run [SCENE] [PETSc options]``, ``contactpetsc --version``.
+"""Command line: ``contactpetsc run [SCENE] [PETSc options]``, ``contactpetsc plot DIR``,
+``contactpetsc --version``.
 
 This is an entry point: it calls ``petsc4py.init(sys.argv)`` before anything
 imports PETSc, so every PETSc option on the command line reaches the options
@@ -9,7 +10,9 @@ Without a scene file, ``run`` solves the built-in default scene
 reference paper's material) pressed onto an isolated elastic half-space,
 swept through five approaches in displacement control with warm starts,
 each state compared with Hertz.  Exit status: 0 when every step converged,
-3 when some did not, 1 on an error.
+3 when some did not, 1 on an error.  PETSc options that nothing used by the
+end of a run (misspelt, or for a solver the scene does not run) are listed in
+a warning; ``-options_left`` also works as in any PETSc program.
 """
 from __future__ import annotations
 
@@ -30,7 +33,12 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--restart", action="store_true",
                      help="keep the steps already in the output directory and resume after the last")
     run.add_argument("--dry-run", action="store_true",
-                     help="print the plan (grid, decomposition, solver, memory) and exit")
+                     help="print the plan (grid, decomposition, solver, memory, outputs) and exit")
+    run.add_argument("--plots", action="store_true",
+                     help="also save load_approach.png, pressure_map.png and error_vs_time.png "
+                          "(as output.plots = true; needs matplotlib)")
+    plot = sub.add_parser("plot", help="save the plots of a finished run's output directory")
+    plot.add_argument("directory", help="a run's output directory (with curve.csv)")
     return p
 
 
@@ -48,6 +56,31 @@ def _without_petsc_options(words, petsc_options: dict) -> list:
     return out
 
 
+def unused_options() -> list[str]:
+    """PETSc options set but not used so far (PetscOptionsLeftGet), as ``-name [value]``.
+
+    petsc4py 3.18 has no wrapper for it: called through ctypes in the library petsc4py links;
+    an empty list when that is not possible (``-options_left`` then still reports them at exit).
+    """
+    import ctypes
+
+    from petsc4py import PETSc
+    try:
+        fn = ctypes.CDLL(PETSc.__file__).PetscOptionsLeftGet
+        restore = ctypes.CDLL(PETSc.__file__).PetscOptionsLeftRestore
+    except (OSError, AttributeError):
+        return []
+    n = (ctypes.c_int64 if PETSc.IntType(0).itemsize == 8 else ctypes.c_int)(0)
+    names, values = ctypes.POINTER(ctypes.c_char_p)(), ctypes.POINTER(ctypes.c_char_p)()
+    if fn(None, ctypes.byref(n), ctypes.byref(names), ctypes.byref(values)) != 0:
+        return []
+    # words like --output are this command's own (argparse): PETSc stores them as "-output"
+    out = [f"-{names[i].decode()}" + (f" {values[i].decode()}" if values[i] else "")
+           for i in range(n.value) if not names[i].startswith(b"-")]
+    restore(None, ctypes.byref(n), ctypes.byref(names), ctypes.byref(values))
+    return out
+
+
 def main(argv=None) -> int:
     argv = sys.argv if argv is None else [sys.argv[0]] + list(argv)
     import petsc4py
@@ -59,20 +92,41 @@ def main(argv=None) -> int:
         for k, v in versions().items():
             PETSc.Sys.Print(f"{k}: {v}")
         return 0
-    if args.command != "run":
+    if args.command not in ("run", "plot"):
         _parser().print_help()
         return 2
     comm = PETSc.COMM_WORLD.tompi4py()
+    if args.command == "plot":
+        return _plot(args.directory, comm)
     try:
         from . import protocols, scenes
         scene = scenes.load(args.scene) if args.scene else scenes.validate(scenes.DEFAULT_SCENE)
+        scene["output"]["plots"] |= args.plots
         states = protocols.run(scene, output=args.output, dry_run=args.dry_run, restart=args.restart)
+        unused = [] if args.dry_run else unused_options()
+        if unused and comm.Get_rank() == 0:
+            sys.stderr.write("contactpetsc: warning: PETSc options nobody used (misspelt, or for a solver "
+                             f"this scene does not run): {', '.join(unused)}\n")
         return 0 if all(st.converged for st in states) else 3
     except Exception as exc:  # noqa: BLE001 - reported, then the whole job ends
         sys.stderr.write(f"contactpetsc [rank {comm.Get_rank()}]: error: {exc}\n")
         sys.stderr.flush()
         if comm.Get_size() > 1:
             comm.Abort(1)  # one rank's error must not leave the others waiting in a collective
+        return 1
+
+
+def _plot(directory: str, comm) -> int:
+    """``contactpetsc plot DIR``: the plots of a finished run, drawn on rank 0."""
+    if comm.Get_rank() != 0:
+        return 0
+    try:
+        from .plots import plot_run
+        for path in plot_run(directory):
+            print(f"wrote {path}")
+        return 0
+    except (OSError, ImportError, ValueError, KeyError) as exc:
+        sys.stderr.write(f"contactpetsc plot: error: {exc}\n")
         return 1
 
 

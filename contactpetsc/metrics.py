@@ -32,3 +32,101 @@ def adhesion_ratios(grid, pressure, peak_attraction: float) -> tuple[float, floa
 def greenwood(approach: float, force: float, radius: float, work_of_adhesion: float, z0: float):
     """(alpha*, W*) of a sphere."""
     return approach / z0, force / (2.0 * np.pi * radius * work_of_adhesion)
+
+
+def _allsum(grid, values) -> np.ndarray:
+    out = np.array(values, dtype=float)
+    grid.mpi_comm.Allreduce(MPI.IN_PLACE, out)
+    return out
+
+
+def contact_area(grid, pressure) -> float:
+    """Area of the nodes in compressive contact (p > 0) [m^2]; collective."""
+    n = np.count_nonzero(grid.rows(pressure, readonly=True) > 0)
+    return float(_allsum(grid, [n])[0]) * grid.element_area
+
+
+def mean_gap(grid, gap, pressure=None) -> float:
+    """Mean gap [m] over the grid, or over the non-contacting nodes (p <= 0) when
+    ``pressure`` is given; collective."""
+    g = grid.rows(gap, readonly=True)
+    keep = np.ones(g.shape, bool) if pressure is None else grid.rows(pressure, readonly=True) <= 0
+    total, n = _allsum(grid, [g[keep].sum(), keep.sum()])
+    return float(total / n) if n else float("nan")
+
+
+def forces(grid, pressure) -> tuple[float, float]:
+    """(net force, adhesive force) [N]: the sums of all and of the negative pressures times
+    the element area; collective."""
+    p = grid.rows(pressure, readonly=True)
+    net, adh = _allsum(grid, [p.sum(), p[p < 0].sum()]) * grid.element_area
+    return float(net), float(adh)
+
+
+def hysteresis(approach_loading, force_loading, approach_unloading, force_unloading) -> float:
+    """Area between the loading and the unloading force-approach curves [J].
+
+    int (F_loading - F_unloading) d delta over the approaches both curves
+    cover, each curve linear between its samples (the trapezoid rule on the
+    union of both sets of samples, so two piecewise-linear curves give their
+    exact area).  Positive when unloading is more tensile than loading (energy
+    dissipated by jumps).  Each curve is sorted by approach; its samples must
+    be distinct approaches.
+    """
+    curves = []
+    for a, f in ((approach_loading, force_loading), (approach_unloading, force_unloading)):
+        a, f = np.asarray(a, float), np.asarray(f, float)
+        if a.shape != f.shape or a.ndim != 1 or a.size < 2:
+            raise ValueError("each curve needs matching 1-D arrays of >= 2 approaches and forces")
+        order = np.argsort(a)
+        a, f = a[order], f[order]
+        if np.any(np.diff(a) == 0):
+            raise ValueError("a curve has repeated approaches (split it into loading and unloading)")
+        curves.append((a, f))
+    (al, fl), (au, fu) = curves
+    lo, hi = max(al[0], au[0]), min(al[-1], au[-1])
+    if not lo < hi:
+        return 0.0
+    x = np.union1d(np.concatenate([al, au]), [lo, hi])
+    x = x[(x >= lo) & (x <= hi)]
+    diff = np.interp(x, al, fl) - np.interp(x, au, fu)
+    return float(np.sum(0.5 * (diff[1:] + diff[:-1]) * np.diff(x)))
+
+
+def path_hysteresis(path) -> float:
+    """``hysteresis`` of a ``paths.Path`` [J]: its converged loading and unloading points,
+    with the located jumps' end points added (jump-on to loading, jump-off to unloading)
+    so that a jump is steep between its bracketing approaches, not spread over a step."""
+    pts = [p for p in path.points if p.converged]
+    curves = {}
+    for branch, kind in (("loading", "jump-on"), ("unloading", "jump-off")):
+        samples = {p.approach: p.force for p in pts if p.branch == branch}
+        for j in path.jumps:
+            if j.kind == kind:
+                samples.setdefault(j.approach_before, j.force_before)
+                samples.setdefault(j.approach_after, j.force_after)
+        curves[branch] = samples
+    if min(len(c) for c in curves.values()) < 2:
+        return 0.0
+    (al, fl), (au, fu) = (zip(*sorted(c.items())) for c in curves.values())
+    return hysteresis(al, fl, au, fu)
+
+
+def nearest_atom(grid, atoms_xy) -> np.ndarray:
+    """Index of the atom nearest each local node in the plane, (ny_loc, nx): each atom's
+    footprint is its Voronoi cell on the grid (ties: the lower index)."""
+    from scipy.spatial import cKDTree
+    x, y = grid.coordinates()
+    _, idx = cKDTree(np.asarray(atoms_xy, float)[:, :2]).query(np.column_stack([x.T.ravel(), y.T.ravel()]))
+    return idx.reshape(grid.ny_local, grid.nx)
+
+
+def atom_forces(grid, pressure, owner, n_atoms: int) -> np.ndarray:
+    """Force on each atom [N] (compressive positive): the nodal pressure times the element
+    area summed over the atom's footprint, the nodes with ``owner`` == its index
+    ((ny_loc, nx) ints; < 0 for nodes of no atom).  The same array on every rank."""
+    p = grid.rows(pressure, readonly=True).ravel()
+    own = np.asarray(owner).ravel()
+    keep = own >= 0
+    f = np.bincount(own[keep], weights=p[keep], minlength=n_atoms)[:n_atoms]
+    return _allsum(grid, f) * grid.element_area

@@ -3,7 +3,7 @@
 Each rank writes its own rows of every field straight into the shared file
 (h5py's MPI-IO driver under mpirun; Debian's h5py picks its MPI build when
 the process runs under an MPI launcher).  Datasets are stored (ny, nx), row j
-at y = j dy, so that the XDMF ``2DCoRectMesh`` (which lists the slowest axis
+at y = j dy, so that the XDMF ``3DCoRectMesh`` (which lists the slowest axis
 first) shows x horizontally.  Files are written to a temporary name and
 renamed when complete: a reader never sees half a step, and an interrupted
 run keeps every finished step.
@@ -45,10 +45,18 @@ def versions() -> dict:
 
 
 def write_text_atomic(path: str, text: str) -> None:
-    """Write ``text`` to a temporary name, then rename: readers never see half a file."""
+    """Write ``text`` to a temporary name, flush it to disk, then rename: readers never see half a
+    file, and a failed write (disk full, a kill) leaves the previous version in place."""
     tmp = path + ".tmp"
-    with open(tmp, "w", newline="") as f:
-        f.write(text)
+    try:
+        with open(tmp, "w", newline="") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+    except BaseException:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        raise
     os.replace(tmp, path)
 
 
@@ -108,7 +116,9 @@ def write_state(directory: str, step: int, grid, heights, state, attrs: dict) ->
 
 
 def _write_xdmf(path: str, h5name: str, grid, fields=FIELDS) -> None:
-    dims = f"{grid.ny} {grid.nx}"
+    # a 3-D mesh one node thick, axes listed slowest first (z, y, x; dz := dx): ParaView reads a
+    # 2DCoRectMesh into its y-z plane, this one into the x-y plane; spacings in double precision
+    dims = f"1 {grid.ny} {grid.nx}"
     attrs = "\n".join(
         f'      <Attribute Name="{field}" AttributeType="Scalar" Center="Node">\n'
         f'        <DataItem Dimensions="{dims}" NumberType="Float" Precision="8" Format="HDF">'
@@ -117,10 +127,10 @@ def _write_xdmf(path: str, h5name: str, grid, fields=FIELDS) -> None:
 <Xdmf Version="3.0">
   <Domain>
     <Grid Name="surface" GridType="Uniform">
-      <Topology TopologyType="2DCoRectMesh" Dimensions="{dims}"/>
-      <Geometry GeometryType="ORIGIN_DXDY">
-        <DataItem Dimensions="2" NumberType="Float" Format="XML">0 0</DataItem>
-        <DataItem Dimensions="2" NumberType="Float" Format="XML">{grid.dy!r} {grid.dx!r}</DataItem>
+      <Topology TopologyType="3DCoRectMesh" Dimensions="{dims}"/>
+      <Geometry GeometryType="ORIGIN_DXDYDZ">
+        <DataItem Dimensions="3" NumberType="Float" Precision="8" Format="XML">0 0 0</DataItem>
+        <DataItem Dimensions="3" NumberType="Float" Precision="8" Format="XML">{grid.dx!r} {grid.dy!r} {grid.dx!r}</DataItem>
       </Geometry>
 {attrs}
     </Grid>

@@ -24,9 +24,9 @@ from petsc4py import PETSc
 from . import surfaces
 from .errors import collective_call
 from .grid import SurfaceGrid
-from .output import versions, write_state, write_text_atomic
+from .output import ADHESIVE_FIELDS, FIELDS, versions, write_state, write_text_atomic
 
-CURVE_COLUMNS = ["step", "approach_m", "force_N", "mean_pressure_Pa", "contact_fraction",
+CURVE_COLUMNS = ["step", "branch", "approach_m", "force_N", "mean_pressure_Pa", "contact_fraction",
                  "adhesive_force_N", "adhesive_load_ratio", "adhesive_area_ratio", "alpha_star", "W_star",
                  "central_gap_m", "stable", "complementarity_error", "adhesive_error", "total_error",
                  "load_error", "converged", "reason", "solver", "newton_iterations",
@@ -40,8 +40,20 @@ def build_grid(scene: dict, comm=None) -> SurfaceGrid:
                        row_alignment=16)
 
 
+def build_tip(scene: dict, grid: SurfaceGrid):
+    """(tip, heights, owner) of a ``kind = tip`` scene (``tips.py``)."""
+    from . import tips
+    g = scene["geometry"]
+    tip = tips.make_tip(g["tip"], grid, g["radius"], g["atom_spacing"], atom_radius=g["atom_radius"],
+                        seed=g["seed"])
+    h, owner = tips.profile(grid, tip)
+    return tip, h, owner
+
+
 def build_heights(scene: dict, grid: SurfaceGrid) -> PETSc.Vec:
     g = scene["geometry"]
+    if g["kind"] == "tip":
+        return build_tip(scene, grid)[1]
     if g["kind"] == "sphere":
         return surfaces.sphere(grid, g["radius"])
     if g["kind"] == "file":
@@ -51,8 +63,9 @@ def build_heights(scene: dict, grid: SurfaceGrid) -> PETSc.Vec:
                                 short_cutoff_wavelength=g["short_cutoff_wavelength"])
 
 
-def plan(scene: dict, grid: SurfaceGrid) -> list[str]:
-    """What a run will do: grid, decomposition, solver chain, memory (dry run and log header)."""
+def plan(scene: dict, grid: SurfaceGrid, out_dir: str | None = None) -> list[str]:
+    """What a run will do: grid, decomposition, solver chain, memory, outputs (dry run and log
+    header)."""
     g, n = scene["geometry"], grid.nx * grid.ny
     size = grid.mpi_comm.Get_size()
     fft_points = n * (4 if not grid.periodic else 1)
@@ -78,7 +91,8 @@ def plan(scene: dict, grid: SurfaceGrid) -> list[str]:
             f"  rows per rank {[b - a for a, b in grid.y_ranges]}",
             chain,
             f"  protocol: {scene['protocol']['control']} x {len(scene['protocol']['values'])} steps",
-            f"  memory estimate: {per_rank / 2**20:.0f} MiB per rank"]
+            f"  memory estimate: {per_rank / 2**20:.0f} MiB per rank",
+            _outputs_line(scene, n, out_dir or scene["output"]["directory"])]
 
 
 def _read_step(path: str, grid: SurfaceGrid, fields=("pressure",)) -> tuple[list, float]:
@@ -110,14 +124,44 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
     With ``restart``, steps already in ``curve.csv`` are kept and the path
     resumes from the last one's field file (``step_NNNN.h5``).
     """
+    states = _run(scene, output=output, dry_run=dry_run, comm=comm, restart=restart)
+    if states and scene["output"]["atom_forces"]:
+        _write_atom_forces(scene, build_grid(scene, comm), states, output or scene["output"]["directory"],
+                           restart)
+    return states
+
+
+def _write_atom_forces(scene: dict, grid: SurfaceGrid, states: list, out_dir: str, restart: bool) -> None:
+    """atom_forces.csv: per step, the force [N] on every atom whose footprint carries
+    pressure (compressive positive), with the atom's position about the apex axis."""
+    from .metrics import atom_forces
+    tip, _, owner = build_tip(scene, grid)
+    header = "approach_m,atom,x_m,y_m,radius_m,force_N\n"
+    lines = []
+    for st in states:
+        f = atom_forces(grid, st.pressure, owner, len(tip.atoms))
+        for k in np.flatnonzero(f):
+            x, y = tip.atoms[k, :2]
+            lines.append(f"{st.approach!r},{k},{x!r},{y!r},{float(np.hypot(x, y))!r},{f[k]!r}\n")
+    path = os.path.join(out_dir, "atom_forces.csv")
+    if grid.mpi_comm.Get_rank() == 0:
+        old = open(path).read() if (restart and os.path.exists(path)) else header
+        write_text_atomic(path, old + "".join(lines))
+    grid.mpi_comm.Barrier()
+
+
+def _run(scene: dict, *, output, dry_run, comm, restart) -> list:
     from .scenes import adhesive
     from .solvers import ContactProblem
     say = PETSc.Sys.Print
     grid = build_grid(scene, comm)
-    for line in plan(scene, grid):
+    for line in plan(scene, grid, output):
         say(line)
     if dry_run:
         return []
+    if scene["output"]["plots"]:   # before the run, not after it
+        from .plots import require
+        collective_call(grid.mpi_comm, ImportError, "{error}", require)
     if adhesive(scene):
         return _run_adhesive(scene, grid, output=output, restart=restart)
     opts = PETSc.Options("contact_")
@@ -136,9 +180,6 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
     values = scene["protocol"]["values"]
     out_dir = output or scene["output"]["directory"]
     rank0 = grid.mpi_comm.Get_rank() == 0
-    if rank0:
-        os.makedirs(out_dir, exist_ok=True)
-    grid.mpi_comm.Barrier()
     header = f"  {'step':>4} {'approach [m]':>12} {'force [N]':>11} {'contact':>8} {'error':>9} {'Newton':>6} {'time [s]':>8}"
     if hertz:
         header += f" {'F/F_Hertz':>9} {'a/a_Hertz':>9}"
@@ -170,9 +211,9 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
         left = elapsed / (k - done) * (len(values) - k)
         say(line + f"  [step {k}/{len(values)}, {elapsed:.1f} s, ~{left:.1f} s left]"
             + ("" if st.converged else f"  NOT CONVERGED: {st.reason}"))
-        rows.append([k, st.approach, st.force, st.mean_pressure, st.contact_fraction,
-                     0.0, 0.0, 0.0, NAN, NAN, NAN, True, st.complementarity_error, NAN, NAN,
-                     st.load_error, st.converged, st.reason, "snes-vi+" + problem.preconditioner,
+        rows.append([k, _branch(control, values, k - 1), st.approach, st.force, st.mean_pressure,
+                     st.contact_fraction, 0.0, 0.0, 0.0, NAN, NAN, NAN, True, st.complementarity_error,
+                     NAN, NAN, st.load_error, st.converged, st.reason, "snes-vi+" + problem.preconditioner,
                      st.newton_iterations, st.linear_iterations, st.fft_pairs, st.wall_time])
         if provenance is not None:
             write_state(out_dir, k, grid, h, st, provenance)
@@ -181,6 +222,7 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
             # an interrupted run's iterations stay in front, under one header
             write_text_atomic(history_path,
                               old_history + problem.history.csv_text(header=not old_history))
+    _save_plots(scene, grid, out_dir, states)
     grid.mpi_comm.Barrier()  # the outputs are complete when run() returns, on every rank
     say(f"  wrote {out_dir}/curve.csv and {out_dir}/history.csv")
     return states
@@ -188,19 +230,58 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
 
 def _open_outputs(scene: dict, grid: SurfaceGrid, out_dir: str, restart: bool):
     """(curve path, history path, rows already done, old history text); with ``restart`` the
-    rows of an interrupted run, read on rank 0 and broadcast (every rank takes the same path)."""
+    rows of an interrupted run, read on rank 0 and broadcast (every rank takes the same path).
+
+    Before any solve: the directory must exist (made by rank 0), every rank must be able to
+    create a file in it, and it must have room for the run's outputs; otherwise an OSError
+    naming the directory on every rank.
+    """
+    comm = grid.mpi_comm
+    rank = comm.Get_rank()
     curve_path, history_path = os.path.join(out_dir, "curve.csv"), os.path.join(out_dir, "history.csv")
+    what = f"output directory {out_dir!r} (output.directory or --output)"
+    collective_call(comm, OSError, f"{what} cannot be created: {{error}}",
+                    lambda: os.makedirs(out_dir, exist_ok=True) if rank == 0 else None)
+
+    def probe():
+        path = os.path.join(out_dir, f".contactpetsc-write-test-{rank}-{os.getpid()}")
+        try:
+            with open(path, "wb") as f:
+                f.write(b"x")
+                f.flush()
+                os.fsync(f.fileno())
+        finally:
+            if os.path.exists(path):
+                os.remove(path)
+        st = os.statvfs(out_dir)
+        return st.f_bavail * st.f_frsize
+
+    free = collective_call(comm, OSError, f"{what} is not writable: {{error}}", probe)
+    fields = len(FIELDS) + (len(ADHESIVE_FIELDS) if scene["interaction"]["law"] != "none" else 0)
+    steps = len(scene["protocol"]["values"])
+    need = (steps * fields * 8 * grid.nx * grid.ny if scene["output"]["fields"] else 0) + 2**20 * (1 + steps)
+    if comm.allreduce(free < need, op=MPI.LOR):
+        raise OSError(f"{what} has {comm.allreduce(free, op=MPI.MIN) / 2**20:.1f} MiB free; the run writes "
+                      f"about {need / 2**20:.1f} MiB ({steps} steps"
+                      + (f" of {fields} fields of {grid.nx} x {grid.ny}" if scene["output"]["fields"] else "")
+                      + "): free some space, choose another directory or set output.fields = false")
     rows, old_history = [], ""
     if restart:
         if not scene["output"]["fields"]:
             raise RuntimeError("restart needs the field files: set output.fields = true")
-        if grid.mpi_comm.Get_rank() == 0 and os.path.exists(curve_path):
-            with open(curve_path) as f:
-                rows = [r for r in csv.reader(f)][1:]
-            if os.path.exists(history_path):
-                with open(history_path) as f:
-                    old_history = f.read()
-        rows, old_history = grid.mpi_comm.bcast((rows, old_history), root=0)
+
+        def read():
+            rows, old_history = [], ""
+            if rank == 0 and os.path.exists(curve_path):
+                with open(curve_path) as f:
+                    rows = [r for r in csv.reader(f)][1:]
+                if os.path.exists(history_path):
+                    with open(history_path) as f:
+                        old_history = f.read()
+            return rows, old_history
+
+        done = collective_call(comm, RuntimeError, f"cannot restart from {curve_path}: {{error}}", read)
+        rows, old_history = comm.bcast(done, root=0)
     return curve_path, history_path, rows, old_history
 
 
@@ -228,13 +309,10 @@ def _run_adhesive(scene: dict, grid: SurfaceGrid, *, output: str | None, restart
                               tol=tol if sol["method"] == "newton" else None,
                               preconditioner=sol["preconditioner"])
     relax = RelaxationSolver(problem, tol=tol) if sol["method"] == "relaxation" else None
-    sphere = g["kind"] == "sphere" and not g["periodic"]
+    sphere = g["kind"] in ("sphere", "tip") and not g["periodic"]   # Greenwood's scaling with R
     z0 = law.length_scale()
     out_dir = output or scene["output"]["directory"]
     rank0 = grid.mpi_comm.Get_rank() == 0
-    if rank0:
-        os.makedirs(out_dir, exist_ok=True)
-    grid.mpi_comm.Barrier()
     values = [float(v) for v in proto["values"]]
     curve_path, history_path, rows, old_history = _open_outputs(scene, grid, out_dir, restart)
     done = len(rows)
@@ -264,11 +342,11 @@ def _run_adhesive(scene: dict, grid: SurfaceGrid, *, output: str | None, restart
             + (f" {a_star:8.3f} {w_star:9.4f}" if sphere else "")
             + f"  [step {step}/{len(values)}, {elapsed:.1f} s, ~{left:.1f} s left]"
             + ("" if st.converged else f"  NOT CONVERGED: {st.reason}"))
-        rows.append([step, st.approach, st.force, st.mean_pressure, st.contact_fraction,
-                     st.adhesive_force, load_ratio, area_ratio, a_star, w_star, st.central_gap,
-                     st.stable, st.complementarity_error, st.adhesive_error, st.total_error, NAN,
-                     st.converged, st.reason, st.solver, st.newton_iterations, st.linear_iterations,
-                     st.fft_pairs, st.wall_time])
+        rows.append([step, _branch(proto["control"], values, step - 1), st.approach, st.force,
+                     st.mean_pressure, st.contact_fraction, st.adhesive_force, load_ratio, area_ratio,
+                     a_star, w_star, st.central_gap, st.stable, st.complementarity_error,
+                     st.adhesive_error, st.total_error, NAN, st.converged, st.reason, st.solver,
+                     st.newton_iterations, st.linear_iterations, st.fft_pairs, st.wall_time])
         if provenance is not None:
             write_state(out_dir, step, grid, h, st, provenance)
         if rank0:
@@ -307,9 +385,51 @@ def _run_adhesive(scene: dict, grid: SurfaceGrid, *, output: str | None, restart
                         for j in path.jumps])
     if rank0:
         write_text_atomic(os.path.join(out_dir, "summary.json"), json.dumps(summary, indent=1, default=str))
+    _save_plots(scene, grid, out_dir, states)
     grid.mpi_comm.Barrier()
     say(f"  wrote {out_dir}/curve.csv, history.csv, summary.json")
     return states
+
+
+def _outputs_line(scene: dict, n: int, out_dir: str) -> str:
+    """The files a run writes (docs/outputs.md), for the plan."""
+    from .scenes import adhesive
+    out, steps = scene["output"], len(scene["protocol"]["values"])
+    files = ["curve.csv", "history.csv"] + (["jumps.csv", "summary.json"] if adhesive(scene) else [])
+    if out["fields"]:
+        per_step = (len(FIELDS) + (len(ADHESIVE_FIELDS) if adhesive(scene) else 0)) * n * 8
+        files.append(f"{steps} x step_NNNN.h5 + .xdmf ({per_step / 2**20:.1f} MiB each)")
+    if out["plots"]:
+        files.append("load_approach.png, pressure_map.png, error_vs_time.png")
+    return f"  outputs in {out_dir}: " + ", ".join(files)
+
+
+def _save_plots(scene: dict, grid: SurfaceGrid, out_dir: str, states: list) -> None:
+    """``output.plots``: ``plots.plot_run`` on rank 0 from the files just written; collective (a
+    plotting error is raised on every rank)."""
+    if not scene["output"]["plots"]:
+        return
+    from .plots import plot_run
+    pressure = None
+    if not scene["output"]["fields"] and states:   # no field file: gather the last pressure
+        last = states[-1]
+        field = grid.gather(last.pressure, root=0)
+        if field is not None:
+            pressure = (field.T, grid.dx, grid.dy,
+                        f"last step: δ = {last.approach:.4g} m, F = {last.force:.4g} N")
+    rank0 = grid.mpi_comm.Get_rank() == 0
+    written = collective_call(grid.mpi_comm, RuntimeError, "plots failed: {error}",
+                              lambda: plot_run(out_dir, pressure) if rank0 else [])
+    if rank0:
+        PETSc.Sys.Print("  plots: " + ", ".join(written), comm=PETSc.COMM_SELF)
+
+
+def _branch(control: str, values: list, i: int) -> str:
+    """loading where the prescribed value rises (the first step too), unloading where it falls;
+    central-gap paths are one branch, stable and unstable."""
+    if control == "central_gap":
+        return "central-gap"
+    return "unloading" if i > 0 and values[i] < values[i - 1] else "loading"
 
 
 def _write_csv(path: str, columns: list, rows: list) -> None:

@@ -26,19 +26,23 @@ def _k(kind, default, unit, doc, rng=None, choices=None):
 SCHEMA = {
     "name": _k(str, "scene", "", "label used in outputs"),
     "geometry": {
-        "kind": _k(str, "sphere", "", "composite surface", choices=("sphere", "self-affine", "file")),
+        "kind": _k(str, "sphere", "", "composite surface", choices=("sphere", "self-affine", "file", "tip")),
         "nx": _k(int, 128, "", "nodes along x", (2, 2**31 - 1, True)),
         "ny": _k(int, None, "", "nodes along y (default nx)", (2, 2**31 - 1, True)),
         "dx": _k(float, None, "m", "grid spacing along x (required)", POS),
         "dy": _k(float, None, "m", "grid spacing along y (default dx)", POS),
-        "periodic": _k(bool, None, "", "periodic cell (default: false for a sphere, true otherwise)"),
-        "radius": _k(float, None, "m", "sphere radius (kind = sphere)", POS),
+        "periodic": _k(bool, None, "", "periodic cell (default: false for a sphere or tip, true otherwise)"),
+        "radius": _k(float, None, "m", "sphere or tip radius (kind = sphere, tip)", POS),
+        "tip": _k(str, "bent-commensurate", "", "atomic tip of Luan & Robbins (kind = tip; docs/studies.md)",
+                  choices=("bent-commensurate", "bent-incommensurate", "amorphous", "stepped")),
+        "atom_spacing": _k(float, None, "m", "nearest-neighbour atom spacing d (kind = tip)", POS),
+        "atom_radius": _k(float, None, "m", "hard-sphere atom radius (kind = tip; default d / 2)", POS),
         "hurst": _k(float, 0.8, "", "Hurst exponent (self-affine)", (0.0, 1.0, False)),
         "rms_height": _k(float, None, "m", "rms height (self-affine; or rms_slope)", NONNEG),
         "rms_slope": _k(float, None, "", "rms slope (self-affine; or rms_height)", NONNEG),
         "rolloff_wavelength": _k(float, None, "m", "roll-off wavelength (default: cell size)", POS),
         "short_cutoff_wavelength": _k(float, None, "m", "short cut-off (default: 2 dx)", POS),
-        "seed": _k(int, 0, "", "random seed (self-affine)", (0, 2**63 - 1, True)),
+        "seed": _k(int, 0, "", "random seed (self-affine, amorphous tip)", (0, 2**63 - 1, True)),
         "path": _k(str, None, "", "height file, .npy or HDF5 (kind = file), heights in m"),
         "dataset": _k(str, "heights", "", "HDF5 dataset name (kind = file)"),
     },
@@ -81,6 +85,11 @@ SCHEMA = {
         "directory": _k(str, "contactpetsc-output", "", "where curve.csv, history.csv and the fields go"),
         "fields": _k(bool, True, "", "write step_NNNN.h5 (pressure, gap, displacement, heights, "
                      "contact mask) and step_NNNN.xdmf for ParaView, per step"),
+        "plots": _k(bool, False, "", "save load_approach.png (loading and unloading marked, jumps and "
+                    "pull-off with adhesion), pressure_map.png (the last step) and error_vs_time.png "
+                    "(needs matplotlib)"),
+        "atom_forces": _k(bool, False, "", "write atom_forces.csv: the force on each atom of a tip "
+                          "(nodal pressure over its footprint) at every step (kind = tip)"),
     },
 }
 
@@ -139,6 +148,12 @@ def validate(scene: dict) -> dict:
             raise SceneError(f"{required} is required")
     if g["kind"] == "sphere" and g["radius"] is None:
         raise SceneError("geometry.radius is required for geometry.kind = sphere")
+    if g["kind"] == "tip":
+        for key in ("radius", "atom_spacing"):
+            if g[key] is None:
+                raise SceneError(f"geometry.{key} is required for geometry.kind = tip")
+    if out["output"]["atom_forces"] and g["kind"] != "tip":
+        raise SceneError("output.atom_forces needs geometry.kind = tip (forces per atom of a tip)")
     if g["kind"] == "file" and g["path"] is None:
         raise SceneError("geometry.path is required for geometry.kind = file")
     if g["kind"] == "self-affine" and (g["rms_height"] is None) == (g["rms_slope"] is None):
@@ -166,8 +181,22 @@ def validate(scene: dict) -> dict:
     g["ny"] = g["ny"] or g["nx"]
     g["dy"] = g["dy"] or g["dx"]
     if g["periodic"] is None:
-        g["periodic"] = g["kind"] != "sphere"
+        g["periodic"] = g["kind"] not in ("sphere", "tip")
+    if adhesive(out):
+        _check_adhesive_resolution(out)
     return out
+
+
+def _check_adhesive_resolution(scene: dict) -> None:
+    """UnderResolvedWarning when the grid is too coarse for the adhesive zone (the criterion is
+    ``interactions.check_resolution``'s); the same on every rank."""
+    from .physics.interactions import check_resolution, make_law
+    it, g = scene["interaction"], scene["geometry"]
+    param = {"hardwall-lj": "z0", "lj": "z0", "exponential": "rho", "dugdale": "sigma0"}[it["law"]]
+    law = make_law(it["law"], work_of_adhesion=it["work_of_adhesion"], **{param: it[param]})
+    check_resolution(law, scene["material"]["e_star"], max(g["dx"], g["dy"]),
+                     radius=g["radius"] if g["kind"] in ("sphere", "tip") else None,
+                     rms_slope=g["rms_slope"] if g["kind"] == "self-affine" else None)
 
 
 def adhesive(scene: dict) -> bool:

@@ -174,3 +174,107 @@ def rms_height(grid: SurfaceGrid, h: PETSc.Vec) -> float:
     # two passes: <h^2> - <h>^2 cancels (a flat h far from 0 would give round-off, not 0)
     dev = grid.rows(h, readonly=True) - mean
     return float(np.sqrt(grid.mpi_comm.allreduce(float(np.vdot(dev, dev))) / n))
+
+
+# -- the reference paper's surfaces: one random pattern at many rms, sphere plus roughness ----------
+def scale_to_rms(grid: SurfaceGrid, h: PETSc.Vec, rms: float) -> PETSc.Vec:
+    """A new surface with the spatial pattern of ``h`` scaled vertically to rms height ``rms`` [m].
+
+    The reference paper's method (section 3.2): one random surface scaled to
+    several rms values, so that peaks and valleys stay where they are.
+    h' = (h - mean h) * rms / rms(h), shifted so that min h' = 0.  ``rms = 0``
+    gives a flat zero surface.
+    """
+    if not (np.isfinite(rms) and rms >= 0):
+        raise GridError(f"rms (m) must be finite and >= 0, got {rms!r}")
+    current = rms_height(grid, h)
+    if current == 0 and rms > 0:
+        raise GridError("scale_to_rms: the surface is flat (rms 0), it has no pattern to scale")
+    out = h.copy()
+    out.shift(-h.sum() / (grid.nx * grid.ny))
+    out.scale(rms / current if current > 0 else 0.0)
+    out.shift(-out.min()[1])
+    return out
+
+
+def composite(grid: SurfaceGrid, *parts: PETSc.Vec) -> PETSc.Vec:
+    """The composite surface (assumption 1): the sum of height fields, shifted so min h = 0."""
+    if not parts:
+        raise GridError("composite: give at least one height field")
+    out = parts[0].copy()
+    for p in parts[1:]:
+        out.axpy(1.0, p)
+    out.shift(-out.min()[1])
+    return _check_finite(grid, out, "composite surface")
+
+
+def rough_sphere(grid: SurfaceGrid, radius: float, roughness: PETSc.Vec) -> PETSc.Vec:
+    """A sphere of radius R [m] about the centre node plus ``roughness``, min h = 0 (Figs. 6-9)."""
+    return composite(grid, sphere(grid, radius), roughness)
+
+
+TOPOGRAPHY_EXTRA = "contactpetsc[topography]"
+
+
+def _surface_topography():
+    try:
+        import SurfaceTopography
+    except ImportError as exc:
+        raise ImportError(
+            f"reading measured topographies needs the optional package SurfaceTopography: "
+            f"pip install '{TOPOGRAPHY_EXTRA}' (or pip install SurfaceTopography); "
+            f".npy and HDF5 heights need nothing (surfaces.from_file)") from exc
+    return SurfaceTopography
+
+
+def read_topography_array(path: str, channel: int | None = None, *, physical_sizes=None,
+                          unit: str | None = None) -> tuple[np.ndarray, tuple[float, float]]:
+    """(heights [m] of shape (nx, ny), physical sizes (Lx, Ly) [m]) of a measured topography.
+
+    Any instrument format that SurfaceTopography reads (Gwyddion, NanoScope,
+    Keyence, Mitutoyo, plain text matrices, ...), converted to metres from the
+    file's length unit.  Files that do not store them need ``physical_sizes``
+    (in ``unit``) and ``unit`` (e.g. "um").  Needs the optional extra
+    ``contactpetsc[topography]``.
+    """
+    _surface_topography()
+    from SurfaceTopography import open_topography
+    from SurfaceTopography.Support.UnitConversion import get_unit_conversion_factor
+    reader = open_topography(path)
+    kw = {k: v for k, v in (("channel_index", channel), ("physical_sizes", physical_sizes),
+                            ("unit", unit)) if v is not None}
+    topo = reader.topography(**kw)
+    if topo.dim != 2:
+        raise GridError(f"{path}: a {topo.dim}-D topography (a line scan); contact needs a 2-D map")
+    if topo.unit is None:
+        raise GridError(f"{path}: the file gives no length unit; pass unit= (e.g. 'um')")
+    factor = get_unit_conversion_factor(topo.unit, "m")
+    heights = np.asarray(topo.heights(), dtype=float) * factor
+    sizes = tuple(float(s) * factor for s in topo.physical_sizes)
+    return heights, sizes
+
+
+def from_topography(grid: SurfaceGrid, path: str, channel: int | None = None, **kw) -> PETSc.Vec:
+    """Heights [m] of a measured topography (``read_topography_array``) on ``grid``, min h = 0.
+
+    The file's map must have the grid's (nx, ny) points; the grid spacing is
+    checked against the file's physical size (1e-6 relative); ``kw``: ``physical_sizes``
+    and ``unit`` for files that lack them (``read_topography_array``).  Every rank reads
+    the file (instrument files are small); errors are raised on every rank.
+    """
+    def read():
+        heights, (lx, ly) = read_topography_array(path, channel, **kw)
+        if heights.shape != grid.shape:
+            raise GridError(f"{path}: {heights.shape} points, the grid has {grid.shape}")
+        if not np.allclose((lx / grid.nx, ly / grid.ny), (grid.dx, grid.dy), rtol=1e-6, atol=0.0):
+            raise GridError(f"{path}: spacing ({lx / grid.nx:.6e}, {ly / grid.ny:.6e}) m, "
+                            f"the grid has ({grid.dx:.6e}, {grid.dy:.6e}) m")
+        return heights[:, grid.ys:grid.ye]
+
+    _surface_topography()   # the same installation on every rank: an ImportError everywhere
+    local = collective_call(grid.mpi_comm, GridError, f"cannot read topography {path}: {{error}}", read)
+    v = grid.create_vec()
+    grid.local_array(v)[...] = local
+    v.shift(-v.min()[1])
+    return _check_finite(grid, v, path)
+

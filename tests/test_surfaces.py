@@ -260,3 +260,51 @@ def test_height_function_failing_on_one_rank_raises_everywhere(coll):
 
     msgs = coll.raises(GridError, "height function failed", surfaces.from_function, g, func)
     assert all("bad heights here" in m for m in msgs)
+
+
+# -- the reference paper's surfaces: rescaled patterns, sphere plus roughness, instrument files ------
+def test_scale_to_rms_keeps_the_pattern(coll):
+    """One random pattern at several rms (section 3.2): the rms is the target (1e-12), the
+    pattern is the same (correlation 1 with the original), min h = 0, and the field is the
+    same on COMM_WORLD and COMM_SELF."""
+    nx, ny, dx = 32, 37, 1e-8
+    fields = {}
+    for name, comm in COMMS:
+        g = SurfaceGrid(nx, ny, dx, periodic=False, comm=comm)
+        base = surfaces.gaussian_correlated(g, rms_height=1e-9, correlation_length=5e-8, seed=3)
+        fields[name] = [g.gather(surfaces.scale_to_rms(g, base, r)) for r in (0.0, 0.3e-9, 3e-9)]
+        ref = g.gather(base)
+    for (flat, small, big) in fields.values():
+        assert coll.max(np.abs(flat)) == 0.0
+        for h, r in ((small, 0.3e-9), (big, 3e-9)):
+            assert coll.max(abs(h.std() / r - 1)) <= 1e-12
+            assert coll.max(abs(np.corrcoef(h.ravel(), ref.ravel())[0, 1] - 1)) <= 1e-12
+            assert coll.max(abs(h.min())) == 0.0
+    errs = [np.max(np.abs(w - s)) for w, s in zip(fields["world"], fields["self"])]
+    assert coll.max(errs) <= 1e-12 * 3e-9
+    g = SurfaceGrid(8, 8, 1.0)
+    coll.raises(GridError, "flat", surfaces.scale_to_rms, g, g.create_vec(0.0), 1.0)
+    coll.raises(GridError, "rms", surfaces.scale_to_rms, g, g.create_vec(0.0), -1.0)
+
+
+def test_rough_sphere_is_the_composite_surface(coll):
+    """sphere + roughness, shifted to min h = 0 (assumption 1)."""
+    nx, ny, dx, radius = 24, 37, 1e-8, 1e-6
+    g = SurfaceGrid(nx, ny, dx, periodic=False)
+    rough = surfaces.self_affine(g, hurst=0.8, rms_height=1e-9, seed=2)
+    h = g.gather(surfaces.rough_sphere(g, radius, rough))
+    ref = g.gather(surfaces.sphere(g, radius)) + g.gather(rough)
+    ref -= ref.min()
+    assert coll.max(np.abs(h - ref)) <= 1e-12 * ref.max() and coll.max(abs(h.min())) == 0.0
+    coll.raises(GridError, "at least one", surfaces.composite, g)
+
+
+def test_topography_reader_names_the_extra_when_absent(coll):
+    """Measured topographies go through SurfaceTopography (optional); without it the error
+    names the extra to install."""
+    import importlib.util
+    if importlib.util.find_spec("SurfaceTopography") is not None:
+        pytest.skip("SurfaceTopography is installed")
+    g = SurfaceGrid(8, 8, 1.0)
+    coll.raises(ImportError, ["contactpetsc[topography]", "SurfaceTopography"],
+                surfaces.from_topography, g, "scan.sur")

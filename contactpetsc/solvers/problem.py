@@ -170,6 +170,8 @@ class ContactProblem:
         opts = PETSc.Options(self.prefix)
         if not opts.hasName("snes_linesearch_type"):
             opts.setValue("snes_linesearch_type", "basic")
+        if not opts.hasName("snes_linesearch_maxstep"):
+            opts.setValue("snes_linesearch_maxstep", "1e300")   # PETSc's 1e8 is in Pa here
         ksp = snes.getKSP()
         ksp.setType("cg")
         # inexact Newton: the semismooth Newton method converges linearly with

@@ -89,10 +89,16 @@ def stability_margin(problem, q_rows: np.ndarray | None, steps: int = 30, tol: f
         return 1.0   # A <= 0: A S has no positive eigenvalue
     S = _Compliance(problem, contact)
     dot = lambda u, w: comm.allreduce(float(np.vdot(u, w)))  # noqa: E731
-    # start: the positive part of A (the attractive zone beyond the force peak)
-    v = np.maximum(d, 0.0)
+    # start: the positive part of A (the attractive zone beyond the force peak), varied
+    # from node to node by a fixed hash of the global index (rank-count independent), so
+    # that it has every Fourier mode: a uniform start is in the null space of the
+    # periodic compliance (the mean mode)
+    index = (np.arange(g.ys, g.ye)[:, None] * g.nx + np.arange(g.nx)[None, :]).astype(float)
+    v = np.maximum(d, 0.0) * (1.0 + 0.5 * np.modf(np.abs(np.sin(index * 12.9898)) * 43758.5453)[0])
     sv = S(v, np.empty_like(v))
     nrm = np.sqrt(dot(v, sv))
+    if not nrm > 0.0:
+        return 1.0   # A S vanishes on the positive part of A
     V, SV = [v / nrm], [sv / nrm]
     alphas, betas = [], []
     lam = -np.inf

@@ -1,0 +1,176 @@
+"""Check that ParaView reads contactpetsc's field files as written.  Not a test: CI has no ParaView.
+
+    pvpython run_scripts/check_paraview.py [DIR ...]        (pvbatch works too)
+
+For every ``step_NNNN.xdmf`` in each output directory DIR, both of ParaView's
+XDMF readers (``XDMFReader``, which File > Open offers first, and
+``Xdmf3ReaderS``) must give an image of nx x ny x 1 points in the x-y plane
+with spacing (dx, dy) and origin 0, and every point array equal, value for
+value, to its HDF5 dataset read with h5py (VTK point (i, j) = dataset[j, i]).
+All of a directory's steps opened at once must make a time series with one
+time per step (what the file dialog's grouped ``step_..xdmf`` entry does).
+
+Without DIR, two runs are made for the check in a temporary directory with
+the repository's venv: a rough periodic cell with nx != ny and dx != dy on
+one rank, and an adhesive Lennard-Jones sphere on two ranks (parallel HDF5).
+Prints one line per file and reader; exit status 1 on any mismatch.
+``--screenshot PNG`` also renders the last directory's last step coloured by
+pressure, as a user sees it (needs a display; headless: ``xvfb-run -a``).
+
+Debian 12: ``apt-get install --no-install-recommends paraview python3-paraview``.
+"""
+import glob
+import os
+import subprocess
+import sys
+import tempfile
+
+import h5py
+import numpy as np
+from paraview import servermanager
+from paraview.simple import XDMFReader, Xdmf3ReaderS
+from vtkmodules.util.numpy_support import vtk_to_numpy
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+VENV = os.environ.get("CONTACTPETSC_VENV", os.path.join(HERE, "..", ".venv"))
+
+ROUGH = """name = "paraview-rough"
+[geometry]
+kind = "self-affine"
+nx = 40
+ny = 24
+dx = 1e-8
+dy = 1.5e-8
+rms_slope = 0.1
+seed = 2
+[material]
+e_star = 50e9
+[protocol]
+control = "mean_pressure"
+values = [5e7, 1e8]
+"""
+ADHESIVE = """name = "paraview-adhesive"
+[geometry]
+kind = "sphere"
+radius = 30e-9
+nx = 56
+dx = 0.5e-9
+[material]
+e_star = 10e9
+[interaction]
+law = "lj"
+work_of_adhesion = 0.3
+z0 = 0.3e-9
+[protocol]
+values = [-0.6e-9, -0.3e-9, 0.0, -0.3e-9]
+refine_pull_off = false
+"""
+
+
+def make_runs(root: str) -> list:
+    # pvpython is an MPI singleton: its OMPI_/PMIX_ variables would tie mpirun to it
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("OMPI_", "PMIX_", "OPAL_"))}
+    env.update(OMP_NUM_THREADS="1", OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OMPI_MCA_rmaps_base_oversubscribe="1")
+    dirs = []
+    for name, text, ranks in (("rough", ROUGH, 1), ("adhesive", ADHESIVE, 2)):
+        scene, out = os.path.join(root, f"{name}.toml"), os.path.join(root, name)
+        with open(scene, "w") as f:
+            f.write(text)
+        cmd = ["mpirun", "-n", str(ranks), os.path.join(VENV, "bin", "contactpetsc"), "run", scene,
+               "--output", out]
+        print(f"running {' '.join(cmd)}")
+        subprocess.run(cmd, check=True, env=env, stdout=subprocess.DEVNULL)
+        dirs.append(out)
+    return dirs
+
+
+def check_file(xdmf: str) -> list:
+    """Mismatches between what ParaView reads from ``xdmf`` and the HDF5 file beside it."""
+    errors = []
+    with h5py.File(xdmf[:-5] + ".h5", "r") as f:
+        data = {name: f[name][:] for name in f}
+        dx, dy = float(f.attrs["dx"]), float(f.attrs["dy"])
+    ny, nx = data["pressure"].shape
+    for reader_name, make in (("XDMFReader", lambda: XDMFReader(FileNames=[xdmf])),
+                              ("Xdmf3ReaderS", lambda: Xdmf3ReaderS(FileName=[xdmf]))):
+        reader = make()
+        reader.UpdatePipeline()
+        image = servermanager.Fetch(reader)
+        bad = []
+        if tuple(image.GetDimensions()) != (nx, ny, 1):
+            bad.append(f"dimensions {image.GetDimensions()} != {(nx, ny, 1)}")
+        if not np.allclose(image.GetSpacing()[:2], (dx, dy), rtol=1e-15, atol=0):
+            bad.append(f"spacing {image.GetSpacing()} != ({dx}, {dy})")
+        if tuple(image.GetOrigin()) != (0.0, 0.0, 0.0):
+            bad.append(f"origin {image.GetOrigin()}")
+        points = image.GetPointData()
+        names = {points.GetArrayName(k) for k in range(points.GetNumberOfArrays())}
+        if names != set(data):
+            bad.append(f"arrays {sorted(names)} != datasets {sorted(data)}")
+        for name in sorted(names & set(data)):
+            values = vtk_to_numpy(points.GetArray(name)).reshape(ny, nx)   # VTK: x fastest
+            if not np.array_equal(values, data[name]):
+                bad.append(f"{name} differs by {np.abs(values - data[name]).max():.3e}")
+        print(f"{os.path.basename(xdmf)} {reader_name}: {nx} x {ny} points, spacing "
+              f"({image.GetSpacing()[0]:.6g}, {image.GetSpacing()[1]:.6g}) m, arrays {', '.join(sorted(names))}: "
+              + ("OK" if not bad else "; ".join(bad)))
+        errors += [f"{xdmf} ({reader_name}): {b}" for b in bad]
+    return errors
+
+
+def check_directory(directory: str) -> list:
+    files = sorted(glob.glob(os.path.join(directory, "step_*.xdmf")))
+    if not files:
+        return [f"{directory}: no step_NNNN.xdmf files"]
+    errors = [e for xdmf in files for e in check_file(xdmf)]
+    series = XDMFReader(FileNames=files)
+    series.UpdatePipelineInformation()
+    times = list(series.TimestepValues) if len(files) > 1 else [0]
+    print(f"{directory}: {len(files)} steps opened together, {len(times)} time steps")
+    if len(times) != len(files):
+        errors.append(f"{directory}: {len(files)} steps read as {len(times)} time steps")
+    return errors
+
+
+def screenshot(xdmf: str, png: str) -> None:
+    """What a user sees: the step coloured by pressure on a range centred at zero (needs a
+    display: ``xvfb-run -a pvpython ...`` on a headless machine)."""
+    from paraview.simple import ColorBy, GetActiveViewOrCreate, GetColorTransferFunction, \
+        ResetCamera, SaveScreenshot, Show
+    reader = XDMFReader(FileNames=[xdmf])
+    view = GetActiveViewOrCreate("RenderView")
+    shown = Show(reader, view)
+    ColorBy(shown, ("POINTS", "pressure"))
+    lut = GetColorTransferFunction("pressure")
+    lut.ApplyPreset("Cool to Warm", True)
+    top = max(abs(v) for v in reader.PointData["pressure"].GetRange())
+    lut.RescaleTransferFunction(-top, top)
+    shown.SetScalarBarVisibility(view, True)
+    view.InteractionMode = "2D"
+    ResetCamera()
+    SaveScreenshot(png, view, ImageResolution=[700, 560])
+    print(f"wrote {png} ({os.path.basename(xdmf)} as ParaView shows it)")
+
+
+def main(args) -> int:
+    print(f"ParaView {servermanager.vtkSMProxyManager.GetParaViewSourceVersion()}")
+    png = None
+    if "--screenshot" in args:
+        k = args.index("--screenshot")
+        png, args = args[k + 1], args[:k] + args[k + 2:]
+    with tempfile.TemporaryDirectory(prefix="contactpetsc-paraview-") as tmp:
+        dirs = args or make_runs(tmp)
+        errors = [e for d in dirs for e in check_directory(d)]
+        if png:
+            screenshot(sorted(glob.glob(os.path.join(dirs[-1], "step_*.xdmf")))[-1], png)
+    for e in errors:
+        print(f"MISMATCH {e}")
+    print("ParaView reads every step as written" if not errors else f"{len(errors)} mismatches")
+    return 1 if errors else 0
+
+
+if __name__ == "__main__":
+    status = main(sys.argv[1:])
+    sys.stdout.flush()
+    os._exit(status)   # skip the render window's teardown, which fails under Xvfb (GLXBadContext)
