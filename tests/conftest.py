@@ -34,6 +34,9 @@ if WORLD.Get_size() > 1:
 def pytest_configure(config):
     config.addinivalue_line(
         "markers", "serial: only meaningful on one MPI rank (skipped when COMM_WORLD has > 1 rank)")
+    config.addinivalue_line(
+        "markers", "heavy: long study runs, checked on 1 and 2 ranks (skipped on more, to keep the "
+        "suite short; the 3-rank pass is for uneven splits, covered by the lighter tests)")
     if WORLD.Get_rank() != 0:
         # ranks != 0 run the same tests and reach the same collective verdicts: keep them quiet
         reporter = config.pluginmanager.get_plugin("terminalreporter")
@@ -46,6 +49,11 @@ def pytest_collection_modifyitems(config, items):
         skip = pytest.mark.skip(reason="serial test, COMM_WORLD has several ranks")
         for item in items:
             if "serial" in item.keywords:
+                item.add_marker(skip)
+    if WORLD.Get_size() > 2:
+        skip = pytest.mark.skip(reason="heavy test: run on 1 and 2 ranks")
+        for item in items:
+            if "heavy" in item.keywords:
                 item.add_marker(skip)
 
 

@@ -17,6 +17,8 @@ import pytest
 
 from contactpetsc import metrics
 
+pytestmark = pytest.mark.heavy   # the studies at reduced size: 1 and 2 ranks
+
 STUDIES = os.path.join(os.path.dirname(__file__), os.pardir, "examples", "studies")
 
 
