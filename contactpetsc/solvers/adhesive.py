@@ -658,9 +658,9 @@ class AdhesiveProblem:
             self._prev_approach, self._approach = self._approach, float(approach)
         self._check_time = 0.0
         x_start = self._x.copy()
-        if approach is not None and self._coarse_step(float(approach)):
-            pass
-        elif approach is not None and self.use_predictor and self._tangent is not None:
+        coarse_predicted = approach is not None and self._coarse_step(float(approach))
+        if (not coarse_predicted and approach is not None and self.use_predictor
+                and self._tangent is not None):
             # Euler predictor along the branch: x + dx/d delta * (delta - delta_prev)
             self._x.axpy(float(approach) - self._tangent[0], self._tangent[1])
             if self.hard_wall:
