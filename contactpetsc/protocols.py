@@ -124,18 +124,31 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
     With ``restart``, steps already in ``curve.csv`` are kept and the path
     resumes from the last one's field file (``step_NNNN.h5``).
     """
-    states = _run(scene, output=output, dry_run=dry_run, comm=comm, restart=restart)
+    from .scenes import adhesive
+    grid = build_grid(scene, comm)
+    for line in plan(scene, grid, output):
+        PETSc.Sys.Print(line)
+    if dry_run:
+        return []
+    if scene["output"]["plots"]:   # before the run, not after it
+        from .plots import require
+        collective_call(grid.mpi_comm, ImportError, "{error}", require)
+    # a tip's profile and atom ownership are built once, for the solve and the forces per atom
+    tip = build_tip(scene, grid) if scene["geometry"]["kind"] == "tip" else None
+    h = tip[1] if tip else build_heights(scene, grid)
+    run_path = _run_adhesive if adhesive(scene) else _run_signorini
+    states = run_path(scene, grid, h, output=output, restart=restart)
     if states and scene["output"]["atom_forces"]:
-        _write_atom_forces(scene, build_grid(scene, comm), states, output or scene["output"]["directory"],
-                           restart)
+        _write_atom_forces(grid, tip, states, output or scene["output"]["directory"], restart)
     return states
 
 
-def _write_atom_forces(scene: dict, grid: SurfaceGrid, states: list, out_dir: str, restart: bool) -> None:
+def _write_atom_forces(grid: SurfaceGrid, tip_build, states: list, out_dir: str, restart: bool) -> None:
     """atom_forces.csv: per step, the force [N] on every atom whose footprint carries
-    pressure (compressive positive), with the atom's position about the apex axis."""
+    pressure (compressive positive), with the atom's position about the apex axis;
+    ``tip_build`` is ``build_tip``'s (tip, heights, owner)."""
     from .metrics import atom_forces
-    tip, _, owner = build_tip(scene, grid)
+    tip, _, owner = tip_build
     header = "approach_m,atom,x_m,y_m,radius_m,force_N\n"
     lines = []
     for st in states:
@@ -150,25 +163,15 @@ def _write_atom_forces(scene: dict, grid: SurfaceGrid, states: list, out_dir: st
     grid.mpi_comm.Barrier()
 
 
-def _run(scene: dict, *, output, dry_run, comm, restart) -> list:
-    from .scenes import adhesive
+def _run_signorini(scene: dict, grid: SurfaceGrid, h: PETSc.Vec, *, output: str | None,
+                   restart: bool) -> list:
+    """The non-adhesive branch of ``run``: displacement or load control with warm starts."""
     from .solvers import ContactProblem
     say = PETSc.Sys.Print
-    grid = build_grid(scene, comm)
-    for line in plan(scene, grid, output):
-        say(line)
-    if dry_run:
-        return []
-    if scene["output"]["plots"]:   # before the run, not after it
-        from .plots import require
-        collective_call(grid.mpi_comm, ImportError, "{error}", require)
-    if adhesive(scene):
-        return _run_adhesive(scene, grid, output=output, restart=restart)
     opts = PETSc.Options("contact_")
     for key, value in scene["solver"]["options"].items():
         if not opts.hasName(key):  # the command line wins over the scene
             opts.setValue(key, str(value))
-    h = build_heights(scene, grid)
     g = scene["geometry"]
     e_star = scene["material"]["e_star"]
     hertz = g["kind"] == "sphere" and not g["periodic"] and scene["interaction"]["law"] == "none"
@@ -285,7 +288,8 @@ def _open_outputs(scene: dict, grid: SurfaceGrid, out_dir: str, restart: bool):
     return curve_path, history_path, rows, old_history
 
 
-def _run_adhesive(scene: dict, grid: SurfaceGrid, *, output: str | None, restart: bool) -> list:
+def _run_adhesive(scene: dict, grid: SurfaceGrid, h: PETSc.Vec, *, output: str | None,
+                  restart: bool) -> list:
     """The adhesive branch of ``run``: sweeps with jumps and pull-off, or central-gap paths."""
     import json
 
@@ -302,7 +306,6 @@ def _run_adhesive(scene: dict, grid: SurfaceGrid, *, output: str | None, restart
             opts.setValue(key, str(value))
     params = {"hardwall-lj": "z0", "lj": "z0", "exponential": "rho", "dugdale": "sigma0"}[it["law"]]
     law = make_law(it["law"], work_of_adhesion=it["work_of_adhesion"], **{params: it[params]})
-    h = build_heights(scene, grid)
     e_star = scene["material"]["e_star"]
     tol = sol["tol"] if sol["tol"] is not None else (1e-4 if sol["method"] == "relaxation" else None)
     problem = AdhesiveProblem(grid, h, e_star, law, element_integration=it["element_integration"],
