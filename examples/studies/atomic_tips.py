@@ -37,10 +37,40 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import common  # noqa: E402
 
 RADIUS, E_STAR, EPS_TS, SIGMA = 100.0, 55.0, 0.5, 1.0
+REFINE = 4           #: jump bisections: jumps located to step / 16
 SIZES = {
     "small": dict(n=64, per_d=2, load_star=0.3, step=0.5),
     "default": dict(n=128, per_d=3, load_star=1.0, step=0.5),
 }
+WINDOW = 48.0        #: resolution study: window [sigma] (the default run's)
+RESOLUTIONS = (2, 3, 4, 6, 8)   #: resolution study: nodes per spacing d (dx = d / k)
+
+
+def effective_work(path, every=1):
+    """Effective work of adhesion [energy]: -int min(W, 0) d delta along the unloading
+    (pull-off) curve, piecewise linear through every ``every``-th of its samples and the
+    located jump-off end points, down to the last unloading approach."""
+    import numpy as np
+    un = sorted((p.approach, p.force) for p in path.points if p.converged and p.branch == "unloading")
+    samples = dict(un[::every])
+    for j in path.jumps:
+        if j.kind == "jump-off":
+            samples.setdefault(j.approach_before, j.force_before)
+            samples.setdefault(j.approach_after, j.force_after)
+    a, f = (np.array(v) for v in zip(*sorted(samples.items())))
+    tensile = np.minimum(f, 0.0)
+    return -float(np.sum(0.5 * (tensile[1:] + tensile[:-1]) * np.diff(a)))
+
+
+def effective_work_estimate(path):
+    """(effective work, its sampling error): |W(h) - W(2h)| (every and every other sample;
+    the trapezoid error on the curved parts) plus half of each jump-off's bracket times
+    its change of tensile force (the jump anywhere inside its bracket)."""
+    fine = effective_work(path)
+    located = sum(0.5 * abs(j.approach_after - j.approach_before)
+                  * abs(min(j.force_after, 0.0) - min(j.force_before, 0.0))
+                  for j in path.jumps if j.kind == "jump-off")
+    return fine, abs(fine - effective_work(path, every=2)) + located
 
 
 def tip_study(kind, cfg, out):
@@ -69,27 +99,21 @@ def tip_study(kind, cfg, out):
             radii.append(np.sqrt(metrics.contact_area(grid, st.pressure) / np.pi))
 
     start = -2.0 * z0
-    path = sweep(pb, [start], refine=2, on_state=record)
-    delta = start
-    while path.points[-1].force < w_max:
-        delta += cfg["step"] * z0
-        sweep(pb, [delta], refine=2, path=path, branch="loading", on_state=record)
-    st = common.reach_load(pb, w_max, delta)
+    path = common.load_until(pb, start, cfg["step"] * z0, w_max, REFINE, on_state=record)
+    st = common.reach_load(pb, w_max, path.points[-1].approach)
     forces = metrics.atom_forces(grid, st.pressure, owner, len(tip.atoms))
     p_map = grid.gather(st.pressure, root=0)
     h_map = grid.gather(h, root=0)
-    sweep(pb, np.arange(st.approach - cfg["step"] * z0, start - 2 * z0, -cfg["step"] * z0),
-          refine=2, path=path, branch="unloading")
-    un = [p for p in path.points if p.converged and p.branch == "unloading"]
-    a_un, f_un = np.array([p.approach for p in un]), np.array([p.force for p in un])
-    order = np.argsort(a_un)
-    tensile = np.minimum(f_un[order], 0.0)
-    work = -float(np.sum(0.5 * (tensile[1:] + tensile[:-1]) * np.diff(a_un[order])))
+    top = int(np.floor((st.approach - start) / (cfg["step"] * z0) + 1e-9))
+    end = -int(round(2.0 / cfg["step"]))       # unload to 2 z0 beyond the start
+    sweep(pb, start + np.arange(top, end - 1, -1) * cfg["step"] * z0, refine=REFINE, path=path,
+          branch="unloading")
+    work, work_error = effective_work_estimate(path)
     touched = np.abs(forces) > 1e-6 * np.abs(forces).max()
     row = dict(tip=kind, atoms=len(tip.atoms), w=w, z0=z0, e_star=E_STAR, radius=RADIUS,
                load=st.force, contact_radius=float(np.sqrt(metrics.contact_area(grid, st.pressure) / np.pi)),
                pull_off=path.pull_off_force, pull_off_star=path.pull_off_force / scale,
-               effective_work=work, hysteresis=metrics.path_hysteresis(path),
+               effective_work=work, effective_work_error=work_error, hysteresis=metrics.path_hysteresis(path),
                atom_force_sum=float(forces.sum()), net_force=st.force, jumps=len(path.jumps),
                atoms_repulsive=int((forces > 0).sum()), atoms_attractive=int((forces[touched] < 0).sum()),
                n=cfg["n"], dx=grid.dx)
@@ -102,8 +126,54 @@ def tip_study(kind, cfg, out):
                      loads=np.array(loading), radii=np.array(radii), scale=scale, z0=z0)
 
 
+def resolution_study(outdir, resolutions=RESOLUTIONS, load_star=1.0, step=0.5) -> dict:
+    """Effective work of adhesion of every tip at dx = d / k for k in ``resolutions``: the
+    same window (WINDOW sigma), load (W_max = load_star 2 pi R w) and approach protocol
+    (the default run's) at every dx.  Writes resolution.csv and fig12_resolution.png; the
+    ranking at each dx, and the finest dx from which it no longer changes."""
+    import numpy as np
+    from contactpetsc import tips
+    out = common.prepare(outdir)
+    rows = []
+    for k in resolutions:
+        sub = common.prepare(out / f"d{k}")
+        n = 2 * int(round(WINDOW * k / (2 * tips.LJ_SPACING * SIGMA)))
+        cfg = dict(n=n, per_d=k, load_star=load_star, step=step)
+        for kind in tips.KINDS:
+            row, _ = tip_study(kind, cfg, sub)
+            row.update(per_d=k)
+            rows.append(row)
+            common.say(f"dx = d/{k} ({n}^2) {kind:>20}: effective work {row['effective_work']:.1f} "
+                       f"+- {row['effective_work_error']:.1f} eps, pull-off W* {row['pull_off_star']:.3f}")
+    rankings = {k: [r["tip"] for r in sorted((r for r in rows if r["per_d"] == k),
+                                             key=lambda r: -r["effective_work"])] for k in resolutions}
+    settled = next(k for k in resolutions if all(rankings[m] == rankings[resolutions[-1]]
+                                                 for m in resolutions if m >= k))
+    results = {"resolutions": list(resolutions), "window_sigma": WINDOW, "load_star": load_star,
+               "rows": rows, "rankings": {str(k): v for k, v in rankings.items()},
+               "ranking_unchanged_from_per_d": settled}
+    for k in resolutions:
+        common.say(f"dx = d/{k}: " + " > ".join(rankings[k]))
+    common.write_csv(out / "resolution.csv", rows)
+    common.write_json(out / "resolution.json", results)
+    if common.is_root():
+        plt = common.plt()
+        fig, ax = plt.subplots(figsize=(6.5, 4.2))
+        for kind in tips.KINDS:
+            sel = [r for r in rows if r["tip"] == kind]
+            ax.errorbar([1.0 / r["per_d"] for r in sel], [r["effective_work"] for r in sel],
+                        yerr=[r["effective_work_error"] for r in sel], fmt="o-", ms=4, capsize=3, label=kind)
+        ax.set_xlim(left=0)
+        common.dress(ax, "dx / d", "effective work of adhesion [epsilon]",
+                     "Fig. 12: effective work against grid spacing", legend_size=7)
+        common.savefig(fig, out / "fig12_resolution.png")
+    return results
+
+
 def run(size="default", outdir="atomic-tips-output") -> dict:
     from contactpetsc import tips
+    if size == "resolution":
+        return resolution_study(outdir)
     cfg = SIZES[size]
     out = common.prepare(outdir)
     rows, data = [], {}
@@ -160,5 +230,5 @@ def _plots(out, data):
 
 
 if __name__ == "__main__":
-    args = common.parse(__doc__.splitlines()[0], "atomic-tips-output")
+    args = common.parse(__doc__.splitlines()[0], "atomic-tips-output", sizes=("small", "default", "resolution"))
     run(args.size, args.out)

@@ -17,11 +17,12 @@ from pathlib import Path
 import numpy as np
 
 
-def parse(description: str, default_out: str):
+def parse(description: str, default_out: str, sizes=("small", "default")):
     """(args, PETSc options) of a study's command line; initialises petsc4py with the rest."""
     ap = argparse.ArgumentParser(description=description)
-    ap.add_argument("--size", choices=("small", "default"), default="default",
-                    help="small: seconds, for tests; default: the study itself (minutes)")
+    ap.add_argument("--size", choices=sizes, default="default",
+                    help="small: seconds, for tests; default: the study itself (minutes); "
+                         "others: see the study's docstring")
     ap.add_argument("--out", default=default_out, help="output directory (default %(default)s)")
     args, rest = ap.parse_known_args()
     import petsc4py
@@ -166,6 +167,37 @@ def savefig(fig, path) -> None:
 
 def here() -> str:
     return os.path.dirname(os.path.abspath(__file__))
+
+
+class _LoadReached(Exception):
+    pass
+
+
+def load_until(problem, start, step, load, refine, on_state=None, max_steps=400):
+    """Loading path: one displacement-controlled ``paths.sweep`` through start + k step
+    (k = 0, 1, ...) [m], stopped at the first state whose net force reaches ``load`` [N].
+    One sweep, not one per step, so that every step is checked for a jump (a sweep
+    compares each state with the previous one of the same call).  ``on_state`` as for
+    ``sweep``.  Raises RuntimeError if a state did not converge or the load was not met."""
+    import numpy as np
+    from contactpetsc.paths import Path, sweep
+
+    def check(k, st, pt):
+        if on_state is not None:
+            on_state(k, st, pt)
+        if st.force >= load:
+            raise _LoadReached
+
+    path = Path()
+    try:
+        sweep(problem, start + step * np.arange(max_steps), refine=refine, path=path, branch="loading",
+              on_state=check)
+    except _LoadReached:
+        pass
+    failed = [p.approach for p in path.points if not p.converged]
+    if failed or path.points[-1].force < load:
+        raise RuntimeError(f"loading failed at approaches {failed} m (last force {path.points[-1].force:.3e} N)")
+    return path
 
 
 def reach_load(problem, load, approach, rel_tol=1e-3, max_updates=8):

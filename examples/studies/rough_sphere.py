@@ -25,8 +25,8 @@ the same load and at the same approach.
 Outputs in --out: rough_sphere.csv (one row per mu and rms), paths_*.csv,
 fig6.png, fig7.png, fig8.png, fig9.png, rough_sphere.json.
 Sizes: default 64^2 (dx 35 nm, window 2.2 um), rms 0, 0.5, 1, 2, 4, 10 z0,
-mu 2 and 1, approach steps of 1 z0; small 32^2, rms 0 and 2 z0, mu 1.  The
-paper does not state its grid.
+mu 2 and 1, approach steps of 0.5 z0; small 32^2, rms 0 and 2 z0, mu 1, steps of
+1 z0.  The paper does not state its grid.
 """
 from __future__ import annotations
 
@@ -40,7 +40,7 @@ R, E_STAR, Z0, LOAD = 100e-6, 50e9, 0.3e-9, 0.05e-3      # the paper's (m, Pa, m
 W_PAPER = 0.29                                            # J/m^2: mu = 5
 SIZES = {
     "small": dict(n=32, rms=[0.0, 2.0], tabor=[1.0], step=1.0, fig8=True),
-    "default": dict(n=64, rms=[0.0, 0.5, 1.0, 2.0, 4.0, 10.0], tabor=[2.0, 1.0], step=1.0, fig8=True),
+    "default": dict(n=64, rms=[0.0, 0.5, 1.0, 2.0, 4.0, 10.0], tabor=[2.0, 1.0], step=0.5, fig8=True),
 }
 
 
@@ -62,9 +62,14 @@ def roughness(grid, seed=1):
     return surfaces.gaussian_correlated(grid, rms_height=1.0, correlation_length=corr, seed=seed)
 
 
-def load_unload(grid, heights, e_star, w, step, prefix, unload=True):
+def load_unload(grid, heights, e_star, w, step, prefix, unload=True, refine=4):
     """Loading path to LOAD (last step by load control), the state there, then unloading.
-    Returns (path, state at the load (fields copied), pull-off, problem)."""
+
+    Loading samples the approaches start + k step z0; unloading returns through the same
+    approaches (from the largest below the state at the load), so that where the two
+    curves coincide their samples do too and the hysteresis integrand vanishes there
+    (``metrics.path_hysteresis``).  Jumps are located to step / 2^refine.
+    Returns (path, state at the load (fields copied), problem)."""
     import numpy as np
     from contactpetsc.paths import sweep
     from contactpetsc.physics.interactions import make_law
@@ -73,18 +78,12 @@ def load_unload(grid, heights, e_star, w, step, prefix, unload=True):
     law = make_law("lj", work_of_adhesion=w, z0=Z0)
     pb = AdhesiveProblem(grid, heights, e_star, law, prefix=prefix, element_integration=True)
     start = -5.0 * Z0        # beyond the smooth mu = 2 sphere's jump-on (-2.5 z0)
-    path = sweep(pb, [start], refine=2)
-    delta = start
-    while path.points[-1].force < LOAD:
-        delta += step * Z0
-        sweep(pb, [delta], refine=2, path=path, branch="loading")
-        if not path.points[-1].converged:
-            raise RuntimeError(f"loading failed at approach {delta / Z0:.2f} z0")
-    st = common.reach_load(pb, LOAD, delta)
+    path = common.load_until(pb, start, step * Z0, LOAD, refine)
+    st = common.reach_load(pb, LOAD, path.points[-1].approach)
     at_load = dict(state=st, pressure=st.pressure.copy(), gap=st.gap.copy(), law=law)
     if unload:
-        down = np.arange(st.approach - step * Z0, start - 1e-15, -step * Z0)
-        sweep(pb, down, refine=2, path=path, branch="unloading")
+        top = int(np.floor((st.approach - start) / (step * Z0) + 1e-9))
+        sweep(pb, start + np.arange(top, -1, -1) * step * Z0, refine=refine, path=path, branch="unloading")
     return path, at_load, pb
 
 
@@ -108,14 +107,15 @@ def run(size="default", outdir="rough-sphere-output") -> dict:
             st = at["state"]
             load_ratio, area_ratio = metrics.adhesion_ratios(grid, at["pressure"], at["law"].peak_attraction)
             scale = 2 * np.pi * R * w
+            hyst, hyst_err = metrics.hysteresis_estimate(path)
             row = dict(tabor=tabor_parameter(R, w, E_STAR, Z0), w=w, rms_z0=rms, load=st.force,
                        approach_z0=st.approach / Z0, load_ratio=load_ratio, area_ratio=area_ratio,
                        adhesive_force=st.adhesive_force,
                        contact_area=metrics.contact_area(grid, at["pressure"]),
                        mean_gap_z0=metrics.mean_gap(grid, at["gap"], at["pressure"]) / Z0,
                        pull_off=path.pull_off_force, pull_off_star=path.pull_off_force / scale,
-                       hysteresis=metrics.path_hysteresis(path),
-                       hysteresis_star_z0=metrics.path_hysteresis(path) / (scale * Z0),
+                       hysteresis=hyst, hysteresis_error=hyst_err,
+                       hysteresis_star_z0=hyst / (scale * Z0), hysteresis_error_star_z0=hyst_err / (scale * Z0),
                        peak_pressure=float(at["pressure"].max()[1]), jumps=len(path.jumps),
                        max_jump_star=max([abs(j.force_after - j.force_before) for j in path.jumps] + [0.0]) / scale,
                        resolution=resolution, n=cfg["n"], dx=grid.dx)
@@ -123,7 +123,7 @@ def run(size="default", outdir="rough-sphere-output") -> dict:
             common.say(f"mu={mu:g} rms={rms:4.1f} z0: load ratio {load_ratio:.3f}, area ratio {area_ratio:.3f}, "
                        f"pull-off {path.pull_off_force * 1e3:.4f} mN (W* {row['pull_off_star']:.3f}), "
                        f"jumps {len(path.jumps)}, largest jump W* {row['max_jump_star']:.3f}, "
-                       f"hysteresis {row['hysteresis']:.3e} J")
+                       f"hysteresis {hyst / (scale * Z0):.3f} +- {hyst_err / (scale * Z0):.3f} (2 pi R w z0)")
             maps[(mu, rms)] = grid.gather(at["pressure"], root=0)
             paths[(mu, rms)] = path
             common.write_csv(out / f"paths_mu{mu:g}_rms{rms:g}.csv", common.path_rows(path, tabor=mu, rms_z0=rms))
