@@ -28,7 +28,10 @@ def main(argv=None):
     ap.add_argument("--radius", type=float, default=100.0, help="R / z0")
     ap.add_argument("--n", type=int, default=192, help="grid nodes per side")
     ap.add_argument("--dx", type=float, default=0.5, help="grid spacing / z0")
-    ap.add_argument("--step", type=float, default=0.1, help="approach step / z0")
+    ap.add_argument("--step", type=float, default=0.1, help="approach step / z0 (unloading)")
+    ap.add_argument("--load-step", type=float, default=None,
+                    help="approach step / z0 while loading (default: --step); the pull-off is on the "
+                         "unloading branch, and at large mu the loading range is tens of z0")
     ap.add_argument("--element-integration", action="store_true")
     ap.add_argument("--markdown", action="store_true")
     args, petsc_args = ap.parse_known_args(argv)
@@ -53,8 +56,9 @@ def main(argv=None):
         # load to a compressive force of about the JKR pull-off magnitude, then unload past pull-off
         top = max(1.0, 2.0 * (np.pi * w * R * 1.5 / (4.0 / 3.0 * np.sqrt(R))) ** (2.0 / 3.0))
         down = -3.0 - 2.0 * mu
-        approaches = np.concatenate([np.arange(-2.0, top + 1e-9, args.step),
-                                     np.arange(top - args.step, down - 1e-9, -args.step)])
+        load_step = args.load_step or args.step
+        loading = np.arange(-2.0, top + 1e-9, load_step)
+        approaches = np.concatenate([loading, np.arange(loading[-1] - args.step, down - 1e-9, -args.step)])
         t0 = time.perf_counter()
         path = sweep(pb, approaches)
         sampled = path.pull_off_force
@@ -65,7 +69,7 @@ def main(argv=None):
         # the window edge: the part of the LJ tail outside it is lost (Derjaguin estimate)
         edge_gap = (args.n * args.dx / 2) ** 2 / (2 * R)
         tail = float(-2 * make_law("lj", work_of_adhesion=w, z0=1.0).energy(edge_gap) / w)
-        row = dict(mu=mu, law=args.law, n=args.n, dx=args.dx, radius=R, pull_off_bar=bar,
+        row = dict(mu=mu, law=args.law, n=args.n, dx=args.dx, radius=R, pull_off_bar=bar, snap_number=pb.snap_number,
                    sampled_bar=sampled / (np.pi * w * R), maugis_bar=md, rel_diff=bar / md - 1,
                    jkr_bar=-1.5, dmt_bar=-2.0, jumps=[(j.kind, j.approach_before) for j in path.jumps],
                    converged=all(p.converged for p in path.points),

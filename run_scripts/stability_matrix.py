@@ -33,12 +33,24 @@ HERE = os.path.abspath(__file__)
 
 
 # -- helpers (run inside a case's process) -----------------------------------------------------------
+BUDGET = 0.0   # [s] each adhesive problem's -<prefix>time_budget (set by --budget)
+
+
 def _lib():
     from contactpetsc import surfaces
     from contactpetsc.grid import SurfaceGrid
     from contactpetsc.physics import interactions, maugis
     from contactpetsc.solvers.adhesive import AdhesiveProblem
-    return surfaces, SurfaceGrid, interactions, maugis, AdhesiveProblem
+
+    def budgeted(*args, prefix="adhesion_", **kw):
+        """AdhesiveProblem under the case's wall-time budget: the solver itself ends a case
+        that cannot converge, with its reason, before the harness has to kill it."""
+        from petsc4py import PETSc
+        opts = PETSc.Options(prefix)
+        if BUDGET and not opts.hasName("time_budget"):
+            opts.setValue("time_budget", repr(BUDGET))
+        return AdhesiveProblem(*args, prefix=prefix, **kw)
+    return surfaces, SurfaceGrid, interactions, maugis, budgeted
 
 
 def _errors(states) -> dict:
@@ -441,6 +453,9 @@ def main(argv=None):
     ap.add_argument("--case", help="run one case in this process and print its JSON line")
     ap.add_argument("--only", default="", help="run the cases whose name contains this")
     ap.add_argument("--timeout", type=float, default=90.0, help="wall-time bound per case [s]")
+    ap.add_argument("--budget", type=float, default=None,
+                    help="solver wall-time budget per case [s] (-<prefix>time_budget; default: "
+                         "the timeout less 15 s, leaving the harness's bound for hangs)")
     ap.add_argument("--markdown", help="write the markdown table here")
     ap.add_argument("--list", action="store_true")
     args, petsc_args = ap.parse_known_args(argv)
@@ -448,7 +463,10 @@ def main(argv=None):
         for name, (group, what, *_) in CASES.items():
             print(f"{name:34s} {group:12s} {what}")
         return 0
+    budget = max(args.timeout - 15.0, 0.5 * args.timeout) if args.budget is None else args.budget
     if args.case:
+        global BUDGET
+        BUDGET = budget
         import petsc4py
         petsc4py.init([sys.argv[0]] + petsc_args)
         print(json.dumps(run_case(args.case), default=float), flush=True)
@@ -459,7 +477,8 @@ def main(argv=None):
             continue
         t0 = time.perf_counter()
         try:
-            proc = subprocess.run([sys.executable, HERE, "--case", name] + petsc_args, capture_output=True,
+            proc = subprocess.run([sys.executable, HERE, "--case", name, "--budget", repr(budget)] + petsc_args,
+                                  capture_output=True,
                                   text=True, timeout=args.timeout)
             lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("{")]
             if lines:

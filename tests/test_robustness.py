@@ -78,6 +78,41 @@ def test_the_same_problem_in_si_units_converges_as_in_greenwood_units(coll):
     assert n2 <= n1 + 4, (n1, n2)
 
 
+@pytest.mark.parametrize("fallback", ["ptc", "relaxation"])
+def test_time_budget_ends_an_unresolvable_solve_on_every_rank(coll, fallback):
+    """w = 10 E* z0 on a wavy cell (snap number 13.8: every node can snap on its own, no solver
+    settles): ``-<prefix>time_budget`` stops Newton and either fallback with the reason
+    WALL_TIME_BUDGET on every rank, keeps the last converged state finite, and refuses later
+    solves at once (without a budget the PTC fallback alone runs its 300 steps)."""
+    prefix = f"budget_{fallback}_"
+    opts = PETSc.Options(prefix)
+    opts.setValue("time_budget", "1.0")
+    opts.setValue("fallback", fallback)
+    try:
+        grid = SurfaceGrid(64, 64, 1.0, periodic=True)
+        h = surfaces.from_function(grid, lambda x, y: 2.0 * (1 - np.cos(2 * np.pi * x / 64.0)))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UnderResolvedWarning)
+            pb = AdhesiveProblem(grid, h, 1.0, make_law("hardwall-lj", work_of_adhesion=10.0, z0=1.0),
+                                 prefix=prefix)
+        first = pb.solve(approach=-0.5, raise_on_failure=False)
+        states = [pb.solve(approach=d, raise_on_failure=False) for d in (0.0, 0.5)]
+    finally:
+        for key in ("time_budget", "fallback"):
+            opts.delValue(key)
+    assert coll.all(first.converged or first.reason.startswith("WALL_TIME_BUDGET")), first.reason
+    for st in states:
+        assert coll.all(not st.converged and st.reason.startswith("WALL_TIME_BUDGET")), st.reason
+        assert coll.all(np.isfinite(st.force) and np.isfinite(st.adhesive_error))
+        reasons = PETSc.COMM_WORLD.tompi4py().allgather(st.reason)
+        assert len(set(reasons)) == 1
+    # the budget bounds the whole sequence (one Newton or relaxation step past it at most)
+    assert coll.all(first.wall_time + sum(st.wall_time for st in states) < 15.0)
+    assert coll.all(states[-1].newton_iterations == 0)
+    with pytest.raises(Exception, match="WALL_TIME_BUDGET"):
+        pb.solve(approach=1.0)
+
+
 # -- the resolution criterion --------------------------------------------------------------------
 def test_resolution_criterion_and_warning():
     """The zone length in both limits (closed forms), a warning naming the criterion below

@@ -37,6 +37,7 @@ section 2), computed for every converged state.
 """
 from __future__ import annotations
 
+import time
 import warnings
 from dataclasses import dataclass
 
@@ -48,7 +49,7 @@ from ..errors import collective_guard
 from ..grid import SurfaceGrid
 from ..lifetime import destroy_at_exit
 from ..operators.elastic import HalfSpaceOperator, half_space
-from ..physics.interactions import InteractionLaw, UnderResolvedWarning, check_resolution
+from ..physics.interactions import RESOLUTION_NODES, InteractionLaw, UnderResolvedWarning, check_resolution
 from ..physics.traction import AdhesiveTraction
 from .adhesive_jacobian import AdhesiveJacobian, minloc
 from .history import SolveHistory
@@ -135,7 +136,7 @@ class AdhesiveProblem:
         self.element_integration = opts.getBool(
             "element_integration", bool(element_integration) if element_integration is not None else False)
         self.traction = AdhesiveTraction(law, grid, self.element_integration)
-        check_resolution(law, self.e_star, max(grid.dx, grid.dy))
+        self.zone_nodes = check_resolution(law, self.e_star, max(grid.dx, grid.dy))
         # K_ii max da/dg: above one a single node is unstable on its own (its adhesive
         # stiffness beats its elastic one), so the discrete problem has an equilibrium for
         # every subset of snapped nodes -- the adhesive range is under-resolved by the grid
@@ -177,6 +178,7 @@ class AdhesiveProblem:
         self._adhesive_residual = np.nan  # local max kappa |a - a(g)| at the last residual
         self._coarse = None             # the problem on the 2x coarser grid (nested iteration)
         self._prev_approach = None
+        self._budget_start = None       # time.monotonic() at the first solve under a time budget
         self._g = np.zeros((grid.ny_local, grid.nx))
         self._v = np.zeros_like(self._g)
         self._v2 = np.zeros_like(self._g)
@@ -212,7 +214,20 @@ class AdhesiveProblem:
         # bounded: where PTC has not settled in 300 steps it wanders (measured on
         # under-resolved strong adhesion, snap number 4.4: no progress in 800 steps)
         self.ptc_max_it = opts.getInt("ptc_max_it", 300)
+        self.fallback = opts.getString("fallback", "ptc").lower()
+        if self.fallback not in ("relaxation", "ptc"):
+            raise ValueError(f"-{self.prefix}fallback must be relaxation or ptc, got {self.fallback!r}")
+        if self.fallback == "relaxation" and not self.hard_wall:
+            raise ValueError(f"-{self.prefix}fallback relaxation needs a hard-wall law (the paper's relaxation "
+                             f"stores contact pressures apart), got {self.law.name!r}")
         self.fallback_tol = opts.getReal("fallback_tol", 1e-3)
+        # a wall-time budget [s] for all of this problem's solves, counted from the first
+        # (0: none): past it the running solve stops at its next iteration and every later
+        # one at once, with the reason WALL_TIME_BUDGET -- a batch job ends cleanly with its
+        # finished steps written, and an unresolvable case ends in bounded time
+        self.time_budget = opts.getReal("time_budget", 0.0)
+        if not self.time_budget >= 0.0:
+            raise ValueError(f"-{self.prefix}time_budget must be >= 0 s (0: no budget), got {self.time_budget!r}")
         self.fallback_max_cycles = opts.getInt("fallback_max_cycles", 5000)
         self.use_predictor = opts.getBool("predictor", True)
         # off by default: at hard-wall, high-Tabor jump-ins the relaxation fallback can need
@@ -251,13 +266,16 @@ class AdhesiveProblem:
         # full steps for the full LJ curve, whose residual norm is dominated by the stiff
         # repulsive rows and stalls bt (measured on the rough benchmark at 256^2: bt 33-58
         # Newton steps or a fallback, basic 25-56 steps and none)
-        self._snes = self._make_snes(self.prefix, "bt" if self.hard_wall else "basic", self.max_it)
+        self._snes = self._make_snes(self.prefix, "bt" if self.hard_wall else "basic", self.max_it,
+                                     1000 if self.hard_wall else 30)
         # pseudo-transient continuation takes full (shifted) steps: the residual norm
-        # need not fall monotonically along the relaxation path
-        self._ptc = self._make_snes(self.prefix + "ptc_", "basic", self.ptc_max_it)
+        # need not fall monotonically along the relaxation path; and inexact ones (a step
+        # of a path need not be solved exactly: with 1000 Krylov iterations a hard-wall
+        # PTC at snap number 13.8 made 179 steps in 45 s, with 30 it made its 300 in 20 s)
+        self._ptc = self._make_snes(self.prefix + "ptc_", "basic", self.ptc_max_it, 30)
         return self._snes
 
-    def _make_snes(self, prefix: str, linesearch: str, max_it: int) -> PETSc.SNES:
+    def _make_snes(self, prefix: str, linesearch: str, max_it: int, ksp_max_it: int) -> PETSc.SNES:
         """A VI Newton SNES on the shared unknowns, Jacobian and bounds; options under ``prefix``."""
         g = self.grid
         snes = destroy_at_exit(PETSc.SNES().create(comm=g.comm))
@@ -285,8 +303,7 @@ class AdhesiveProblem:
         # with the full LJ curve an inexact step is cheaper than an exact one far from the
         # solution (rough benchmark, 256^2: 30 Krylov iterations at most, 1.7x fewer FFT
         # pairs than 1000; some steps took 450)
-        ksp.setTolerances(rtol=PETSc.Options(self.prefix).getReal("newton_ksp_rtol", 1e-2),
-                          max_it=1000 if self.hard_wall else 30)
+        ksp.setTolerances(rtol=PETSc.Options(self.prefix).getReal("newton_ksp_rtol", 1e-2), max_it=ksp_max_it)
         pc = ksp.getPC()
         if self.preconditioner == "none":
             pc.setType("none")
@@ -408,7 +425,25 @@ class AdhesiveProblem:
             adhesive_error=err_a)
         err = max(err_c, err_a)
         self._last_error = err
-        return convergence_verdict(snes, it, err, self.tol)
+        verdict = convergence_verdict(snes, it, err, self.tol)
+        if verdict == PETSc.SNES.ConvergedReason.ITERATING and self.out_of_time():
+            return PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT   # named WALL_TIME_BUDGET by _run_snes
+        return verdict
+
+    def out_of_time(self) -> bool:
+        """Whether the wall-time budget (``-<prefix>time_budget``) is spent; collective (the
+        ranks' clocks differ: one rank's verdict would split the ranks between two branches)."""
+        if not self.time_budget:
+            return False
+        if self._budget_start is None:
+            self._budget_start = time.monotonic()
+        late = time.monotonic() - self._budget_start > self.time_budget
+        return bool(self.grid.mpi_comm.allreduce(late, op=MPI.LOR))
+
+    @property
+    def budget_reason(self) -> str:
+        return (f"WALL_TIME_BUDGET (the {self.time_budget:g} s of -{self.prefix}time_budget are spent; "
+                f"finished solves are kept)")
 
     @property
     def solver_name(self) -> str:
@@ -435,6 +470,7 @@ class AdhesiveProblem:
                                      prefix=self.prefix, operator=op, preconditioner=self.preconditioner,
                                      stability_check=False)
         coarse._build()
+        coarse._budget_start = self._budget_start   # one budget for the nested solves
         coarse.tol = max(self.fmg_tol, self.tol)
         coarse.use_predictor = False
         self._coarse = coarse
@@ -629,6 +665,13 @@ class AdhesiveProblem:
         snes = self._build()
         # the first state (coarse grids, Signorini) is part of this solve's cost
         pairs0, t0 = self._fft_pairs(), self.history.elapsed()
+        if self.out_of_time():
+            if raise_on_failure:
+                raise AdhesiveSolveError(f"adhesive solve not started: {self.budget_reason}")
+            if self._approach is None:
+                self._approach = float(approach) if approach is not None else self.centre_value(
+                    self.grid.rows(self.heights, readonly=True)) - float(central_gap)
+            return self._state(False, self.budget_reason, 0, 0, pairs0, t0, float("nan"), self.solver_name)
         if approach is not None and self.hard_wall and self.grid.periodic:
             # K has no mean mode on a periodic cell: the mean gap is mean(h) - delta
             g = self.grid
@@ -670,13 +713,13 @@ class AdhesiveProblem:
         converged, reason, newton, linear = self._run_snes()
         solver = self.solver_name
         margin = self._stability() if (converged and check) else float("nan")
-        if fallback and approach is not None and (not converged or margin <= 0):
+        if fallback and approach is not None and (not converged or margin <= 0) and not self.out_of_time():
             # Newton found no state on this branch, or an unstable one (the branch has
             # ended: a jump).  From the last converged state, follow a relaxation path
             # to a stable state, then polish by Newton: the paper's relaxation for
             # hard-wall laws, pseudo-transient continuation for the full LJ curve.
             x_start.copy(self._x)
-            if self.hard_wall:
+            if self.fallback == "relaxation":
                 from .relaxation import RelaxationSolver
                 relax = RelaxationSolver(self, tol=self.fallback_tol, max_cycles=self.fallback_max_cycles)
                 ok, reason, n2, l2 = relax.relax(approach)
@@ -696,6 +739,9 @@ class AdhesiveProblem:
             if self.snap_number > 1.0:
                 reason += (f" [under-resolved adhesion: K_ii max da/dg = {self.snap_number:.2f} > 1, every "
                            f"node can snap on its own; refine the grid until this is below 1]")
+            elif self.zone_nodes < RESOLUTION_NODES:
+                reason += (f" [under-resolved adhesion: the adhesive zone spans {self.zone_nodes:.2g} grid "
+                           f"spacings, the criterion is {RESOLUTION_NODES:g}]")
         x_start.destroy()
         state = self._state(converged, reason, newton, linear, pairs0, t0, margin,
                             solver, tangent=approach is not None and converged)
@@ -715,7 +761,8 @@ class AdhesiveProblem:
         snes.solve(None, self._x)
         self._n_solves += 1
         code = snes.getConvergedReason()
-        return code > 0, _reason_name(code), snes.getIterationNumber(), snes.getLinearSolveIterations()
+        name = self.budget_reason if code < 0 and self.out_of_time() else _reason_name(code)
+        return code > 0, name, snes.getIterationNumber(), snes.getLinearSolveIterations()
 
     def _inactive_set(self) -> PETSc.IS:
         """Global indices of the unknowns off their bounds: q > 0 (contact) and every a."""

@@ -140,6 +140,9 @@ class RelaxationSolver:
             if e_total <= self.tol and rms_c <= self.contact_tol:
                 converged, reason = True, "CONVERGED_E_TOTAL"
                 break
+            if pb.out_of_time():
+                reason = pb.budget_reason
+                break
             if omega_a is None:
                 d.linearise(g)
                 stiff = comm.allreduce(float(np.abs(d.diagonal).max()), op=MPI.MAX) * pb.kappa
