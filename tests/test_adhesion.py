@@ -86,6 +86,35 @@ def test_element_integration_removes_node_position_dependence(coll):
         assert np.max(np.abs(resolved - 1.0)) < 5e-3
 
 
+def test_element_integration_on_a_deformable_sphere(coll):
+    """The same under-resolved sphere (R = 20 z0, dx = 4 z0, mu = 0.13, lj) as an elastic body held
+    at an apex gap of z0/2: over sub-node apex positions the total force scatters less with
+    element integration (measured 0.09 % against 0.30 % of the force), and both stay near the
+    rigid sphere's Derjaguin force 2 pi R Phi(z0/2), which the body's deformation towards the
+    plane exceeds by a few per cent (measured: nodal +6.8 %, element integration -2.4 %: its
+    linear gap between nodes lies above a curved surface, a bias of order (dx / R)^2 that
+    sampling at the nodes does not have; docs/validation.md)."""
+    law = make_law("lj", work_of_adhesion=0.01, z0=1.0)
+    n, dx, radius = 64, 4.0, 20.0
+    forces = {}
+    for element in (False, True):
+        out = []
+        for s in np.linspace(0.0, 1.0, 6):
+            grid = SurfaceGrid(n, n, dx, periodic=False)
+            x0, y0 = (n // 2 + 0.5 * s) * dx, (n // 2 + 0.37 * s) * dx
+            h = from_function(grid, lambda x, y: ((x - x0) ** 2 + (y - y0) ** 2) / (2 * radius))
+            pb = AdhesiveProblem(grid, h, 1.0, law, element_integration=element, prefix=f"eid{int(element)}_",
+                                 stability_check=False)
+            st = pb.solve(approach=-0.5)
+            out.append(st.force)
+        forces[element] = np.array(out)
+    scatter = {k: np.ptp(f) / abs(f.mean()) for k, f in forces.items()}
+    assert coll.max(scatter[True]) < 0.5 * scatter[False], scatter
+    derjaguin = 2 * np.pi * radius * law.energy(0.5)
+    for f in forces.values():
+        assert coll.max(np.abs(f / derjaguin - 1).max()) < 0.1, (f, derjaguin)
+
+
 # -- Newton VI --------------------------------------------------------------------------------------
 def test_small_tabor_parameter_gives_dmt(coll):
     """mu = 0.02, hard-wall LJ: pull-off -2 pi R w within 2 %; in contact, the adhesive force
