@@ -90,6 +90,7 @@ class SlabRFFT:
         self.ys, self.ye = self.y_ranges[self.rank]
         self.kx0, self.kx1 = self.kx_ranges[self.rank]
         self.fft_pairs = 0
+        self.alltoall_bytes = 0   # payload passed to Alltoallv by this rank, self-block excluded
         # forward plans keep their input (it holds the zero padding); backward may destroy it
         keep = dict(threads=threads, flags=(PLANNER_FLAGS[planner],))
         kill = dict(threads=threads, flags=(PLANNER_FLAGS[planner], "FFTW_DESTROY_INPUT"))
@@ -131,6 +132,9 @@ class SlabRFFT:
             self._fwd = ([self.sendbuf, (send_counts, send_off[:-1]), z],
                          [self.recvbuf, (recv_counts, recv_off[:-1]), z])
             self._bwd = (self._fwd[1], self._fwd[0])
+            itemsize = self.sendbuf.itemsize
+            self._sent_fwd = itemsize * (sum(send_counts) - send_counts[self.rank])
+            self._sent_bwd = itemsize * (sum(recv_counts) - recv_counts[self.rank])
             self._plans = (pyfftw.FFTW(self.real_in, self.rows, axes=(1,), **keep),
                            pyfftw.FFTW(self.cols, self.spectrum, axes=(1,), **keep))
             self._plans_bwd = (pyfftw.FFTW(self.spectrum, self.cols, axes=(1,),
@@ -175,6 +179,7 @@ class SlabRFFT:
             for (a, b), blk in zip(self.kx_ranges, self.send_blocks):
                 np.copyto(blk, self.rows[:, a:b].T)
             self.comm.Alltoallv(*self._fwd)
+            self.alltoall_bytes += self._sent_fwd
             for (a, b), blk in zip(self.y_ranges, self.recv_blocks):
                 np.copyto(self.cols[:, a:b], blk)
             self._plans[1].execute()
@@ -195,6 +200,7 @@ class SlabRFFT:
             if self.pad:
                 self.cols[:, self.ny:] = 0  # the y stage's output overwrote the padding
             self.comm.Alltoallv(*self._bwd)
+            self.alltoall_bytes += self._sent_bwd
             for (a, b), blk in zip(self.kx_ranges, self.send_blocks):
                 np.copyto(self.rows[:, a:b], blk.T)
             self._plans_bwd[1].execute()

@@ -15,7 +15,12 @@ from ..errors import collective_guard
 
 
 class ReducedPreconditioner:
-    """Base class: subclasses implement ``prepare(ctx)`` and ``inner(f, out)`` (M on full arrays)."""
+    """Base class: subclasses implement ``prepare(ctx)`` and ``inner(f, out)`` (M on full arrays).
+
+    The full arrays are the reduced operator's own (``ctx.full_in``, zero
+    outside I, and ``ctx.full_out``): a Mat mult and a PC apply never overlap,
+    so the set-up of each Newton step allocates no grid-sized buffer.
+    """
 
     @collective_guard
     def setUp(self, pc):
@@ -23,8 +28,7 @@ class ReducedPreconditioner:
         ctx = P.getPythonContext()
         self.ctx = ctx
         self.prepare(ctx)
-        self.f = np.zeros_like(ctx.full_in)
-        self.z = np.zeros_like(ctx.full_in)
+        self.f, self.z = ctx.full_in, ctx.full_out
 
     @collective_guard
     def apply(self, pc, x, y):

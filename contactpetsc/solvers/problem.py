@@ -136,10 +136,13 @@ class ContactProblem:
             raise ValueError(f"length_scale (m) must be finite and > 0, got {length_scale!r}")
         self.length_scale = float(length_scale)
         self.history = _root.history if _root is not None else SolveHistory()
-        self._snes = self._jac = None
+        self._snes = self._jac = self._slope_ksp = None
+        self._retired_pairs = 0.0  # weighted FFT pairs of released coarse problems' operators
         self._levels = None     # MLMI levels (shared with the coarse problems)
         self._slope_cache = None  # (inactive set, slope, z) of the last slope solve
         self._z_guess = None      # initial guess of the next slope solve (full grid)
+        self._dp = None           # dp/d delta of the last slope solve (one Vec, reused)
+        self._work = None         # grid-sized scratch of the convergence measures
         self._n_solves = 0
         self._pressure = grid.create_vec(0.0)   # last converged pressure: the next warm start
         self._approach = None
@@ -247,9 +250,14 @@ class ContactProblem:
         g = self.grid
         comm = g.mpi_comm
         p = g.rows(x, readonly=True)
-        nat = np.minimum(self.kappa * p, g.rows(f, readonly=True))
-        err = comm.allreduce(float(np.abs(nat).max()), op=MPI.MAX) / self.length_scale
-        sums = comm.allreduce(np.array([p.sum(), np.count_nonzero(p > 0)], float))
+        if self._work is None:
+            self._work = np.empty_like(p)   # one buffer for every evaluation: no per-iteration allocation
+        nat = np.multiply(p, self.kappa, out=self._work)
+        np.minimum(nat, g.rows(f, readonly=True), out=nat)
+        # max |min(K_ii p, g)| without an |.| temporary: the larger of max and -min
+        local = max(float(nat.max()), -float(nat.min()))
+        err = comm.allreduce(local, op=MPI.MAX) / self.length_scale
+        sums = comm.allreduce(np.array([p.sum(), np.count_nonzero(p)], float))
         n = g.nx * g.ny
         return err, sums[0] / n, sums[1] / n
 
@@ -280,9 +288,36 @@ class ContactProblem:
     def _fft_pairs(self) -> float:
         """FFT pairs of every operator of the root problem (coarse grids weighted by size), cumulative."""
         root = self._root
-        n0 = root.grid.nx * root.grid.ny
-        return float(sum(op.fft_pairs * (op.grid.nx * op.grid.ny) / n0
-                         for op in root._operators().values()))
+        return root._retired_pairs + _weighted_pairs(root._operators().values(), root.grid)
+
+    def _release_coarse(self) -> None:
+        """Free the coarse problems of the nested iteration once their solution is prolonged.
+
+        They are used once, on the first solve; kept, they would hold a third
+        of the fine problem's memory through every later solve.  Their FFT
+        pairs stay counted (``_retired_pairs``); the MLMI levels they share
+        with the fine problem stay alive.  Collective.
+        """
+        coarse = self._coarse
+        if not coarse:
+            return
+        root = self._root
+        kept = {id(lev.op) for lev in (self._levels or [])}
+        gone = [op for k, op in coarse._operators().items() if k not in kept]
+        root._retired_pairs += _weighted_pairs(gone, root.grid)
+        coarse._destroy_solvers()
+        self._coarse = False
+        PETSc.garbage_cleanup(self.grid.comm)
+
+    def _destroy_solvers(self) -> None:
+        """Destroy the SNES and KSP of this problem and of its coarse problems: their
+        callbacks hold the problem, a cycle that Python's collector cannot see."""
+        if self._coarse:
+            self._coarse._destroy_solvers()
+        for obj in (self._snes, self._slope_ksp):
+            if obj is not None:
+                obj.destroy()
+        self._snes = self._slope_ksp = None
 
     def _solve_at(self, approach: float, pressure: PETSc.Vec, tol: float | None = None):
         """One displacement-controlled SNES solve from ``pressure`` to complementarity
@@ -331,10 +366,11 @@ class ContactProblem:
         ksp.setInitialGuessNonzero(guess is not None)
         ksp.solve(b, z)
         self._linear += ksp.getIterationNumber()
-        dp = self.grid.create_vec(0.0)
-        full = np.zeros_like(ctx.full_in)
-        ctx.to_full(z, full)
-        self.grid.rows(dp)[...] = full
+        if self._dp is None:
+            self._dp = g.create_vec()
+        dp = self._dp   # overwritten in place: the warm start z was read above
+        dp.set(0.0)
+        ctx.to_full(z, g.rows(dp))
         # petsc4py defers freeing parallel objects to PETSc's garbage until exit:
         # destroy the per-solve temporaries explicitly (collective, all ranks here)
         for obj in (b, z, A, index_set):
@@ -469,6 +505,7 @@ class ContactProblem:
         self._newton += st.newton_iterations
         self._linear += st.linear_iterations
         if not st.converged:
+            self._release_coarse()
             return False
         g = self.grid
         if self.fmg_prolong == "bilinear":
@@ -482,6 +519,7 @@ class ContactProblem:
             g.rows(z)[...] = prolong(coarse.grid.rows(coarse._slope_cache[2], readonly=True))
             self._z_guess = z
         self._approach = st.approach
+        self._release_coarse()
         return True
 
     # -- public API ------------------------------------------------------------------
@@ -552,6 +590,12 @@ class ContactProblem:
                 f"(tol {self.tol:.1e}) of length scale {self.length_scale:.3e} m, "
                 f"load error {load_err:.3e} (tol {self.load_tol:.1e})")
         return state
+
+
+def _weighted_pairs(ops, fine: SurfaceGrid) -> float:
+    """FFT pairs of ``ops`` in units of ``fine``-grid pairs (a coarse pair weighs its size)."""
+    n0 = fine.nx * fine.ny
+    return float(sum(op.fft_pairs * (op.grid.nx * op.grid.ny) / n0 for op in ops))
 
 
 def convergence_verdict(snes: PETSc.SNES, it: int, err: float, tol: float) -> int:
