@@ -1,6 +1,6 @@
 """Atomic-scale tips (reference paper, section 3.3, Figs. 10-12).
 
-    python examples/studies/atomic_tips.py [--size small|default] [--out DIR]
+    python examples/studies/atomic_tips.py [--size small|default|resolution] [--out DIR]
     mpirun -n 2 python examples/studies/atomic_tips.py
 
 The four tips of Luan & Robbins (2006) as hard-sphere profiles
@@ -18,15 +18,18 @@ For each tip: loading from separation to W_max and unloading past pull-off
 (displacement control); contact radius sqrt(A / pi) (A: nodes with p > 0)
 against load (Fig. 12a); the unloading (pull-off) curve (Fig. 12b) and the
 effective work of adhesion, the area between its tensile part and the load
-axis, -int min(W, 0) d delta; at W_max the pressure map (Fig. 10b) and the
+axis, -int min(W, 0) d delta down to 2 z0 beyond the first approach (with the
+located jump-off and an error estimate, ``effective_work_estimate``); at W_max the pressure map (Fig. 10b) and the
 force on each atom -- the pressure integrated over the nodes the atom forms
 (its footprint) -- against the atom's distance from the axis (Fig. 11).
 
 Outputs in --out: tips.csv (one row per tip), path_<tip>.csv, atoms_<tip>.csv,
 fig10.png, fig11.png, fig12.png, atomic_tips.json.
-Sizes: default 128^2 nodes, dx = d / 3 (48 sigma window), W_max = 2 pi R w;
-small 64^2, dx = d / 2, W_max = 0.3 (2 pi R w).  The paper does not state
-its grid.
+Sizes: default 256^2 nodes, dx = d / 6 (48 sigma window), W_max = 2 pi R w;
+small 64^2, dx = d / 2, W_max = 0.3 (2 pi R w); approach steps of 0.5 z0.
+``--size resolution``: the default run at dx = d / 2, d / 3, d / 4, d / 6, d / 8
+(same window, load and protocol; resolution.csv, resolution.json,
+fig12_resolution.png).  The paper does not state its grid.
 """
 from __future__ import annotations
 
@@ -40,7 +43,7 @@ RADIUS, E_STAR, EPS_TS, SIGMA = 100.0, 55.0, 0.5, 1.0
 REFINE = 4           #: jump bisections: jumps located to step / 16
 SIZES = {
     "small": dict(n=64, per_d=2, load_star=0.3, step=0.5),
-    "default": dict(n=128, per_d=3, load_star=1.0, step=0.5),
+    "default": dict(n=256, per_d=6, load_star=1.0, step=0.5),
 }
 WINDOW = 48.0        #: resolution study: window [sigma] (the default run's)
 RESOLUTIONS = (2, 3, 4, 6, 8)   #: resolution study: nodes per spacing d (dx = d / k)

@@ -41,6 +41,8 @@ W_PAPER = 0.29                                            # J/m^2: mu = 5
 SIZES = {
     "small": dict(n=32, rms=[0.0, 2.0], tabor=[1.0], step=1.0, fig8=True),
     "default": dict(n=64, rms=[0.0, 0.5, 1.0, 2.0, 4.0, 10.0], tabor=[2.0, 1.0], step=0.5, fig8=True),
+    # the paper's own Tabor parameter, reduced: K_ii max da/dg = 0.75 (< 1: each node stable)
+    "tabor5": dict(n=384, rms=[0.0, 1.0], tabor=[5.0], step=1.0, fig8=False),
 }
 
 
@@ -221,5 +223,5 @@ def _plots(out, grid, cfg, rows, maps, paths):
 
 
 if __name__ == "__main__":
-    args = common.parse(__doc__.splitlines()[0], "rough-sphere-output")
+    args = common.parse(__doc__.splitlines()[0], "rough-sphere-output", sizes=tuple(SIZES))
     run(args.size, args.out)
