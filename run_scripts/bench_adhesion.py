@@ -147,6 +147,8 @@ def calibrate(grid, h, law, areas, steps=40):
             fractions.append(st.contact_fraction)
         if fractions and fractions[-1] > 1.2 * max(areas):
             break
+    if len(fractions) < 2:
+        return None     # no loading path to interpolate on: the case is reported as failed
     return [float(np.interp(a, fractions, deltas)) for a in areas]
 
 
@@ -174,6 +176,10 @@ def rough_cases():
                 z0, w = z0_rel * dx, w_rel * dx
                 law = make_law("lj", work_of_adhesion=w, z0=z0)
                 approaches = calibrate(grid, h, law, args.areas)
+                if approaches is None:
+                    emit(case="rough", n=n, w=w_rel, z0=z0_rel, solver="calibration", converged=False,
+                         message="the calibration sweep converged at fewer than two approaches")
+                    continue
                 ref = AdhesiveProblem(grid, h, 1.0, law, prefix="ref_", tol=1e-11, stability_check=False)
                 refs = [ref.solve(approach=d, raise_on_failure=False) for d in approaches]
                 pb = AdhesiveProblem(grid, h, 1.0, law, prefix="ours_")
