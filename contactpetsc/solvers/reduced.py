@@ -54,10 +54,16 @@ class ReducedJacobian:
         g = self.grid = self.op.grid
         self.idx = (index_set.getIndices() - g.nx * g.ys).astype(np.intp)
         self.n_local = self.idx.size
-        self.mask = np.zeros((g.ny_local, g.nx), bool)
+        # SNES VI asks for a new sub-matrix at every Newton step: the grid-sized work
+        # arrays live in the parent's cache (one reduced Mat is in use at a time)
+        buffers = parent.cache.get("reduced_buffers")
+        if buffers is None:
+            shape = (g.ny_local, g.nx)
+            buffers = parent.cache["reduced_buffers"] = (np.empty(shape, bool), np.empty(shape), np.empty(shape))
+        self.mask, self.full_in, self.full_out = buffers
+        self.mask.fill(False)
         self.mask.reshape(-1)[self.idx] = True
-        self.full_in = np.zeros((g.ny_local, g.nx))
-        self.full_out = np.empty((g.ny_local, g.nx))
+        self.full_in.fill(0.0)
         n_set = g.mpi_comm.allreduce(self.n_local)
         # On a periodic cell K has no mean mode: with every node inactive K_II = K is
         # singular and the Newton system inconsistent (mean gap = mean h - delta).  There,
