@@ -40,6 +40,7 @@ class PathPoint:
     complementarity_error: float
     adhesive_error: float
     total_error: float
+    reason: str = ""          #: the solver's converged or diverged reason
 
 
 @dataclass
@@ -80,17 +81,24 @@ def _point(step, branch, st) -> PathPoint:
                      contact_fraction=st.contact_fraction, stable=st.stable, converged=st.converged,
                      solver=st.solver, fft_pairs=st.fft_pairs, wall_time=st.wall_time,
                      complementarity_error=st.complementarity_error,
-                     adhesive_error=st.adhesive_error, total_error=st.total_error)
+                     adhesive_error=st.adhesive_error, total_error=st.total_error, reason=st.reason)
 
 
 def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0.05,
-          refine: int = 6, on_state=None, path: Path | None = None) -> Path:
+          refine: int = 6, on_state=None, path: Path | None = None, stop_on_failure: bool = False,
+          on_failure=None, previous: tuple | None = None) -> Path:
     """Displacement-controlled path through ``approaches`` [m] (loading where they rise,
     unloading where they fall).  ``on_state(step, state, point)`` is called for each
-    converged step (e.g. to write fields).  Returns the Path with its jumps."""
+    converged step (e.g. to write fields), ``on_failure(step, state, point)`` for each
+    failed one.  ``previous`` = (approach [m], force [N], dF/d delta [N/m] or NaN) of the
+    problem's current state when the path continues one (a restart), so that a jump between
+    it and the first step is found too.  A step that fails is kept as a point (not converged, with its reason)
+    and the path goes on from the last converged state, or,
+    with ``stop_on_failure``, ends there (a run that must stay contiguous, to restart
+    from).  Returns the Path with its jumps."""
     path = Path() if path is None else path
     approaches = [float(a) for a in approaches]
-    prev = None          # (approach, force, stiffness) of the last state
+    prev = previous      # (approach, force, stiffness) of the last state
     for k, delta in enumerate(approaches):
         snap = problem.snapshot() if prev is not None else None
         st = problem.solve(approach=delta, raise_on_failure=False)
@@ -110,6 +118,10 @@ def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0
             _free(snap)
         pt = _point(k, here, st)
         path.points.append(pt)
+        if not st.converged and on_failure is not None:
+            on_failure(k, st, pt)
+        if not st.converged and stop_on_failure:
+            break
         if st.converged:
             prev = (st.approach, st.force, st.stiffness)
             if st.stable is not False:
@@ -207,13 +219,19 @@ def _locate_jump(problem, snap, prev, after, refine) -> Jump | None:
                 force_after=w_after)
 
 
-def central_gap_path(problem, central_gaps, *, on_state=None, path: Path | None = None) -> Path:
-    """Prescribed central gaps [m] (Greenwood's device): every state kept, unstable ones marked."""
+def central_gap_path(problem, central_gaps, *, on_state=None, path: Path | None = None,
+                     stop_on_failure: bool = False, on_failure=None) -> Path:
+    """Prescribed central gaps [m] (Greenwood's device): every state kept, unstable ones marked;
+    a failed step as in ``sweep``."""
     path = Path() if path is None else path
     for k, gc in enumerate(central_gaps):
         st = problem.solve(central_gap=float(gc), raise_on_failure=False)
         pt = _point(k, "central-gap", st)
         path.points.append(pt)
+        if not st.converged and on_failure is not None:
+            on_failure(k, st, pt)
+        if not st.converged and stop_on_failure:
+            break
         if st.converged and on_state is not None:
             on_state(k, st, pt)
     return path

@@ -357,17 +357,36 @@ def _run_adhesive(scene: dict, grid: SurfaceGrid, h: PETSc.Vec, *, output: str |
             write_text_atomic(history_path, old_history + problem.history.csv_text(header=not old_history))
 
     todo = values[done:]
+    failed = []   # (step, state): a failed step ends the run, so that the written steps stay
+    #               a contiguous path to restart from
+
+    def stop(k, st, pt):
+        failed.append((done + k + 1, st))
+
     if relax is not None:
         # the paper's solver, step by step (no jump location: it relaxes wherever it goes)
         for k, delta in enumerate(todo):
             st = relax.solve(approach=delta, raise_on_failure=False)
+            if not st.converged:
+                stop(k, st, None)
+                break
             record(k, st, None)
         path = None
     elif proto["control"] == "central_gap":
-        path = central_gap_path(problem, todo, on_state=record)
+        path = central_gap_path(problem, todo, on_state=record, stop_on_failure=True, on_failure=stop)
     else:
-        path = sweep(problem, todo, refine=proto["jump_refinement"], on_state=record)
-    summary = {"steps": len(rows), "converged": all(st.converged for st in states)}
+        last = rows[-1] if done else None   # a restart: jumps from the last written step on are found too
+        previous = (float(last[CURVE_COLUMNS.index("approach_m")]), float(last[CURVE_COLUMNS.index("force_N")]),
+                    NAN) if last else None
+        path = sweep(problem, todo, refine=proto["jump_refinement"], on_state=record, stop_on_failure=True,
+                     on_failure=stop, previous=previous)
+    summary = {"steps": len(rows), "converged": not failed}
+    if failed:
+        step, st = failed[0]
+        summary["stopped_at"] = {"step": step, "approach_m": st.approach, "reason": st.reason}
+        say(f"  step {step} (approach {st.approach:.4e} m) NOT CONVERGED: {st.reason}\n"
+            f"  the run stopped there: steps 1-{step - 1} of {len(values)} are written; "
+            f"fix the cause and continue with --restart")
     if path is not None and proto["control"] == "approach":
         pull = path.pull_off_force
         if proto["refine_pull_off"] and path._best is not None:
@@ -382,16 +401,23 @@ def _run_adhesive(scene: dict, grid: SurfaceGrid, h: PETSc.Vec, *, output: str |
             say(f"  {j.kind} between approaches {j.approach_before:.4e} and {j.approach_after:.4e} m: "
                 f"force {j.force_before:.4e} -> {j.force_after:.4e} N")
         if rank0:
-            _write_csv(os.path.join(out_dir, "jumps.csv"),
+            jumps_path = os.path.join(out_dir, "jumps.csv")
+            # a restarted run keeps the jumps found before the interruption
+            old_jumps = []
+            if done and os.path.exists(jumps_path):
+                with open(jumps_path) as f:
+                    old_jumps = [r for r in csv.reader(f)][1:]
+            _write_csv(jumps_path,
                        ["kind", "approach_before_m", "approach_after_m", "force_before_N", "force_after_N"],
-                       [[j.kind, j.approach_before, j.approach_after, j.force_before, j.force_after]
-                        for j in path.jumps])
+                       old_jumps + [[j.kind, j.approach_before, j.approach_after, j.force_before, j.force_after]
+                                    for j in path.jumps])
     if rank0:
         write_text_atomic(os.path.join(out_dir, "summary.json"), json.dumps(summary, indent=1, default=str))
     _save_plots(scene, grid, out_dir, states)
     grid.mpi_comm.Barrier()
     say(f"  wrote {out_dir}/curve.csv, history.csv, summary.json")
-    return states
+    # the failed step last: the caller (the command line's exit code) sees the failure
+    return states + [failed[0][1]] if failed else states
 
 
 def _outputs_line(scene: dict, n: int, out_dir: str) -> str:

@@ -166,3 +166,36 @@ def test_sweep_killed_mid_step_resumes_without_losing_steps(tmp_path):
     for a, b in zip(resumed, ref):
         assert float(a["approach_m"]) == pytest.approx(float(b["approach_m"]), rel=1e-8)
         assert float(a["mean_pressure_Pa"]) == pytest.approx(float(b["mean_pressure_Pa"]), rel=1e-9)
+
+
+@pytest.mark.serial
+def test_time_budget_ends_a_sweep_loudly_and_restart_completes_it(tmp_path):
+    """``-adhesion_time_budget`` ends an adhesive sweep at a step with WALL_TIME_BUDGET: exit
+    code 3 and a message naming the step, its reason and --restart; the steps before it are
+    written, and --restart completes the run with the uninterrupted run's forces and keeps
+    the jumps found before the stop (jumps.csv)."""
+    import csv
+    scene = os.path.join(os.path.dirname(__file__), "..", "examples", "scenes", "adhesive_sphere.toml")
+
+    def rows(path):
+        with open(path) as f:
+            return list(csv.DictReader(f))
+
+    full, cut = tmp_path / "full", tmp_path / "cut"
+    subprocess.run(CLI + ["run", scene, "--output", str(full)], env=ENV, capture_output=True, timeout=300,
+                   check=True)
+    proc = subprocess.run(CLI + ["run", scene, "--output", str(cut), "-adhesion_time_budget", "0.3"], env=ENV,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 3, proc.stdout + proc.stderr
+    assert "NOT CONVERGED: WALL_TIME_BUDGET" in proc.stdout and "continue with --restart" in proc.stdout
+    ref = rows(full / "curve.csv")
+    kept = rows(cut / "curve.csv") if (cut / "curve.csv").exists() else []
+    assert len(kept) < len(ref)
+    proc = subprocess.run(CLI + ["run", scene, "--output", str(cut), "--restart"], env=ENV,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    resumed = rows(cut / "curve.csv")
+    assert [r["step"] for r in resumed] == [r["step"] for r in ref]
+    for a, b in zip(resumed, ref):
+        assert float(a["force_N"]) == pytest.approx(float(b["force_N"]), rel=1e-5, abs=1e-12)
+    assert [r["kind"] for r in rows(cut / "jumps.csv")] == [r["kind"] for r in rows(full / "jumps.csv")]
