@@ -1,6 +1,6 @@
 """Rough spheres (reference paper, section 3.2, Figs. 6-9).
 
-    python examples/studies/rough_sphere.py [--size small|default] [--out DIR]
+    python examples/studies/rough_sphere.py [--size small|default|tabor5] [--out DIR]
     mpirun -n 2 python examples/studies/rough_sphere.py
 
 The paper: a sphere R = 100 um, E* = 50 GPa, z0 = 0.3 nm, w = 0.29 J/m^2
@@ -9,9 +9,11 @@ scaled vertically to rms = 0 ... 10 z0 (same pattern at every rms).  We keep
 R, E*, z0 and the load and lower w to give Tabor parameters 2 (w = 0.0734)
 and 1 (w = 0.0259): the elements must resolve the adhesive zone, and the
 nodes that takes grow as mu^2 (p_peak dx / (E* z0) < ~1 with a window of a
-few contact radii); mu = 5 needs ~6x finer grids than mu = 2 (measured: one
-mu = 5 step at 256^2 took 3 min and did not reach a stable state).  The
-roughness: Gaussian autocorrelation, correlation length a_JKR / 6.
+few contact radii); mu = 5 needs ~6x finer grids than mu = 2 for the same
+snap number K_ii max da/dg (0.80 at mu = 2, 64^2): ``--size tabor5``, 384^2,
+rms 0 and 1 z0 (measured: more than 25 min for the first load-unload cycle on
+one rank; docs/studies.md).  The roughness: Gaussian autocorrelation,
+correlation length a_JKR / 6.
 
 For each Tabor parameter and rms: loading in displacement control from
 separation to the load (Newton on the approach for the last step), the

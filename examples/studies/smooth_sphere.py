@@ -13,8 +13,8 @@ R = 100 (mu = 2):
          displacement control (jump-on, jump-off), and the full S-curve by
          prescribing the central gap (Greenwood's device); pull-off beside
          Maugis-Dugdale with lambda = 1.16 mu.  (The hard-wall law at mu = 2
-         is left out: its jump-on needs the relaxation fallback, measured
-         > 2 min for one jump at 48^2.)
+         is left out: at 48^2 its states in compression stop with DIVERGED_MAX_IT,
+         the adhesive zone spanning 1.2 grid spacings; docs/studies.md.)
 Fig. 5: the adhesive load and area ratios (1 % cut-off) of smooth spheres
 (SI units) for a reference contact and contacts with other E*, R, w and load,
 among them one with the reference's Tabor parameter, R and load but w and E*
