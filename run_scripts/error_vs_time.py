@@ -56,6 +56,11 @@ Usage::
 
     .venv/bin/python run_scripts/error_vs_time.py [--scenes rough adhesive sphere] [--n 256]
         [--pcs mlmi spectral none] [--no-peer] [--plot docs/figures] [--json out.jsonl]
+        [PETSc options, e.g. -sphere_ref_fallback relaxation]
+    .venv/bin/python run_scripts/error_vs_time.py --replot out.jsonl --plot docs/figures
+
+Options prefixes: ``<scene>_ref_`` (the reference), ``<scene>_<pc>_`` (Newton),
+``rough_<pc>_``, ``rel<tol>_`` (relaxation).
 
 Output: one JSON line per curve (scene, solver, points (time [s], error),
 total time [s], FFT pairs, own error), a time-to-error table (markdown) on
@@ -85,7 +90,7 @@ ap.add_argument("--quantile", type=float, default=0.3,
                 help="adhesive scene: the approach is this quantile of the heights")
 ap.add_argument("--pcs", nargs="+", default=["mlmi", "spectral", "none"])
 ap.add_argument("--tol", type=float, default=1e-10, help="our solvers' tolerance (own measure)")
-ap.add_argument("--ref-tol", type=float, default=1e-12)
+ap.add_argument("--ref-tol", type=float, default=1e-11)
 ap.add_argument("--relax-tols", type=float, nargs="+", default=[1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8])
 ap.add_argument("--caps", type=int, nargs="+", default=[8, 16, 32, 64, 128, 256, 512, 1024, 2048],
                 help="peer iteration caps")
@@ -96,6 +101,8 @@ ap.add_argument("--stop-error", type=float, default=1e-10,
 ap.add_argument("--no-peer", action="store_true")
 ap.add_argument("--plot", default=None, help="directory for error_vs_time_<scene>.png")
 ap.add_argument("--json", default=None, help="also write the JSON lines to this file")
+ap.add_argument("--replot", default=None, metavar="JSONL",
+                help="no solves: the table and figures of the curves in this --json file")
 ap.add_argument("--tamaas-python", default=os.path.join(VENV, "peer-venv", "bin", "python"))
 ap.add_argument("--cm-python", default=os.path.join(VENV, "peer-venv-cm", "bin", "python"))
 args, petsc_args = ap.parse_known_args()
@@ -389,10 +396,14 @@ def table():
 
 
 load0 = os.getloadavg()
-for name in args.scenes:
+if args.replot:
+    with open(args.replot) as f:
+        curves.extend(json.loads(line) for line in f)
+for name in [] if args.replot else args.scenes:
     {"rough": scene_rough, "adhesive": scene_adhesive, "sphere": scene_sphere}[name]()
 if rank == 0:
-    print(f"\nload average at start {load0}, at end {os.getloadavg()}; {comm.Get_size()} rank(s)")
+    if not args.replot:
+        print(f"\nload average at start {load0}, at end {os.getloadavg()}; {comm.Get_size()} rank(s)")
     print(table())
     if args.plot:
         plot(args.plot)
