@@ -32,6 +32,9 @@ def main(argv=None):
     ap.add_argument("--load-step", type=float, default=None,
                     help="approach step / z0 while loading (default: --step); the pull-off is on the "
                          "unloading branch, and at large mu the loading range is tens of z0")
+    ap.add_argument("--top", type=float, default=None,
+                    help="approach / z0 at the end of loading (default: about the JKR pull-off force in "
+                         "compression); the pull-off of an adhered sphere does not depend on it")
     ap.add_argument("--element-integration", action="store_true")
     ap.add_argument("--markdown", action="store_true")
     args, petsc_args = ap.parse_known_args(argv)
@@ -54,7 +57,7 @@ def main(argv=None):
         pb = AdhesiveProblem(grid, sphere(grid, R), 1.0, make_law(args.law, work_of_adhesion=w, z0=1.0),
                              element_integration=args.element_integration, prefix=f"mu{len(rows)}_")
         # load to a compressive force of about the JKR pull-off magnitude, then unload past pull-off
-        top = max(1.0, 2.0 * (np.pi * w * R * 1.5 / (4.0 / 3.0 * np.sqrt(R))) ** (2.0 / 3.0))
+        top = args.top or max(1.0, 2.0 * (np.pi * w * R * 1.5 / (4.0 / 3.0 * np.sqrt(R))) ** (2.0 / 3.0))
         down = -3.0 - 2.0 * mu
         load_step = args.load_step or args.step
         loading = np.arange(-2.0, top + 1e-9, load_step)
