@@ -215,10 +215,16 @@ class AdhesiveProblem:
         # bounded: where PTC has not settled in 300 steps it wanders (measured on
         # under-resolved strong adhesion, snap number 4.4: no progress in 800 steps)
         self.ptc_max_it = opts.getInt("ptc_max_it", 300)
-        self.fallback = opts.getString("fallback", "ptc").lower()
-        if self.fallback not in ("relaxation", "ptc"):
-            raise ValueError(f"-{self.prefix}fallback must be relaxation or ptc, got {self.fallback!r}")
-        if self.fallback == "relaxation" and not self.hard_wall:
+        # the relaxation paths tried in turn where Newton fails or ends on an unstable state.
+        # Hard-wall laws: the paper's relaxation first, then PTC -- from rest at mu = 2 the
+        # relaxation reaches the state where PTC ran its 300 steps (Tabor-2 benchmark sphere),
+        # while at the jump-off of a mu = 1 sphere it stopped at its cycle cap and PTC got there
+        chain = opts.getString("fallback", "relaxation,ptc" if self.hard_wall else "ptc").lower()
+        self.fallback = [m.strip() for m in chain.split(",") if m.strip()]
+        if not self.fallback or any(m not in ("relaxation", "ptc") for m in self.fallback):
+            raise ValueError(f"-{self.prefix}fallback must be relaxation, ptc or a comma-separated "
+                             f"chain of them, got {chain!r}")
+        if "relaxation" in self.fallback and not self.hard_wall:
             raise ValueError(f"-{self.prefix}fallback relaxation needs a hard-wall law (the paper's relaxation "
                              f"stores contact pressures apart), got {self.law.name!r}")
         self.fallback_tol = opts.getReal("fallback_tol", 1e-3)
@@ -727,24 +733,27 @@ class AdhesiveProblem:
         if fallback and approach is not None and (not converged or margin <= 0) and not self.out_of_time():
             # Newton found no state on this branch, or an unstable one (the branch has
             # ended: a jump).  From the last converged state, follow a relaxation path
-            # to a stable state, then polish by Newton: the paper's relaxation for
-            # hard-wall laws, pseudo-transient continuation for the full LJ curve.
-            x_start.copy(self._x)
-            if self.fallback == "relaxation":
-                from .relaxation import RelaxationSolver
-                relax = RelaxationSolver(self, tol=self.fallback_tol, max_cycles=self.fallback_max_cycles)
-                ok, reason, n2, l2 = relax.relax(approach)
-                solver += "+relaxation"
-                if ok:
-                    ok, reason, n3, l3 = self._run_snes()
-                    n2, l2 = n2 + n3, l2 + l3
-            else:
-                self.shift, self._ptc_prev = self.ptc_shift0, 0.0
-                ok, reason, n2, l2 = self._run_snes(self._ptc)
-                self.shift = 0.0
-                solver += "+ptc"
-            converged, newton, linear = ok, newton + n2, linear + l2
-            margin = self._stability() if (converged and check) else float("nan")
+            # to a stable state, then polish by Newton: the methods of -<prefix>fallback
+            # in turn (hard-wall laws: the paper's relaxation, then PTC; lj: PTC).
+            for method in self.fallback:
+                x_start.copy(self._x)
+                if method == "relaxation":
+                    from .relaxation import RelaxationSolver
+                    relax = RelaxationSolver(self, tol=self.fallback_tol, max_cycles=self.fallback_max_cycles)
+                    ok, reason, n2, l2 = relax.relax(approach)
+                    if ok:
+                        ok, reason, n3, l3 = self._run_snes()
+                        n2, l2 = n2 + n3, l2 + l3
+                else:
+                    self.shift, self._ptc_prev = self.ptc_shift0, 0.0
+                    ok, reason, n2, l2 = self._run_snes(self._ptc)
+                    self.shift = 0.0
+                solver += "+" + method
+                newton, linear = newton + n2, linear + l2
+                margin = self._stability() if (ok and check) else float("nan")
+                if (ok and not margin <= 0) or self.out_of_time():
+                    break
+            converged = ok
         if not converged:
             x_start.copy(self._x)   # keep the last good state as the next start
             if self.snap_number > 1.0:
