@@ -23,7 +23,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..errors import collective_guard
-from .reduced import python_submatrix
+from .reduced import InactiveSet, python_submatrix
 
 
 class AdhesiveJacobian:
@@ -54,8 +54,8 @@ class AdhesiveJacobian:
         np.subtract(blocks_in[-1], self.aw, out=a_out)
         a_out *= pb.kappa
         if pb._gap_rows is not None:
-            rows = pb._gap_rows
-            a_out[rows] = w[rows] - pb._gap_slope[rows] * blocks_in[-1][rows]
+            at, slope = pb._gap_at
+            np.put(a_out, at, np.take(w, at) - slope * np.take(blocks_in[-1], at))
         if pb.shift:
             # pseudo-transient continuation: J + shift * kappa I
             blocks_out += (pb.shift * pb.kappa) * blocks_in
@@ -79,23 +79,23 @@ class ReducedAdhesiveJacobian:
         pb = self.problem = parent.problem
         g = self.grid = parent.grid
         nb = pb.n_blocks
-        self.idx = (index_set.getIndices() - pb.offset).astype(np.intp)
-        self.n_local = self.idx.size
+        self.set = InactiveSet(index_set, pb.offset, nb * g.ny_local * g.nx)
+        self.idx, self.n_local = self.set.idx, self.set.n_local
         self.full_in = np.zeros((nb, g.ny_local, g.nx))
         self.full_out = np.zeros_like(self.full_in)
         self.masks = np.zeros((nb, g.ny_local, g.nx), bool)
         self.masks.reshape(-1)[self.idx] = True
 
     def to_full(self, x: PETSc.Vec, out: np.ndarray) -> np.ndarray:
-        out.reshape(-1)[self.idx] = x.getArray(readonly=True)
-        return out
+        return self.set.to_full(x, out)
 
     def from_full(self, full: np.ndarray, y: PETSc.Vec) -> None:
-        np.take(full.reshape(-1), self.idx, out=y.getArray())
+        self.set.from_full(full, y)
 
     @collective_guard
     def mult(self, mat, x, y):
-        self.full_in[...] = 0.0
+        if not self.set.everything:
+            self.full_in[...] = 0.0   # entries off the set are zero in the step
         self.to_full(x, self.full_in)
         self.parent.apply_full(self.full_in, self.full_out)
         self.from_full(self.full_out, y)
@@ -142,7 +142,7 @@ class AdhesivePC:
         self.q_set, self.stiff = q_set, stiff
         self.union = q_set | stiff
         scale = np.where(stiff & ~gap_rows, -kappa * d, 1.0)
-        self.inv_scale = 1.0 / scale
+        self.inv_scale = np.where(stiff, 1.0 / scale, 0.0)
         local = np.where(gap_rows, kappa * (1.0 + pb.shift) - pb._gap_slope if pb._gap_rows is not None else 0.0,
                          kappa * (1.0 + pb.shift - d * kappa))
         floor = 0.1 * kappa
@@ -165,15 +165,15 @@ class AdhesivePC:
     def apply(self, pc, x, y):
         ctx = self.ctx
         full = self.full
-        full[...] = 0.0
+        if not ctx.set.everything:
+            full[...] = 0.0
         ctx.to_full(x, full)
         a_in = full[-1]
         out = self.out
-        out[-1] = a_in * self.jacobi
+        np.multiply(a_in, self.jacobi, out=out[-1])
         if self.inner_pc is not None:
             f = self.f
-            np.multiply(a_in, self.inv_scale, out=f)
-            f *= self.stiff
+            np.multiply(a_in, self.inv_scale, out=f)   # zero off the stiff rows
             if ctx.problem.hard_wall:
                 f += full[0] * self.q_set
             self.inner_pc.inner(f, self.z)

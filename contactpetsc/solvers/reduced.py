@@ -36,6 +36,34 @@ class ContactJacobian:
         return python_submatrix(ReducedJacobian(self, isrow), mat)
 
 
+class InactiveSet:
+    """Local positions ``idx`` of a reduced Vec's entries in a full local array, with the
+    copies between the two.  When the set is the whole array (the full LJ curve: no
+    bounds, every unknown inactive) the copies are contiguous: 3-4x faster than an
+    indexed gather at 1024^2, once or twice per Krylov iteration."""
+
+    def __init__(self, index_set: PETSc.IS, offset: int, full_size: int):
+        self.idx = (index_set.getIndices() - offset).astype(np.intp)
+        self.n_local = self.idx.size
+        # the indices are sorted and unique (SNES VI's inactive set): all of them is arange
+        self.everything = self.n_local == full_size
+
+    def to_full(self, x: PETSc.Vec, out: np.ndarray) -> np.ndarray:
+        """Scatter a reduced Vec into a full local array (entries outside the set untouched)."""
+        if self.everything:
+            np.copyto(out.reshape(-1), x.getArray(readonly=True))
+        else:
+            out.reshape(-1)[self.idx] = x.getArray(readonly=True)
+        return out
+
+    def from_full(self, full: np.ndarray, y: PETSc.Vec) -> None:
+        """Gather the set's entries of a full local array into a reduced Vec."""
+        if self.everything:
+            np.copyto(y.getArray(), full.reshape(-1))
+        else:
+            np.take(full.reshape(-1), self.idx, out=y.getArray())  # no temporary
+
+
 def python_submatrix(ctx, mat: PETSc.Mat) -> PETSc.Mat:
     """A square Python-context Mat on ``mat``'s communicator for a reduced context with
     ``n_local`` rows on this rank (what ``createSubMatrix`` returns to SNES VI)."""
@@ -52,8 +80,8 @@ class ReducedJacobian:
         self.parent = parent
         self.op = parent.op
         g = self.grid = self.op.grid
-        self.idx = (index_set.getIndices() - g.nx * g.ys).astype(np.intp)
-        self.n_local = self.idx.size
+        self.set = InactiveSet(index_set, g.nx * g.ys, g.nx * g.ny_local)
+        self.idx, self.n_local = self.set.idx, self.set.n_local
         # SNES VI asks for a new sub-matrix at every Newton step: the grid-sized work
         # arrays live in the parent's cache (one reduced Mat is in use at a time)
         buffers = parent.cache.get("reduced_buffers")
@@ -76,11 +104,10 @@ class ReducedJacobian:
 
     def to_full(self, x: PETSc.Vec, out: np.ndarray) -> np.ndarray:
         """Scatter a reduced Vec into a full (ny_loc, nx) array (entries outside I untouched)."""
-        out.reshape(-1)[self.idx] = x.getArray(readonly=True)
-        return out
+        return self.set.to_full(x, out)
 
     def from_full(self, full: np.ndarray, y: PETSc.Vec) -> None:
-        np.take(full.reshape(-1), self.idx, out=y.getArray())  # no temporary
+        self.set.from_full(full, y)
 
     @collective_guard
     def mult(self, mat, x, y):
