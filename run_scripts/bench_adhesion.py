@@ -25,7 +25,7 @@ are kept in ``own_error``.  One JSON line per case (n, solver, approach,
 time, fft_pairs, error, converged, ...).
 
     .venv/bin/python run_scripts/bench_adhesion.py [--cases sphere rough] [--sizes 256 512 1024]
-        [--w 0.05] [--z0 1.0] [--potential vdw82] [--no-peer] [--plot docs/figures]
+        [--w 0.05] [--z0 1.0] [--potential vdw82] [--no-peer] [--plot docs/figures] [--tol 1e-8 1e-5]
 """
 import argparse
 import json
@@ -47,6 +47,9 @@ ap.add_argument("--z0", type=float, nargs="+", default=[1.0], help="z0 / dx")
 ap.add_argument("--mu", type=float, nargs="+", default=[0.5, 2.0], help="sphere Tabor parameters")
 ap.add_argument("--potential", default="vdw82", choices=["vdw82", "lj93"])
 ap.add_argument("--no-peer", action="store_true")
+ap.add_argument("--tol", type=float, nargs="+", default=[1e-8],
+                help="our tolerances [z0] (rough cases; each runs the path afresh): the default 1e-8, "
+                     "and e.g. 1e-5 for the peer's accuracy (time at equal error)")
 ap.add_argument("--calibrate-max-n", type=int, default=256,
                 help="calibrate the approaches on the heights averaged to at most this grid")
 ap.add_argument("--peer-maxiter", type=int, default=100000)
@@ -182,17 +185,19 @@ def rough_cases():
                     continue
                 ref = AdhesiveProblem(grid, h, 1.0, law, prefix="ref_", tol=1e-11, stability_check=False)
                 refs = [ref.solve(approach=d, raise_on_failure=False) for d in approaches]
-                pb = AdhesiveProblem(grid, h, 1.0, law, prefix="ours_")
-                for d, st_ref in zip(approaches, refs):
-                    t = time.perf_counter()
-                    st = pb.solve(approach=d, raise_on_failure=False)
-                    elapsed = time.perf_counter() - t
-                    emit(case="rough", n=n, w=w_rel, z0=z0_rel, solver=st.solver, approach=d, time=elapsed,
-                         check_time=st.check_time,
-                         fft_pairs=st.fft_pairs, error=gap_error(grid, st.gap, st_ref.gap, z0),
-                         own_error=max(st.complementarity_error, st.adhesive_error),
-                         contact_fraction=st.contact_fraction, converged=st.converged, stable=st.stable,
-                         ranks=comm.Get_size())
+                for i, tol in enumerate(args.tol):
+                    # each tolerance runs the whole path afresh (same warm starts)
+                    pb = AdhesiveProblem(grid, h, 1.0, law, prefix=f"ours{i}_", tol=tol)
+                    for d, st_ref in zip(approaches, refs):
+                        t = time.perf_counter()
+                        st = pb.solve(approach=d, raise_on_failure=False)
+                        elapsed = time.perf_counter() - t
+                        emit(case="rough", n=n, w=w_rel, z0=z0_rel, solver=st.solver, tol=tol, approach=d,
+                             time=elapsed, check_time=st.check_time,
+                             fft_pairs=st.fft_pairs, error=gap_error(grid, st.gap, st_ref.gap, z0),
+                             own_error=max(st.complementarity_error, st.adhesive_error),
+                             contact_fraction=st.contact_fraction, converged=st.converged, stable=st.stable,
+                             ranks=comm.Get_size())
                 if args.no_peer:
                     continue
                 hg = grid.gather(h, root=0)

@@ -167,6 +167,7 @@ class AdhesiveProblem:
         self.shift = 0.0                # pseudo-transient continuation shift (0: plain Newton)
         self._check_time = 0.0          # stability check and tangent time of the current solve
         self._tangent = None            # dx/d delta at the last converged state
+        self.compute_tangent = True     # the tangent and stiffness of converged displacement-controlled states
         self.history = SolveHistory()
         self._snes = None
         self._n_solves = 0
@@ -488,6 +489,7 @@ class AdhesiveProblem:
         coarse._budget_start = self._budget_start   # one budget for the nested solves
         coarse.tol = max(self.fmg_tol, self.tol)
         coarse.use_predictor = False
+        coarse.compute_tangent = False   # a level of the nested iteration needs no predictor or stiffness
         self._coarse = coarse
         return coarse
 
@@ -769,7 +771,7 @@ class AdhesiveProblem:
                            f"spacings, the criterion is {RESOLUTION_NODES:g}]")
         x_start.destroy()
         state = self._state(converged, reason, newton, linear, pairs0, t0, margin,
-                            solver, tangent=approach is not None and converged)
+                            solver, tangent=approach is not None and converged and self.compute_tangent)
         self.centre_owner = None
         PETSc.garbage_cleanup(self.grid.comm)
         if not converged and raise_on_failure:

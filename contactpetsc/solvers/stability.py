@@ -99,14 +99,21 @@ def stability_margin(problem, q_rows: np.ndarray | None, steps: int = 30, tol: f
     nrm = np.sqrt(dot(v, sv))
     if not nrm > 0.0:
         return 1.0   # A S vanishes on the positive part of A
-    V, SV = [v / nrm], [sv / nrm]
+    # the Lanczos vectors v_k and S v_k as rows of two arrays: the re-orthogonalisation is
+    # then two matrix-vector products (one pass over each) and one allreduce per step
+    V = np.empty((steps + 1, v.size))
+    SV = np.empty_like(V)
+    V[0], SV[0] = v.reshape(-1) / nrm, sv.reshape(-1) / nrm
     alphas, betas = [], []
     lam = -np.inf
     for k in range(steps):
-        w = d * SV[-1]                       # T v_k = A S v_k
-        alphas.append(dot(w, SV[-1]))
-        for vi, svi in zip(V, SV):           # full re-orthogonalisation in the S product
-            w -= dot(w, svi) * vi
+        w = d * SV[k].reshape(d.shape)       # T v_k = A S v_k
+        wf = w.reshape(-1)
+        # full re-orthogonalisation in the S product, classical Gram-Schmidt: the
+        # three-term recurrence keeps w nearly orthogonal already, one pass restores it
+        coeffs = comm.allreduce(SV[:k + 1] @ wf)
+        alphas.append(float(coeffs[k]))
+        wf -= coeffs @ V[:k + 1]
         sw = S(w, np.empty_like(w))
         beta2 = dot(w, sw)
         T = np.diag(alphas) + np.diag(betas, 1) + np.diag(betas, -1)
@@ -119,8 +126,7 @@ def stability_margin(problem, q_rows: np.ndarray | None, steps: int = 30, tol: f
             break
         beta = np.sqrt(beta2)
         betas.append(beta)
-        V.append(w / beta)
-        SV.append(sw / beta)
+        V[k + 1], SV[k + 1] = wf / beta, sw.reshape(-1) / beta
     S.destroy()
     return 1.0 - lam
 
