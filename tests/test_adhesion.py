@@ -230,6 +230,20 @@ def test_central_gap_traces_the_unstable_branch(coll):
     assert approach[k - 1] > approach[0] and np.max(approach) > approach[-1]
 
 
+def test_truncated_stability_check_says_so(coll):
+    """A Lanczos run cut short is reported as unsettled, and its margin is an upper bound:
+    Ritz values only grow towards lambda_max(A S)."""
+    pb = sphere_problem(1.0, law="lj", n=64, dx=1.0)
+    pb.snes()
+    pb.stability_steps = 3
+    st = pb.solve(approach=0.5)
+    assert st.converged and st.stability_converged is False
+    pb.stability_steps = 60
+    full = pb._stability()
+    assert pb.stability_converged is True
+    assert full <= st.stability_margin + 1e-12
+
+
 def test_maugis_dugdale_limits():
     assert abs(maugis_pull_off_bar(1e-4) + 2.0) < 1e-3
     assert abs(maugis_pull_off_bar(1e4) + 1.5) < 1e-3

@@ -88,6 +88,9 @@ class AdhesiveState:
     fft_pairs: float
     wall_time: float
     check_time: float = 0.0       #: [s] of wall_time spent on the stability check and the tangent
+    #: False when the Lanczos estimate had not settled after -<prefix>stability_steps: a positive
+    #: margin is then an upper bound (None when not checked)
+    stability_converged: bool | None = None
     solver: str = "newton"
     fallback: bool = False        #: Newton from the previous state failed: a relaxation path was followed
 
@@ -168,6 +171,7 @@ class AdhesiveProblem:
         self._check_time = 0.0          # stability check and tangent time of the current solve
         self._tangent = None            # dx/d delta at the last converged state
         self.compute_tangent = True     # the tangent and stiffness of converged displacement-controlled states
+        self.stability_converged = None  # whether the last stability check's Lanczos settled
         self.history = SolveHistory()
         self._snes = None
         self._n_solves = 0
@@ -897,6 +901,7 @@ class AdhesiveProblem:
             reason=reason, newton_iterations=newton, linear_iterations=linear,
             fft_pairs=self._fft_pairs() - pairs0, wall_time=self.history.elapsed() - t0,
             check_time=self._check_time,
+            stability_converged=self.stability_converged if np.isfinite(margin) else None,
             solver=solver, fallback=solver.endswith(("+ptc", "+relaxation")))
 
     def total_error(self, a_rows: np.ndarray, gap_rows: np.ndarray) -> float:

@@ -78,7 +78,13 @@ class _Compliance:
 
 
 def stability_margin(problem, q_rows: np.ndarray | None, steps: int = 30, tol: float = 1e-4) -> float:
-    """1 - lambda_max(A S) at the problem's last gap (see the module doc); collective."""
+    """1 - lambda_max(A S) at the problem's last gap (see the module doc); collective.
+
+    Sets ``problem.stability_converged``: False when Lanczos ran its ``steps`` without
+    the Ritz value settling to ``tol``.  The Ritz value only grows towards lambda_max, so
+    an unsettled positive margin is an upper bound: the state may still be unstable
+    (seen on rough surfaces, whose top of A S is a cluster of asperity modes)."""
+    problem.stability_converged = True
     g = problem.grid
     comm = g.mpi_comm
     gap = problem._g
@@ -124,6 +130,8 @@ def stability_margin(problem, q_rows: np.ndarray | None, steps: int = 30, tol: f
         lam = new
         if done:
             break
+        if k == steps - 1:
+            problem.stability_converged = False
         beta = np.sqrt(beta2)
         betas.append(beta)
         V[k + 1], SV[k + 1] = wf / beta, sw.reshape(-1) / beta
