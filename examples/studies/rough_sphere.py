@@ -10,9 +10,10 @@ R, E*, z0 and the load and lower w to give Tabor parameters 2 (w = 0.0734)
 and 1 (w = 0.0259): the elements must resolve the adhesive zone, and the
 nodes that takes grow as mu^2 (p_peak dx / (E* z0) < ~1 with a window of a
 few contact radii); mu = 5 needs ~6x finer grids than mu = 2 for the same
-snap number K_ii max da/dg (0.80 at mu = 2, 64^2): ``--size tabor5``, 384^2,
-rms 0 and 1 z0 (measured: more than 25 min for the first load-unload cycle on
-one rank; docs/studies.md).  The roughness: Gaussian autocorrelation,
+snap number K_ii max da/dg (0.80 at mu = 2, 64^2): ``--size tabor5``, 512^2,
+rms 0 and 1 z0 (measured with run_scripts/tabor5_steps.py: at rms 0 every
+loading step converges, the jump-in included, 20-25 s a step after it, 13 z0
+of approach to the load; 384^2 fails at the jump-in; docs/studies.md).  The roughness: Gaussian autocorrelation,
 correlation length a_JKR / 6.
 
 For each Tabor parameter and rms: loading in displacement control from
@@ -43,8 +44,11 @@ W_PAPER = 0.29                                            # J/m^2: mu = 5
 SIZES = {
     "small": dict(n=32, rms=[0.0, 2.0], tabor=[1.0], step=1.0, fig8=True),
     "default": dict(n=64, rms=[0.0, 0.5, 1.0, 2.0, 4.0, 10.0], tabor=[2.0, 1.0], step=0.5, fig8=True),
-    # the paper's own Tabor parameter, reduced: K_ii max da/dg = 0.75 (< 1: each node stable)
-    "tabor5": dict(n=384, rms=[0.0, 1.0], tabor=[5.0], step=1.0, fig8=False),
+    # the paper's own Tabor parameter: K_ii max da/dg = 0.56, 1.9 nodes per cohesive zone
+    # (384^2, 0.75 and 1.4, failed at the jump-in; 512^2 follows it)
+    # 400 Newton steps: at rms = z0 the jump-in at -3 z0 needs more than 100 on the coarse
+    # levels of the nested iteration (with 100 it failed, PTC too; with 400 it converged)
+    "tabor5": dict(n=512, rms=[0.0, 1.0], tabor=[5.0], step=1.0, fig8=False, options=dict(max_it=400)),
 }
 
 
@@ -93,6 +97,7 @@ def load_unload(grid, heights, e_star, w, step, prefix, unload=True, refine=4):
 
 def run(size="default", outdir="rough-sphere-output") -> dict:
     import numpy as np
+    from petsc4py import PETSc
     from contactpetsc import metrics, surfaces
     from contactpetsc.physics.interactions import tabor_parameter
 
@@ -104,6 +109,10 @@ def run(size="default", outdir="rough-sphere-output") -> dict:
     for mu in cfg["tabor"]:
         w = work_for(mu)
         resolution = 16 * w / (9 * np.sqrt(3) * Z0) * grid.dx / (E_STAR * Z0)
+        opts = PETSc.Options(f"rough_mu{mu:g}_")
+        for key, value in cfg.get("options", {}).items():
+            if not opts.hasName(key):   # code defaults of this size; the command line wins
+                opts.setValue(key, value)
         for rms in cfg["rms"]:
             rough = surfaces.scale_to_rms(grid, base, rms * Z0)
             h = surfaces.rough_sphere(grid, R, rough)
