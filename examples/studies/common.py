@@ -17,9 +17,12 @@ from pathlib import Path
 import numpy as np
 
 
-def parse(description: str, default_out: str, sizes=("small", "default")):
-    """(args, PETSc options) of a study's command line; initialises petsc4py with the rest."""
+def parse(description: str, default_out: str, sizes=("small", "default"), extra=None):
+    """(args, PETSc options) of a study's command line; initialises petsc4py with the rest.
+    ``extra(parser)`` adds a study's own arguments."""
     ap = argparse.ArgumentParser(description=description)
+    if extra is not None:
+        extra(ap)
     ap.add_argument("--size", choices=sizes, default="default",
                     help="small: seconds, for tests; default: the study itself (minutes); "
                          "others: see the study's docstring")

@@ -1,6 +1,6 @@
 """Rough spheres (reference paper, section 3.2, Figs. 6-9).
 
-    python examples/studies/rough_sphere.py [--size small|default|tabor5] [--out DIR]
+    python examples/studies/rough_sphere.py [--size small|default|tabor5] [--rms Z ...] [--out DIR]
     mpirun -n 2 python examples/studies/rough_sphere.py
 
 The paper: a sphere R = 100 um, E* = 50 GPa, z0 = 0.3 nm, w = 0.29 J/m^2
@@ -95,13 +95,15 @@ def load_unload(grid, heights, e_star, w, step, prefix, unload=True, refine=4):
     return path, at_load, pb
 
 
-def run(size="default", outdir="rough-sphere-output") -> dict:
+def run(size="default", outdir="rough-sphere-output", rms=None) -> dict:
     import numpy as np
     from petsc4py import PETSc
     from contactpetsc import metrics, surfaces
     from contactpetsc.physics.interactions import tabor_parameter
 
-    cfg = SIZES[size]
+    cfg = dict(SIZES[size])
+    if rms is not None:
+        cfg["rms"] = [float(r) for r in rms]   # a subset of rms values [z0], e.g. one per job
     out = common.prepare(outdir)
     grid, _ = make_grid(cfg["n"], cfg["tabor"][0])
     base = roughness(grid)
@@ -234,5 +236,7 @@ def _plots(out, grid, cfg, rows, maps, paths):
 
 
 if __name__ == "__main__":
-    args = common.parse(__doc__.splitlines()[0], "rough-sphere-output", sizes=tuple(SIZES))
-    run(args.size, args.out)
+    args = common.parse(__doc__.splitlines()[0], "rough-sphere-output", sizes=tuple(SIZES),
+                        extra=lambda ap: ap.add_argument("--rms", type=float, nargs="+",
+                                                         help="rms values [z0] instead of the size's"))
+    run(args.size, args.out, rms=args.rms)
