@@ -13,8 +13,8 @@ few contact radii); mu = 5 needs ~6x finer grids than mu = 2 for the same
 snap number K_ii max da/dg (0.80 at mu = 2, 64^2): ``--size tabor5``, 512^2,
 rms 0 and 1 z0 (measured with run_scripts/tabor5_steps.py: at rms 0 every
 loading step converges, the jump-in included, 20-25 s a step after it, 13 z0
-of approach to the load; 384^2 fails at the jump-in; docs/studies.md).  The roughness: Gaussian autocorrelation,
-correlation length a_JKR / 6.
+of approach to the load; 384^2 fails at the jump-in; docs/studies.md).  The
+roughness: Gaussian autocorrelation, correlation length a_JKR / 6.
 
 For each Tabor parameter and rms: loading in displacement control from
 separation to the load (Newton on the approach for the last step), the
