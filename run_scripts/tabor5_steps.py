@@ -2,7 +2,9 @@
 approach steps of 1 z0 from -5 z0, every solve's outcome and reason printed (a reproducer).
 
     python run_scripts/tabor5_steps.py N RMS_Z0 BUDGET_S [PETSc options]
-    python run_scripts/tabor5_steps.py 384 0 420      # fails at -4 z0 (docs/studies.md)
+    python run_scripts/tabor5_steps.py 384 0 420      # fails at -4 z0, the jump-in (docs/studies.md)
+    python run_scripts/tabor5_steps.py 512 0 1500     # loads through the jump-in to 0.05 mN
+    python run_scripts/tabor5_steps.py 512 1 1500 -mu5_max_it 400   # rms = z0: jump-in at -3 z0
 """
 import os
 import sys

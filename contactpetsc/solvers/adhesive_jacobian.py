@@ -80,11 +80,11 @@ class ReducedAdhesiveJacobian:
         g = self.grid = parent.grid
         nb = pb.n_blocks
         self.set = InactiveSet(index_set, pb.offset, nb * g.ny_local * g.nx)
-        self.idx, self.n_local = self.set.idx, self.set.n_local
+        self.n_local = self.set.n_local
         self.full_in = np.zeros((nb, g.ny_local, g.nx))
         self.full_out = np.zeros_like(self.full_in)
         self.masks = np.zeros((nb, g.ny_local, g.nx), bool)
-        self.masks.reshape(-1)[self.idx] = True
+        self.masks.reshape(-1)[self.set.idx] = True
 
     def to_full(self, x: PETSc.Vec, out: np.ndarray) -> np.ndarray:
         return self.set.to_full(x, out)

@@ -81,7 +81,7 @@ class ReducedJacobian:
         self.op = parent.op
         g = self.grid = self.op.grid
         self.set = InactiveSet(index_set, g.nx * g.ys, g.nx * g.ny_local)
-        self.idx, self.n_local = self.set.idx, self.set.n_local
+        self.n_local = self.set.n_local
         # SNES VI asks for a new sub-matrix at every Newton step: the grid-sized work
         # arrays live in the parent's cache (one reduced Mat is in use at a time)
         buffers = parent.cache.get("reduced_buffers")
@@ -90,7 +90,7 @@ class ReducedJacobian:
             buffers = parent.cache["reduced_buffers"] = (np.empty(shape, bool), np.empty(shape), np.empty(shape))
         self.mask, self.full_in, self.full_out = buffers
         self.mask.fill(False)
-        self.mask.reshape(-1)[self.idx] = True
+        self.mask.reshape(-1)[self.set.idx] = True
         self.full_in.fill(0.0)
         n_set = g.mpi_comm.allreduce(self.n_local)
         # On a periodic cell K has no mean mode: with every node inactive K_II = K is
