@@ -235,3 +235,40 @@ def central_gap_path(problem, central_gaps, *, on_state=None, path: Path | None 
         if st.converged and on_state is not None:
             on_state(k, st, pt)
     return path
+
+
+def edge_gap_path(problem, step: float, min_gap: float, *, direction: tuple[int, int] = (1, 0),
+                  stop=None, max_nodes: int | None = None, on_state=None, path: Path | None = None) -> Path:
+    """The rest of the S-curve once the apex touches: prescribed gaps at nodes moving outward.
+
+    Past the point where the central node touches, its gap no longer picks one state
+    (at g <= 0 the solves leave the branch for full contact); the contact radius,
+    though, grows along the whole curve -- the unstable branch and the adhered one
+    beyond the jump-off fold.  So the control node steps outward along ``direction``
+    from the present one (``problem.set_control_node``), one node at a time, and each
+    node's gap is prescribed from its present value down to ``min_gap`` [m] in steps
+    of ``step`` [m]: the contact edge is led across the grid node by node.  Every state
+    is kept, unstable ones marked (branch "edge-gap"; the point's ``central_gap`` is the
+    control node's gap).  Ends when ``stop(point)`` is true for a converged point, at
+    the first failed solve, after ``max_nodes`` nodes, or at the grid's edge."""
+    path = Path() if path is None else path
+    g = problem.grid
+    j0, i0 = divmod(problem.centre_index, g.nx)
+    k = 0
+    for m in range(1, max_nodes + 1 if max_nodes else 1 << 30):
+        i, j = i0 + m * direction[0], j0 + m * direction[1]
+        if not (0 <= i < g.nx and 0 <= j < g.ny):
+            break
+        problem.set_control_node((i, j))
+        for gap in np.arange(problem.control_gap() - step, min_gap - 1e-12 * step, -step):
+            st = problem.solve(central_gap=float(gap), raise_on_failure=False)
+            pt = _point(k, "edge-gap", st)
+            k += 1
+            path.points.append(pt)
+            if not st.converged:
+                return path
+            if on_state is not None:
+                on_state(k, st, pt)
+            if stop is not None and stop(pt):
+                return path
+    return path

@@ -11,7 +11,7 @@ import pytest
 from petsc4py import PETSc
 
 from contactpetsc.grid import SurfaceGrid
-from contactpetsc.paths import central_gap_path, refine_pull_off, sweep
+from contactpetsc.paths import central_gap_path, edge_gap_path, refine_pull_off, sweep
 from contactpetsc.physics.interactions import make_law
 from contactpetsc.physics.maugis import dmt_force, maugis_pull_off_bar
 from contactpetsc.physics.traction import AdhesiveTraction
@@ -228,6 +228,35 @@ def test_central_gap_traces_the_unstable_branch(coll):
     k = stable.index(False)
     # the approach has a maximum on the unstable stretch: the fold of the S-curve
     assert approach[k - 1] > approach[0] and np.max(approach) > approach[-1]
+
+
+def test_edge_gap_path_closes_the_s_curve_on_the_adhered_branch(coll):
+    """Past the apex touching, prescribed gaps at nodes further out carry the S-curve
+    through the rest of the unstable branch and its fold (the jump-off) onto the adhered
+    branch: the last state equals the state that displacement-controlled unloading from
+    compression reaches at the same approach (an independent path to it)."""
+    pb = sphere_problem(2.0, law="lj", n=64, dx=1.5, element_integration=True, prefix="edge_")
+    path = central_gap_path(pb, np.round(np.arange(2.0, 0.04, -0.1), 10))
+    fold = [min(path.column("approach"))]
+
+    def back_on_adhered_branch(pt):
+        fold[0] = min(fold[0], pt.approach)
+        return bool(pt.stable) and pt.approach > fold[0] + 1.0
+
+    k0 = len(path.points)
+    edge_gap_path(pb, 0.1, 0.05, stop=back_on_adhered_branch, path=path)
+    edge = path.points[k0:]
+    assert all(p.converged for p in edge) and edge[-1].stable
+    stable = [p.stable for p in edge]
+    assert stable[0] is False                      # it continues the unstable branch
+    approach = np.array([p.approach for p in edge])
+    k = int(np.argmin(approach))
+    assert approach[k] < approach[0] - 0.1 and approach[k] < approach[-1] - 1.0   # the fold
+    end = edge[-1]
+    ref = sphere_problem(2.0, law="lj", n=64, dx=1.5, element_integration=True, prefix="edge_ref_")
+    down = np.arange(2.0, end.approach, -0.5)
+    unload = sweep(ref, np.concatenate([np.arange(-3.0, 2.01, 0.5), down, [end.approach]]), refine=0)
+    assert coll.max(abs(unload.points[-1].force / end.force - 1)) < 1e-6
 
 
 def test_truncated_stability_check_says_so(coll):

@@ -152,20 +152,7 @@ class AdhesiveProblem:
         n_local = self.n_blocks * grid.nx * grid.ny_local
         self.offset = comm.scan(n_local) - n_local
         self.n_local, self.n_global = n_local, comm.allreduce(n_local)
-        # the centre node: where h is lowest (the apex of a sphere), smallest index on ties
-        if centre is None:
-            h = grid.rows(heights, readonly=True)
-            k = int(np.argmin(h))
-            _, centre_index = minloc(comm, h.reshape(-1)[k], k + grid.nx * grid.ys)
-        else:
-            i, j = centre
-            if not (0 <= i < grid.nx and 0 <= j < grid.ny):
-                raise ValueError(f"centre node {centre} outside the {grid.nx} x {grid.ny} grid")
-            centre_index = int(j) * grid.nx + int(i)
-        self.centre_index = centre_index
-        j_c, i_c = divmod(centre_index, grid.nx)
-        self._centre_local = (j_c - grid.ys, i_c) if grid.ys <= j_c < grid.ye else None
-        self._centre_rank = comm.allreduce(comm.Get_rank() if self._centre_local else 0)
+        self.set_control_node(centre)
         self.centre_owner = None        # set while central-gap control is active
         self.shift = 0.0                # pseudo-transient continuation shift (0: plain Newton)
         self._check_time = 0.0          # stability check and tangent time of the current solve
@@ -191,6 +178,33 @@ class AdhesiveProblem:
         self._v2 = np.zeros_like(self._g)
 
     # -- layout ------------------------------------------------------------------------
+    def set_control_node(self, node: tuple[int, int] | None = None) -> None:
+        """The node (i, j) whose gap ``solve(central_gap=...)`` prescribes; None: the lowest
+        node of h (the apex of a sphere), the smallest index on ties.  Past the point where
+        the apex touches, the central gap no longer picks one state of the S-curve; the gap
+        of a node further out, which the contact edge has not reached yet, does (the
+        contact radius grows monotonically along the whole curve).  Collective."""
+        grid, comm = self.grid, self.grid.mpi_comm
+        if node is None:
+            h = grid.rows(self.heights, readonly=True)
+            k = int(np.argmin(h))
+            _, index = minloc(comm, h.reshape(-1)[k], k + grid.nx * grid.ys)
+        else:
+            i, j = node
+            if not (0 <= i < grid.nx and 0 <= j < grid.ny):
+                raise ValueError(f"control node {node} outside the {grid.nx} x {grid.ny} grid")
+            index = int(j) * grid.nx + int(i)
+        self.centre_index = index
+        j_c, i_c = divmod(index, grid.nx)
+        self._centre_local = (j_c - grid.ys, i_c) if grid.ys <= j_c < grid.ye else None
+        self._centre_rank = comm.allreduce(comm.Get_rank() if self._centre_local else 0)
+
+    def control_gap(self) -> float:
+        """The present state's gap [m] at the control node (``set_control_node``); collective."""
+        if self._approach is None:
+            raise RuntimeError("control_gap: no state yet (solve first)")
+        return self.centre_value(self._gap(self.blocks(self._x, readonly=True), self._g))
+
     def blocks(self, vec: PETSc.Vec, readonly: bool = False) -> np.ndarray:
         """The rank's part of an unknown Vec as (n_blocks, ny_loc, nx): [q,] a."""
         return vec.getArray(readonly=readonly).reshape(self.n_blocks, self.grid.ny_local, self.grid.nx)

@@ -128,11 +128,11 @@ def pressure_map(ax, grid, pressure, title="", scale=1.0, unit="Pa", extent_unit
 
 def load_approach(ax, path, x_scale, y_scale, label, color, unstable_hollow=True):
     """Loading (filled, ->) and unloading (hollow, <-) markers of a ``paths.Path``; unstable
-    central-gap states hollow squares."""
+    prescribed-gap states (central gap, then edge gap: one S-curve) hollow squares."""
     pts = [p for p in path.points if p.converged]
     for branch, marker, face in (("loading", "o", color), ("unloading", "v", "none"),
                                  ("central-gap", "s", None)):
-        sel = [p for p in pts if p.branch == branch]
+        sel = [p for p in pts if p.branch == branch or (branch == "central-gap" and p.branch == "edge-gap")]
         if not sel:
             continue
         x = np.array([p.approach for p in sel]) / x_scale
@@ -140,10 +140,10 @@ def load_approach(ax, path, x_scale, y_scale, label, color, unstable_hollow=True
         if branch == "central-gap":
             stable = np.array([p.stable is not False for p in sel])
             ax.plot(x, y, "-", color=color, lw=0.8)
-            ax.plot(x[stable], y[stable], "s", mfc=color, mec=color, ms=3, label=f"{label}, central gap (stable)")
+            ax.plot(x[stable], y[stable], "s", mfc=color, mec=color, ms=3, label=f"{label}, prescribed gap (stable)")
             if unstable_hollow and (~stable).any():
                 ax.plot(x[~stable], y[~stable], "s", mfc="none", mec=color, ms=3,
-                        label=f"{label}, central gap (unstable)")
+                        label=f"{label}, prescribed gap (unstable)")
             continue
         ax.plot(x, y, "-" + marker, color=color, mfc=face, ms=4, lw=0.8,
                 label=f"{label}, {branch} ({'->' if branch == 'loading' else '<-'})")

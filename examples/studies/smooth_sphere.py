@@ -11,7 +11,9 @@ R = 100 (mu = 2):
          the law over the Hertz gap) and the DMT pull-off -2 pi R w;
   (c)    mu = 2, the lj law (the paper's Fig. 4c), loading and unloading under
          displacement control (jump-on, jump-off), and the full S-curve by
-         prescribing the central gap (Greenwood's device); pull-off beside
+         prescribing the central gap (Greenwood's device) and, once the apex
+         touches, the gap of nodes further out (``paths.edge_gap_path``): the
+         unstable branch, the jump-off fold and the adhered branch; pull-off beside
          Maugis-Dugdale with lambda = 1.16 mu.  (The hard-wall law at mu = 2
          is left out: at 48^2 its states in compression stop with DIVERGED_MAX_IT,
          the adhesive zone spanning 1.2 grid spacings; docs/studies.md.)
@@ -55,7 +57,7 @@ def greenwood_case(mu, radius, law_name, n, dx, approaches, prefix, central_gaps
     import numpy as np
     from contactpetsc import surfaces
     from contactpetsc.grid import SurfaceGrid
-    from contactpetsc.paths import central_gap_path, refine_pull_off, sweep
+    from contactpetsc.paths import central_gap_path, edge_gap_path, refine_pull_off, sweep
     from contactpetsc.physics.interactions import make_law
     from contactpetsc.solvers.adhesive import AdhesiveProblem
 
@@ -71,6 +73,15 @@ def greenwood_case(mu, radius, law_name, n, dx, approaches, prefix, central_gaps
         cg = AdhesiveProblem(grid, pb.heights, 1.0, law, prefix=prefix + "cg_", operator=pb.op,
                              element_integration=True)
         s_curve = central_gap_path(cg, central_gaps)
+        # the far end: the contact edge led outward node by node, until the curve is back on
+        # the stable adhered branch 1 z0 above its fold (the jump-off)
+        fold = [min(p.approach for p in s_curve.points if p.converged)]
+
+        def back_on_adhered_branch(pt):
+            fold[0] = min(fold[0], pt.approach)
+            return bool(pt.stable) and pt.approach > fold[0] + 1.0
+
+        edge_gap_path(cg, 0.1, 0.05, stop=back_on_adhered_branch, path=s_curve)
     return dict(w=w, law=law, grid=grid, path=path, pull_off=pull, s_curve=s_curve)
 
 
