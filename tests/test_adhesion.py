@@ -167,6 +167,20 @@ def test_newton_and_relaxation_agree(coll):
     assert e[-1] <= 1e-4 < e[0]
 
 
+def test_stiffness_is_the_force_slope_and_belongs_to_its_state(coll):
+    """The tangent stiffness (computed on first access) is dW/d delta: central differences of
+    the force over two further solves agree; a state read after the problem has moved on
+    reports NaN rather than another state's stiffness."""
+    pb = sphere_problem(1.0, law="lj", n=64, dx=1.0, prefix="stiff_")
+    h = 1e-3
+    st = pb.solve(approach=0.5)
+    k = st.stiffness
+    lo, hi = pb.solve(approach=0.5 - h), pb.solve(approach=0.5 + h)
+    # the tangent is solved to rtol 1e-2 (a predictor and a jump test need no more)
+    assert coll.max(abs((hi.force - lo.force) / (2 * h) / k - 1)) < 1e-2
+    assert np.isnan(lo.stiffness) and np.isfinite(hi.stiffness) and hi.stiffness > 0
+
+
 def test_relaxation_rejects_the_full_lj_curve(coll):
     pb = sphere_problem(0.5, law="lj", n=16)
     coll.raises(ValueError, ["hard-wall law", "Newton"], RelaxationSolver, pb)

@@ -37,9 +37,10 @@ section 2), computed for every converged state.
 """
 from __future__ import annotations
 
+import functools
 import time
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from mpi4py import MPI
@@ -80,7 +81,6 @@ class AdhesiveState:
     total_error: float            #: the paper's E_Total [z0]
     stable: bool | None           #: None when not checked
     stability_margin: float       #: 1 - lambda_max(A S): > 0 stable, < 0 unstable
-    stiffness: float              #: tangent dF/d delta [N/m] (displacement control), NaN if not computed
     converged: bool
     reason: str
     newton_iterations: int
@@ -93,6 +93,20 @@ class AdhesiveState:
     stability_converged: bool | None = None
     solver: str = "newton"
     fallback: bool = False        #: Newton from the previous state failed: a relaxation path was followed
+    _stiffness_source: object = field(default=None, repr=False, compare=False)
+    _stiffness: float = field(default=float("nan"), repr=False, compare=False)
+
+    @property
+    def stiffness(self) -> float:
+        """Tangent dF/d delta [N/m] of a converged displacement-controlled state: one Krylov
+        solve with the Jacobian, done on first access (a sweep reads it for its jump test,
+        load control for its update; a state nobody asks about skips it).  NaN when not
+        computable: load-controlled or failed solves, or read only after the problem
+        has moved on to another state.  Its time is not in ``check_time``."""
+        if self._stiffness_source is not None:
+            self._stiffness = self._stiffness_source()
+            self._stiffness_source = None
+        return self._stiffness
 
 
 class AdhesiveProblem:
@@ -156,7 +170,9 @@ class AdhesiveProblem:
         self.centre_owner = None        # set while central-gap control is active
         self.shift = 0.0                # pseudo-transient continuation shift (0: plain Newton)
         self._check_time = 0.0          # stability check and tangent time of the current solve
-        self._tangent = None            # dx/d delta at the last converged state
+        self._tangent = None            # (approach, dx/d delta, dF/d delta) at the last converged state
+        self._tangent_due = None        # (approach, state number) of a state whose tangent is not computed yet
+        self._n_states = 0
         self.compute_tangent = True     # the tangent and stiffness of converged displacement-controlled states
         self.stability_converged = None  # whether the last stability check's Lanczos settled
         self.history = SolveHistory()
@@ -604,16 +620,17 @@ class AdhesiveProblem:
     def snapshot(self):
         """The current unknowns, approach and tangent: to come back to (e.g. to bisect a jump)."""
         self._build()
-        tangent = None if self._tangent is None else (self._tangent[0], self._tangent[1].copy())
+        self._ensure_tangent()
+        tangent = None if self._tangent is None else (self._tangent[0], self._tangent[1].copy(), self._tangent[2])
         return self._x.copy(), self._approach, tangent
 
     def restore(self, snap) -> None:
         x, approach, tangent = snap
         x.copy(self._x)
         self._approach = approach
-        if self._tangent is not None:
-            self._tangent[1].destroy()
-        self._tangent = None if tangent is None else (tangent[0], tangent[1].copy())
+        self._drop_tangent()
+        self._n_states += 1   # states solved since the snapshot no longer match the unknowns
+        self._tangent = None if tangent is None else (tangent[0], tangent[1].copy(), tangent[2])
         self._started = True
 
     def _load_from_rest(self, approach, raise_on_failure, check_stability) -> AdhesiveState:
@@ -639,9 +656,7 @@ class AdhesiveProblem:
             # a jump on the way that no relaxation path reached (strong adhesion with a hard
             # wall): start again from the Signorini solution at the target itself
             self._initial_guess(approach)
-            if self._tangent is not None:
-                self._tangent[1].destroy()
-                self._tangent = None
+            self._drop_tangent()
             st = self.solve(approach=approach, raise_on_failure=False, check_stability=check_stability)
             newton, linear = newton + st.newton_iterations, linear + st.linear_iterations
             st.solver += " (from the Signorini state: loading from rest failed)"
@@ -747,6 +762,8 @@ class AdhesiveProblem:
         self._check_time = 0.0
         x_start = self._x.copy()
         coarse_predicted = approach is not None and self._coarse_step(float(approach))
+        if not coarse_predicted and approach is not None and self.use_predictor:
+            self._ensure_tangent()   # x is still the previous state
         if (not coarse_predicted and approach is not None and self.use_predictor
                 and self._tangent is not None):
             # Euler predictor along the branch: x + dx/d delta * (delta - delta_prev)
@@ -819,6 +836,30 @@ class AdhesiveProblem:
         local.append(np.arange(xb[-1].size) + (xb[-1].size if self.hard_wall else 0))
         idx = (np.concatenate(local) + self.offset).astype(PETSc.IntType)
         return PETSc.IS().createGeneral(idx, comm=self.grid.comm)
+
+    def _drop_tangent(self) -> None:
+        if self._tangent is not None:
+            self._tangent[1].destroy()
+        self._tangent = self._tangent_due = None
+
+    def _ensure_tangent(self) -> None:
+        """Compute the tangent of the present state if it is due (see ``_state``)."""
+        if self._tangent_due is None:
+            return
+        approach, _ = self._tangent_due
+        self._tangent_due = None
+        here, self._approach = self._approach, approach   # the state's own approach
+        tv, stiffness = self.tangent()
+        self._approach = here
+        self._tangent = (approach, tv, stiffness)
+
+    def _stiffness_of(self, number: int) -> float:
+        """dF/d delta [N/m] of state ``number`` if the problem still holds it, else NaN."""
+        if self._tangent_due is not None and self._tangent_due[1] == number:
+            self._ensure_tangent()
+        if self._tangent is not None and number == self._n_states:
+            return self._tangent[2]
+        return float("nan")
 
     def tangent(self) -> tuple[PETSc.Vec, float]:
         """(dx/d delta, dF/d delta [N/m]) at the current state: J_II t = -dF/d delta on the
@@ -898,22 +939,22 @@ class AdhesiveProblem:
         if beyond and converged:
             converged, reason = False, "LJ_BEYOND_SAFE_RANGE (z < 0.5 z0: pressure beyond the law's sane range)"
         stable = None if not np.isfinite(margin) else bool(margin > 0)
-        stiffness = float("nan")
-        if self._tangent is not None:
-            self._tangent[1].destroy()
-            self._tangent = None
+        self._drop_tangent()
+        self._n_states += 1
+        source = None
         if tangent and converged:
-            t_check = self.history.elapsed()
-            tv, stiffness = self.tangent()
-            self._tangent = (self._approach, tv)
-            self._check_time += self.history.elapsed() - t_check
+            # computed when first needed: the next step's predictor (where the coarse grid
+            # gives none) or the state's stiffness -- isolated states skip it (rough
+            # benchmark at 1024^2: 1-2 s a state)
+            self._tangent_due = (self._approach, self._n_states)
+            source = functools.partial(self._stiffness_of, self._n_states)
         area = g.lengths[0] * g.lengths[1]
         return AdhesiveState(
             pressure=p, contact_pressure=q, adhesive_pressure=a, gap=gap, displacement=v,
             approach=self._approach, central_gap=self.centre_value(gap_rows),
             mean_pressure=mean_p, force=mean_p * area, adhesive_force=adhesive_force,
             contact_fraction=frac, complementarity_error=err_c, adhesive_error=err_a,
-            total_error=total, stable=stable, stability_margin=margin, stiffness=stiffness,
+            total_error=total, stable=stable, stability_margin=margin, _stiffness_source=source,
             converged=converged,
             reason=reason, newton_iterations=newton, linear_iterations=linear,
             fft_pairs=self._fft_pairs() - pairs0, wall_time=self.history.elapsed() - t0,
