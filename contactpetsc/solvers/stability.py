@@ -105,21 +105,22 @@ def stability_margin(problem, q_rows: np.ndarray | None, steps: int = 30, tol: f
     nrm = np.sqrt(dot(v, sv))
     if not nrm > 0.0:
         return 1.0   # A S vanishes on the positive part of A
-    # the Lanczos vectors v_k and S v_k as rows of two arrays: the re-orthogonalisation is
-    # then two matrix-vector products (one pass over each) and one allreduce per step
-    V = np.empty((steps + 1, v.size))
-    SV = np.empty_like(V)
-    V[0], SV[0] = v.reshape(-1) / nrm, sv.reshape(-1) / nrm
+    # the plain three-term recurrence, no re-orthogonalisation: only lambda_max is wanted,
+    # and lost orthogonality only adds copies of converged Ritz values (Paige); the top
+    # one still grows monotonically (T_k is a leading block of T_k+1) and stays below
+    # lambda_max.  Two vectors instead of 2 x steps: at 512^2 on the rough benchmark, 30
+    # steps took 0.18 s against 0.65 s with full re-orthogonalisation, margins within 1 %
+    v, sv = v / nrm, sv / nrm
+    v_prev = None
     alphas, betas = [], []
-    lam = -np.inf
+    lam, beta = -np.inf, 0.0
     for k in range(steps):
-        w = d * SV[k].reshape(d.shape)       # T v_k = A S v_k
-        wf = w.reshape(-1)
-        # full re-orthogonalisation in the S product, classical Gram-Schmidt: the
-        # three-term recurrence keeps w nearly orthogonal already, one pass restores it
-        coeffs = comm.allreduce(SV[:k + 1] @ wf)
-        alphas.append(float(coeffs[k]))
-        wf -= coeffs @ V[:k + 1]
+        w = d * sv                           # T v_k = A S v_k
+        alpha = dot(sv, w)
+        alphas.append(alpha)
+        w -= alpha * v
+        if v_prev is not None:
+            w -= beta * v_prev
         sw = S(w, np.empty_like(w))
         beta2 = dot(w, sw)
         T = np.diag(alphas) + np.diag(betas, 1) + np.diag(betas, -1)
@@ -134,7 +135,7 @@ def stability_margin(problem, q_rows: np.ndarray | None, steps: int = 30, tol: f
             problem.stability_converged = False
         beta = np.sqrt(beta2)
         betas.append(beta)
-        V[k + 1], SV[k + 1] = wf / beta, sw.reshape(-1) / beta
+        v_prev, v, sv = v, w / beta, sw / beta
     S.destroy()
     return 1.0 - lam
 
