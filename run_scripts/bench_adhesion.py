@@ -13,7 +13,9 @@ Cases
   the full LJ curve with z0 = dx and w = 0.05 E* dx, three approaches giving
   about 2 %, 10 % and 25 % contact area (p > 0, i.e. z < z0; interpolated on a
   loading sweep of our solver, untimed),
-  solved in turn with warm starts by Newton, and by ContactMechanics + Adhesion
+  solved in turn with warm starts by Newton (``-ours<i>_stiffness false``: the
+  isolated states need no tangent stiffness, and the peer computes none), and
+  by ContactMechanics + Adhesion
   (``run_scripts/peers/cm_adhesion.py`` in the peer venv, same heights, same
   approaches) with the same law (``--potential vdw82`` is exactly our lj law;
   lj93 is Adhesion's 9-3 potential with the same w and equilibrium distance).
@@ -187,6 +189,11 @@ def rough_cases():
                 refs = [ref.solve(approach=d, raise_on_failure=False) for d in approaches]
                 for i, tol in enumerate(args.tol):
                     # each tolerance runs the whole path afresh (same warm starts)
+                    # isolated states: no per-state stiffness (the peer computes none; the
+                    # tangent is still solved where a predictor needs it); the command line wins
+                    opts = PETSc.Options(f"ours{i}_")
+                    if not opts.hasName("stiffness"):
+                        opts.setValue("stiffness", False)
                     pb = AdhesiveProblem(grid, h, 1.0, law, prefix=f"ours{i}_", tol=tol)
                     for d, st_ref in zip(approaches, refs):
                         t = time.perf_counter()

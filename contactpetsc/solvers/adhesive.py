@@ -37,10 +37,9 @@ section 2), computed for every converged state.
 """
 from __future__ import annotations
 
-import functools
 import time
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from mpi4py import MPI
@@ -81,6 +80,7 @@ class AdhesiveState:
     total_error: float            #: the paper's E_Total [z0]
     stable: bool | None           #: None when not checked
     stability_margin: float       #: 1 - lambda_max(A S): > 0 stable, < 0 unstable
+    stiffness: float              #: tangent dF/d delta [N/m] (displacement control); NaN if not computed (-<prefix>stiffness false)
     converged: bool
     reason: str
     newton_iterations: int
@@ -93,20 +93,6 @@ class AdhesiveState:
     stability_converged: bool | None = None
     solver: str = "newton"
     fallback: bool = False        #: Newton from the previous state failed: a relaxation path was followed
-    _stiffness_source: object = field(default=None, repr=False, compare=False)
-    _stiffness: float = field(default=float("nan"), repr=False, compare=False)
-
-    @property
-    def stiffness(self) -> float:
-        """Tangent dF/d delta [N/m] of a converged displacement-controlled state: one Krylov
-        solve with the Jacobian, done on first access (a sweep reads it for its jump test,
-        load control for its update; a state nobody asks about skips it).  NaN when not
-        computable: load-controlled or failed solves, or read only after the problem
-        has moved on to another state.  Its time is not in ``check_time``."""
-        if self._stiffness_source is not None:
-            self._stiffness = self._stiffness_source()
-            self._stiffness_source = None
-        return self._stiffness
 
 
 class AdhesiveProblem:
@@ -171,8 +157,7 @@ class AdhesiveProblem:
         self.shift = 0.0                # pseudo-transient continuation shift (0: plain Newton)
         self._check_time = 0.0          # stability check and tangent time of the current solve
         self._tangent = None            # (approach, dx/d delta, dF/d delta) at the last converged state
-        self._tangent_due = None        # (approach, state number) of a state whose tangent is not computed yet
-        self._n_states = 0
+        self._tangent_due = None        # approach of the present state when its tangent is not computed yet
         self.compute_tangent = True     # the tangent and stiffness of converged displacement-controlled states
         self.stability_converged = None  # whether the last stability check's Lanczos settled
         self.history = SolveHistory()
@@ -273,6 +258,10 @@ class AdhesiveProblem:
             raise ValueError(f"-{self.prefix}time_budget must be >= 0 s (0: no budget), got {self.time_budget!r}")
         self.fallback_max_cycles = opts.getInt("fallback_max_cycles", 5000)
         self.use_predictor = opts.getBool("predictor", True)
+        # every displacement-controlled state's tangent stiffness (one Krylov solve; sweeps
+        # test jumps with it, load control steps with it).  Off: NaN, and the tangent is
+        # solved only where the next step's predictor needs it (no coarse-grid predictor)
+        self.stiffness = opts.getBool("stiffness", True)
         # off by default: at hard-wall, high-Tabor jump-ins the relaxation fallback can need
         # thousands of cycles (measured: mu = 2 sphere, 36.6 s from rest against 6.9 s from
         # the Signorini state); sweeps that start from separation get the same state anyway
@@ -629,7 +618,6 @@ class AdhesiveProblem:
         x.copy(self._x)
         self._approach = approach
         self._drop_tangent()
-        self._n_states += 1   # states solved since the snapshot no longer match the unknowns
         self._tangent = None if tangent is None else (tangent[0], tangent[1].copy(), tangent[2])
         self._started = True
 
@@ -684,23 +672,27 @@ class AdhesiveProblem:
             delta = float(self.heights.min()[1])
         scale = max(abs(force), 2.0 * np.pi * self.law.work_of_adhesion * self.z0 * 1e3)
         st = None
-        for _ in range(max_updates):
-            st = self.solve(approach=delta, raise_on_failure=False)
-            if not st.converged:
-                break
-            miss = force - st.force
-            if abs(miss) <= rel_tol * scale:
-                return st
-            if not (st.stiffness > 0 and st.stable):
+        eager, self.stiffness = self.stiffness, True    # the updates step with dW/d delta
+        try:
+            for _ in range(max_updates):
+                st = self.solve(approach=delta, raise_on_failure=False)
+                if not st.converged:
+                    break
+                miss = force - st.force
+                if abs(miss) <= rel_tol * scale:
+                    return st
+                if not (st.stiffness > 0 and st.stable):
+                    st.converged = False
+                    st.reason = (f"LOAD_CONTROL_UNSTABLE (dW/d delta = {st.stiffness:.3e} N/m at approach "
+                                 f"{st.approach:.4e} m, force {st.force:.4e} N): the target is beyond the end of "
+                                 f"a stable branch under load control; use displacement control")
+                    break
+                delta = st.approach + miss / st.stiffness
+            else:
                 st.converged = False
-                st.reason = (f"LOAD_CONTROL_UNSTABLE (dW/d delta = {st.stiffness:.3e} N/m at approach "
-                             f"{st.approach:.4e} m, force {st.force:.4e} N): the target is beyond the end of "
-                             f"a stable branch under load control; use displacement control")
-                break
-            delta = st.approach + miss / st.stiffness
-        else:
-            st.converged = False
-            st.reason = f"DIVERGED_LOAD_ITERATION ({max_updates} approach updates)"
+                st.reason = f"DIVERGED_LOAD_ITERATION ({max_updates} approach updates)"
+        finally:
+            self.stiffness = eager
         if raise_on_failure:
             raise AdhesiveSolveError(f"load-controlled adhesive solve for {force:.4e} N failed: {st.reason}")
         return st
@@ -846,20 +838,12 @@ class AdhesiveProblem:
         """Compute the tangent of the present state if it is due (see ``_state``)."""
         if self._tangent_due is None:
             return
-        approach, _ = self._tangent_due
+        approach = self._tangent_due
         self._tangent_due = None
         here, self._approach = self._approach, approach   # the state's own approach
         tv, stiffness = self.tangent()
         self._approach = here
         self._tangent = (approach, tv, stiffness)
-
-    def _stiffness_of(self, number: int) -> float:
-        """dF/d delta [N/m] of state ``number`` if the problem still holds it, else NaN."""
-        if self._tangent_due is not None and self._tangent_due[1] == number:
-            self._ensure_tangent()
-        if self._tangent is not None and number == self._n_states:
-            return self._tangent[2]
-        return float("nan")
 
     def tangent(self) -> tuple[PETSc.Vec, float]:
         """(dx/d delta, dF/d delta [N/m]) at the current state: J_II t = -dF/d delta on the
@@ -940,21 +924,21 @@ class AdhesiveProblem:
             converged, reason = False, "LJ_BEYOND_SAFE_RANGE (z < 0.5 z0: pressure beyond the law's sane range)"
         stable = None if not np.isfinite(margin) else bool(margin > 0)
         self._drop_tangent()
-        self._n_states += 1
-        source = None
+        stiffness = float("nan")
         if tangent and converged:
-            # computed when first needed: the next step's predictor (where the coarse grid
-            # gives none) or the state's stiffness -- isolated states skip it (rough
-            # benchmark at 1024^2: 1-2 s a state)
-            self._tangent_due = (self._approach, self._n_states)
-            source = functools.partial(self._stiffness_of, self._n_states)
+            self._tangent_due = self._approach
+            if self.stiffness:
+                t_check = self.history.elapsed()
+                self._ensure_tangent()
+                stiffness = self._tangent[2]
+                self._check_time += self.history.elapsed() - t_check
         area = g.lengths[0] * g.lengths[1]
         return AdhesiveState(
             pressure=p, contact_pressure=q, adhesive_pressure=a, gap=gap, displacement=v,
             approach=self._approach, central_gap=self.centre_value(gap_rows),
             mean_pressure=mean_p, force=mean_p * area, adhesive_force=adhesive_force,
             contact_fraction=frac, complementarity_error=err_c, adhesive_error=err_a,
-            total_error=total, stable=stable, stability_margin=margin, _stiffness_source=source,
+            total_error=total, stable=stable, stability_margin=margin, stiffness=stiffness,
             converged=converged,
             reason=reason, newton_iterations=newton, linear_iterations=linear,
             fft_pairs=self._fft_pairs() - pairs0, wall_time=self.history.elapsed() - t0,
