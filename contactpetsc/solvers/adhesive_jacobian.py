@@ -94,8 +94,12 @@ class ReducedAdhesiveJacobian:
 
     @collective_guard
     def mult(self, mat, x, y):
-        if not self.set.everything:
-            self.full_in[...] = 0.0   # entries off the set are zero in the step
+        if self.set.everything:
+            # the reduced Vecs are the full local arrays: no copies
+            shape = self.full_in.shape
+            self.parent.apply_full(x.getArray(readonly=True).reshape(shape), y.getArray().reshape(shape))
+            return
+        self.full_in[...] = 0.0   # entries off the set are zero in the step
         self.to_full(x, self.full_in)
         self.parent.apply_full(self.full_in, self.full_out)
         self.from_full(self.full_out, y)
@@ -164,12 +168,15 @@ class AdhesivePC:
     @collective_guard
     def apply(self, pc, x, y):
         ctx = self.ctx
-        full = self.full
-        if not ctx.set.everything:
+        if ctx.set.everything:
+            # the reduced Vecs are the full local arrays: no copies
+            full = x.getArray(readonly=True).reshape(self.full.shape)
+            out = y.getArray().reshape(self.out.shape)
+        else:
+            full, out = self.full, self.out
             full[...] = 0.0
-        ctx.to_full(x, full)
+            ctx.to_full(x, full)
         a_in = full[-1]
-        out = self.out
         np.multiply(a_in, self.jacobi, out=out[-1])
         if self.inner_pc is not None:
             f = self.f
@@ -180,7 +187,8 @@ class AdhesivePC:
             if ctx.problem.hard_wall:
                 out[0] = self.z * self.q_set
             np.copyto(out[-1], self.z, where=self.stiff)
-        ctx.from_full(out, y)
+        if not ctx.set.everything:
+            ctx.from_full(out, y)
 
 
 def minloc(comm: MPI.Comm, value: float, index: int) -> tuple[float, int]:
