@@ -52,6 +52,9 @@ ap.add_argument("--no-peer", action="store_true")
 ap.add_argument("--tol", type=float, nargs="+", default=[1e-8],
                 help="our tolerances [z0] (rough cases; each runs the path afresh): the default 1e-8, "
                      "and e.g. 1e-5 for the peer's accuracy (time at equal error)")
+ap.add_argument("--approaches", type=float, nargs="+", default=None,
+                help="rough case: these approaches (in units of the cell size 1) instead of the "
+                     "calibration sweep, e.g. an earlier run's, to compare code versions on equal terms")
 ap.add_argument("--calibrate-max-n", type=int, default=256,
                 help="calibrate the approaches on the heights averaged to at most this grid")
 ap.add_argument("--peer-maxiter", type=int, default=100000)
@@ -180,7 +183,7 @@ def rough_cases():
             for z0_rel in args.z0:
                 z0, w = z0_rel * dx, w_rel * dx
                 law = make_law("lj", work_of_adhesion=w, z0=z0)
-                approaches = calibrate(grid, h, law, args.areas)
+                approaches = args.approaches or calibrate(grid, h, law, args.areas)
                 if approaches is None:
                     emit(case="rough", n=n, w=w_rel, z0=z0_rel, solver="calibration", converged=False,
                          message="the calibration sweep converged at fewer than two approaches")
