@@ -756,13 +756,12 @@ class AdhesiveProblem:
         coarse_predicted = approach is not None and self._coarse_step(float(approach))
         if not coarse_predicted and approach is not None and self.use_predictor:
             self._ensure_tangent()   # x is still the previous state
-        if (not coarse_predicted and approach is not None and self.use_predictor
-                and self._tangent is not None):
-            # Euler predictor along the branch: x + dx/d delta * (delta - delta_prev)
-            self._x.axpy(float(approach) - self._tangent[0], self._tangent[1])
-            if self.hard_wall:
-                q = self.blocks(self._x)[0]
-                np.maximum(q, 0.0, out=q)
+            if self._tangent is not None:
+                # Euler predictor along the branch: x + dx/d delta * (delta - delta_prev)
+                self._x.axpy(float(approach) - self._tangent[0], self._tangent[1])
+                if self.hard_wall:
+                    q = self.blocks(self._x)[0]
+                    np.maximum(q, 0.0, out=q)
         check = self.stability_check if check_stability is None else check_stability
         converged, reason, newton, linear = self._run_snes()
         solver = self.solver_name
