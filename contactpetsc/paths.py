@@ -250,7 +250,8 @@ def edge_gap_path(problem, step: float, min_gap: float, *, direction: tuple[int,
     of ``step`` [m]: the contact edge is led across the grid node by node.  Every state
     is kept, unstable ones marked (branch "edge-gap"; the point's ``central_gap`` is the
     control node's gap).  Ends when ``stop(point)`` is true for a converged point, at
-    the first failed solve, after ``max_nodes`` nodes, or at the grid's edge."""
+    the first failed solve, after ``max_nodes`` nodes, or at the grid's edge; the
+    problem keeps the last control node (``set_control_node()`` returns to the apex)."""
     path = Path() if path is None else path
     g = problem.grid
     j0, i0 = divmod(problem.centre_index, g.nx)
@@ -263,12 +264,12 @@ def edge_gap_path(problem, step: float, min_gap: float, *, direction: tuple[int,
         for gap in np.arange(problem.control_gap() - step, min_gap - 1e-12 * step, -step):
             st = problem.solve(central_gap=float(gap), raise_on_failure=False)
             pt = _point(k, "edge-gap", st)
-            k += 1
             path.points.append(pt)
             if not st.converged:
                 return path
             if on_state is not None:
                 on_state(k, st, pt)
+            k += 1
             if stop is not None and stop(pt):
                 return path
     return path
