@@ -20,7 +20,10 @@ would also do, but the line search keeps the full Newton step whenever it
 reduces the residual, which is what warm-started steps need -- and full
 steps (``basic``) for the full LJ curve, whose residual norm is dominated by
 the stiff repulsive rows (measured better).  When Newton fails, a
-relaxation path takes over (``solve``).  Every
+relaxation path takes over (``solve``); when it stalls (no smaller error in
+``-<prefix>stall_steps`` steps: full steps cycling where a few nodes of one
+contact edge sit at their own fold), pseudo-transient continuation goes on
+from its best iterate.  Every
 converged state is checked for stability (``stability.py``): the smallest
 eigenvalue of the displacement-space Hessian relative to the elastic one,
 1 - lambda_max(A S), by Lanczos; an unstable state is reported as such
@@ -155,6 +158,7 @@ class AdhesiveProblem:
         self.set_control_node(centre)
         self.centre_owner = None        # set while central-gap control is active
         self.shift = 0.0                # pseudo-transient continuation shift (0: plain Newton)
+        self._stall_watch = False       # stop a stalled Newton (see -<prefix>stall_steps)
         self._check_time = 0.0          # stability check and tangent time of the current solve
         self._tangent = None            # (approach, dx/d delta, dF/d delta) at the last converged state
         self._tangent_due = None        # approach of the present state when its tangent is not computed yet
@@ -233,6 +237,11 @@ class AdhesiveProblem:
             "stability_check", True if d["stability_check"] is None else d["stability_check"])
         self.stability_steps = opts.getInt("stability_steps", 30)
         self.ptc_shift0 = opts.getReal("ptc_shift", 1.0)
+        # Newton without a new smallest error for this many steps has stalled: full steps
+        # can cycle for good where one asperity's edge sits at its own fold (rough benchmark
+        # at 1024^2: ten nodes of one edge swung between snapped and free for 35 steps, the
+        # rest converged); PTC then goes on from the best iterate (0: never)
+        self.stall_steps = opts.getInt("stall_steps", 8)
         # bounded: where PTC has not settled in 300 steps it wanders (measured on
         # under-resolved strong adhesion, snap number 4.4: no progress in 800 steps)
         self.ptc_max_it = opts.getInt("ptc_max_it", 300)
@@ -287,6 +296,7 @@ class AdhesiveProblem:
                                                      self._jac, comm=g.comm))
         J.setUp()
         self._x, self._f = self.create_unknown(), self.create_unknown()
+        self._x_best = self.create_unknown()
         lower, upper = self.create_unknown(), self.create_unknown()
         upper.set(PETSc.INFINITY)
         lower.set(PETSc.NINFINITY)
@@ -462,6 +472,13 @@ class AdhesiveProblem:
         err = max(err_c, err_a)
         self._last_error = err
         verdict = convergence_verdict(snes, it, err, self.tol)
+        if verdict == PETSc.SNES.ConvergedReason.ITERATING and self._stall_watch and not self.shift:
+            if it == 0 or err < self._best[0]:
+                self._best = (err, it)
+                x.copy(self._x_best)
+            elif it - self._best[1] >= self.stall_steps:
+                self._stalled = True
+                return PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT   # named STALLED by _run_snes
         if verdict == PETSc.SNES.ConvergedReason.ITERATING and self.out_of_time():
             return PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT   # named WALL_TIME_BUDGET by _run_snes
         return verdict
@@ -763,7 +780,10 @@ class AdhesiveProblem:
                     q = self.blocks(self._x)[0]
                     np.maximum(q, 0.0, out=q)
         check = self.stability_check if check_stability is None else check_stability
+        # only where PTC would take over
+        self._stall_watch = self.stall_steps > 0 and fallback and approach is not None and "ptc" in self.fallback
         converged, reason, newton, linear = self._run_snes()
+        self._stall_watch = False
         solver = self.solver_name
         margin = self._stability() if (converged and check) else float("nan")
         if fallback and approach is not None and (not converged or margin <= 0) and not self.out_of_time():
@@ -771,8 +791,10 @@ class AdhesiveProblem:
             # ended: a jump).  From the last converged state, follow a relaxation path
             # to a stable state, then polish by Newton: the methods of -<prefix>fallback
             # in turn (hard-wall laws: the paper's relaxation, then PTC; lj: PTC).
+            stalled = self._stalled
             for method in self.fallback:
-                x_start.copy(self._x)
+                # a stalled Newton was near a state but for a few nodes: PTC from its best iterate
+                (self._x_best if stalled and method == "ptc" else x_start).copy(self._x)
                 if method == "relaxation":
                     from .relaxation import RelaxationSolver
                     relax = RelaxationSolver(self, tol=self.fallback_tol, max_cycles=self.fallback_max_cycles)
@@ -814,10 +836,14 @@ class AdhesiveProblem:
     def _run_snes(self, snes: PETSc.SNES | None = None):
         snes = snes or self._snes
         self._lin0 = self.history[-1].linear_iterations if len(self.history) else 0
+        self._stalled = False
         snes.solve(None, self._x)
         self._n_solves += 1
         code = snes.getConvergedReason()
         name = self.budget_reason if code < 0 and self.out_of_time() else _reason_name(code)
+        if self._stalled:
+            name = (f"STALLED (no smaller error in {self.stall_steps} Newton steps; smallest "
+                    f"{self._best[0]:.3e} z0 at step {self._best[1]})")
         return code > 0, name, snes.getIterationNumber(), snes.getLinearSolveIterations()
 
     def _inactive_set(self) -> PETSc.IS:
