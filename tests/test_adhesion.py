@@ -217,6 +217,30 @@ def test_rough_periodic_lj_converges(coll):
     assert 0 < st.contact_fraction < 0.5 and st.adhesive_force < 0
 
 
+def test_stalled_newton_hands_over_to_ptc_and_ends_in_the_same_state(coll):
+    """Newton crippled to one Krylov iteration per step stalls; with -stall_steps 1 PTC takes
+    over from its best iterate and must reach the state plain Newton reaches."""
+    n = 64
+    grid = SurfaceGrid(n, n, 1.0, periodic=True)
+    h = self_affine(grid, hurst=0.8, rms_height=1.0, seed=7)
+    opts = PETSc.Options()
+    opts.setValue("stalled_stall_steps", 1)
+    opts.setValue("stalled_ksp_max_it", 1)
+    states = []
+    try:
+        for prefix in ("plain_", "stalled_"):
+            pb = AdhesiveProblem(grid, h, 1.0, make_law("lj", work_of_adhesion=0.05, z0=1.0), prefix=prefix)
+            states.append(pb.solve(approach=h.min()[1] + 0.5))
+    finally:
+        opts.delValue("stalled_stall_steps")
+        opts.delValue("stalled_ksp_max_it")
+    plain, stalled = states
+    assert "+ptc" not in plain.solver and stalled.solver.endswith("+ptc")
+    assert stalled.converged and stalled.stable
+    assert abs(stalled.force - plain.force) < 1e-7 * abs(plain.force)
+    assert coll.max(np.abs(grid.rows(stalled.gap, readonly=True) - grid.rows(plain.gap, readonly=True))) < 1e-6
+
+
 # -- stability and paths ------------------------------------------------------------------------------
 def test_loading_unloading_hysteresis_and_jumps(coll):
     """mu = 1, full LJ: jump-on while loading, jump-off while unloading at a smaller
