@@ -1,6 +1,7 @@
 """Rough spheres (reference paper, section 3.2, Figs. 6-9).
 
     python examples/studies/rough_sphere.py [--size small|default|tabor5] [--rms Z ...] [--out DIR]
+    python examples/studies/rough_sphere.py --collect DIR [DIR ...] [--out DIR]
     mpirun -n 2 python examples/studies/rough_sphere.py
 
 The paper: a sphere R = 100 um, E* = 50 GPa, z0 = 0.3 nm, w = 0.29 J/m^2
@@ -11,7 +12,8 @@ and 1 (w = 0.0259): the elements must resolve the adhesive zone, and the
 nodes that takes grow as mu^2 (p_peak dx / (E* z0) < ~1 with a window of a
 few contact radii); mu = 5 needs ~6x finer grids than mu = 2 for the same
 snap number K_ii max da/dg (0.80 at mu = 2, 64^2): ``--size tabor5``, 512^2,
-rms 0 and 1 z0 (measured with run_scripts/tabor5_steps.py: at rms 0 every
+rms 0, 1, 2, 4 and 10 z0, best run as one job per rms value (``--rms``) merged by
+``--collect`` (measured with run_scripts/tabor5_steps.py: at rms 0 every
 loading step converges, the jump-in included, 20-25 s a step after it, 13 z0
 of approach to the load; 384^2 fails at the jump-in; docs/studies.md).  The
 roughness: Gaussian autocorrelation, correlation length a_JKR / 6.
@@ -48,7 +50,9 @@ SIZES = {
     # (384^2, 0.75 and 1.4, failed at the jump-in; 512^2 follows it)
     # 400 Newton steps: at rms = z0 the jump-in at -3 z0 needs more than 100 on the coarse
     # levels of the nested iteration (with 100 it failed, PTC too; with 400 it converged)
-    "tabor5": dict(n=512, rms=[0.0, 1.0], tabor=[5.0], step=1.0, fig8=False, options=dict(max_it=400)),
+    # one rms value per job (--rms) and --collect afterwards: 0.5-2 h per value on one core
+    "tabor5": dict(n=512, rms=[0.0, 1.0, 2.0, 4.0, 10.0], tabor=[5.0], step=1.0, fig8=False,
+                   options=dict(max_it=400)),
 }
 
 
@@ -209,17 +213,57 @@ def fig8(grid, base, out, rms=2.0, mu=2.0, stiff=4.0):
     return res
 
 
+def collect(dirs, outdir) -> list[dict]:
+    """Figs. 7 and 9a over the outputs of several runs (e.g. one job per rms value at
+    ``--size tabor5``): their rough_sphere.csv rows and paths_*.csv, merged into --out."""
+    import csv
+    from pathlib import Path
+    from types import SimpleNamespace
+
+    def read(path):
+        with open(path, newline="") as f:
+            return [{k: _number(v) for k, v in r.items()} for r in csv.DictReader(f)]
+
+    rows, paths = [], {}
+    for d in dirs:
+        for r in read(Path(d) / "rough_sphere.csv"):
+            mu, rms = round(r["tabor"], 6), r["rms_z0"]
+            pts = [SimpleNamespace(converged=True, **p)
+                   for p in read(Path(d) / f"paths_mu{round(mu):g}_rms{rms:g}.csv")]
+            rows.append(r)
+            paths[(mu, rms)] = SimpleNamespace(points=pts)
+    if not rows:
+        raise SystemExit(f"--collect: no rough_sphere.csv rows in {', '.join(map(str, dirs))}")
+    rows.sort(key=lambda r: (r["tabor"], r["rms_z0"]))
+    out = common.prepare(outdir)
+    common.write_csv(out / "rough_sphere.csv", rows)
+    if common.is_root():
+        tabor = sorted({round(r["tabor"], 6) for r in rows}, reverse=True)
+        cfg = dict(tabor=tabor, rms=sorted({r["rms_z0"] for r in rows}))
+        _plots(out, None, cfg, rows, None, paths)
+    return rows
+
+
+def _number(text):
+    try:
+        return float(text)
+    except ValueError:
+        return {"True": True, "False": False}.get(text, text)
+
+
 def _plots(out, grid, cfg, rows, maps, paths):
+    """Figs. 6 (when ``maps``), 7 and 9a."""
     import numpy as np
     plt = common.plt()
     mu0 = cfg["tabor"][0]
     rms_list = cfg["rms"]
-    fig, axes = plt.subplots(1, len(rms_list), figsize=(3.6 * len(rms_list), 3.4))
-    for ax, rms in zip(np.atleast_1d(axes), rms_list):
-        common.pressure_map(ax, grid, maps[(mu0, rms)], f"rms = {rms:g} z0", scale=1e9, unit="GPa",
-                            extent_unit=1e-9)
-        ax.set_xlabel("x [nm]")
-    common.savefig(fig, out / "fig6.png")
+    if maps is not None:
+        fig, axes = plt.subplots(1, len(rms_list), figsize=(3.6 * len(rms_list), 3.4))
+        for ax, rms in zip(np.atleast_1d(axes), rms_list):
+            common.pressure_map(ax, grid, maps[(mu0, rms)], f"rms = {rms:g} z0", scale=1e9, unit="GPa",
+                                extent_unit=1e-9)
+            ax.set_xlabel("x [nm]")
+        common.savefig(fig, out / "fig6.png")
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4))
     for mu, color in zip(cfg["tabor"], ("C0", "C3")):
         sel = [r for r in rows if r["tabor"] and abs(r["tabor"] - mu) < 0.01]
@@ -239,8 +283,16 @@ def _plots(out, grid, cfg, rows, maps, paths):
     common.savefig(fig, out / "fig9.png")
 
 
+def _extra(ap):
+    ap.add_argument("--rms", type=float, nargs="+", help="rms values [z0] instead of the size's")
+    ap.add_argument("--collect", nargs="+", metavar="DIR",
+                    help="no run: Figs. 7 and 9a from these runs' outputs (one job per rms), into --out")
+
+
 if __name__ == "__main__":
     args = common.parse(__doc__.splitlines()[0], "rough-sphere-output", sizes=tuple(SIZES),
-                        extra=lambda ap: ap.add_argument("--rms", type=float, nargs="+",
-                                                         help="rms values [z0] instead of the size's"))
-    run(args.size, args.out, rms=args.rms)
+                        extra=_extra)
+    if args.collect:
+        collect(args.collect, args.out)
+    else:
+        run(args.size, args.out, rms=args.rms)
