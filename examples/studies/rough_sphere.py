@@ -216,13 +216,13 @@ def fig8(grid, base, out, rms=2.0, mu=2.0, stiff=4.0):
 def collect(dirs, outdir) -> list[dict]:
     """Figs. 7 and 9a over the outputs of several runs (e.g. one job per rms value at
     ``--size tabor5``): their rough_sphere.csv rows and paths_*.csv, merged into --out."""
-    import csv
     from pathlib import Path
     from types import SimpleNamespace
+    from contactpetsc.plots import read_csv
 
     def read(path):
-        with open(path, newline="") as f:
-            return [{k: _number(v) for k, v in r.items()} for r in csv.DictReader(f)]
+        cols = read_csv(path)
+        return [dict(zip(cols, values)) for values in zip(*cols.values())]
 
     rows, paths = [], {}
     for d in dirs:
@@ -242,13 +242,6 @@ def collect(dirs, outdir) -> list[dict]:
         cfg = dict(tabor=tabor, rms=sorted({r["rms_z0"] for r in rows}))
         _plots(out, None, cfg, rows, None, paths)
     return rows
-
-
-def _number(text):
-    try:
-        return float(text)
-    except ValueError:
-        return {"True": True, "False": False}.get(text, text)
 
 
 def _plots(out, grid, cfg, rows, maps, paths):
