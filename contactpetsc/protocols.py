@@ -77,8 +77,9 @@ def plan(scene: dict, grid: SurfaceGrid, out_dir: str | None = None) -> list[str
         it = scene["interaction"]
         law = f"law {it['law']}, w = {it['work_of_adhesion']:g} J/m^2" + (
             ", element-integrated" if it["element_integration"] else "")
+        ksp = "bcgs" if it["law"] == "lj" else "gmres"
         chain = (f"  solver: SNES vinewtonrsls on (contact, adhesive) pressures (prefix adhesion_), "
-                 f"KSP gmres, preconditioner {sol['preconditioner']}, Lanczos stability check"
+                 f"KSP {ksp}, preconditioner {sol['preconditioner']}, Lanczos stability check"
                  if sol["method"] == "newton" else
                  "  solver: the reference paper's MLMI relaxation (prefix adhesion_relax_), E_Total tol "
                  f"{sol['tol'] or 1e-4:g} z0")

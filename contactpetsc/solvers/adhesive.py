@@ -341,7 +341,12 @@ class AdhesiveProblem:
             # step of a 1 TPa sphere (6056 steps against 126 without it)
             opts.setValue("snes_linesearch_maxstep", "1e300")
         ksp = snes.getKSP()
-        ksp.setType("gmres")
+        # full LJ curve: BiCGStab.  Its two operator and two PC applies per iteration cost
+        # one FFT pair each, like GMRES's, but without GMRES's Gram-Schmidt over up to 30
+        # vectors of the whole grid, which cost as much as the FFTs (rough benchmark at
+        # 1024^2: 24 against 35 ms per FFT pair, and no failed state on four approach sets
+        # where GMRES failed one after 20,000 pairs; docs/performance.md, session 8)
+        ksp.setType("gmres" if self.hard_wall else "bcgs")
         # with the full LJ curve an inexact step is cheaper than an exact one far from the
         # solution (rough benchmark, 256^2: 30 Krylov iterations at most, 1.7x fewer FFT
         # pairs than 1000; some steps took 450)
