@@ -77,7 +77,9 @@ def plan(scene: dict, grid: SurfaceGrid, out_dir: str | None = None) -> list[str
         it = scene["interaction"]
         law = f"law {it['law']}, w = {it['work_of_adhesion']:g} J/m^2" + (
             ", element-integrated" if it["element_integration"] else "")
-        ksp = "bcgs" if it["law"] == "lj" else "gmres"
+        from .physics.interactions import LAWS
+        from .solvers.adhesive import newton_ksp_type
+        ksp = newton_ksp_type(LAWS[it["law"]].hard_wall)
         chain = (f"  solver: SNES vinewtonrsls on (contact, adhesive) pressures (prefix adhesion_), "
                  f"KSP {ksp}, preconditioner {sol['preconditioner']}, Lanczos stability check"
                  if sol["method"] == "newton" else

@@ -60,6 +60,19 @@ from .problem import ContactSolveError, _reason_name, convergence_verdict
 from .transfer import can_halve, halved, prolong_bilinear, prolong_constant, restrict
 
 
+def newton_ksp_type(hard_wall: bool) -> str:
+    """The Krylov method of the Newton and PTC steps (code default of ``-<prefix>ksp_type``).
+
+    Full LJ curve: BiCGStab.  Its two operator and two PC applies per iteration cost
+    one FFT pair each, like two GMRES iterations, but it keeps no basis: GMRES's
+    Gram-Schmidt over up to 30 vectors of the whole grid cost as much as the FFTs (rough
+    benchmark at 1024^2: 24 against 35 ms per FFT pair, and no failed state on four
+    approach sets where GMRES failed one after 20,000 pairs; docs/performance.md, session
+    8).  Hard-wall laws: GMRES (not measured against BiCGStab).
+    """
+    return "gmres" if hard_wall else "bcgs"
+
+
 class AdhesiveSolveError(ContactSolveError):
     """An adhesive solve that did not converge (same message on every rank)."""
 
@@ -341,12 +354,7 @@ class AdhesiveProblem:
             # step of a 1 TPa sphere (6056 steps against 126 without it)
             opts.setValue("snes_linesearch_maxstep", "1e300")
         ksp = snes.getKSP()
-        # full LJ curve: BiCGStab.  Its two operator and two PC applies per iteration cost
-        # one FFT pair each, like GMRES's, but without GMRES's Gram-Schmidt over up to 30
-        # vectors of the whole grid, which cost as much as the FFTs (rough benchmark at
-        # 1024^2: 24 against 35 ms per FFT pair, and no failed state on four approach sets
-        # where GMRES failed one after 20,000 pairs; docs/performance.md, session 8)
-        ksp.setType("gmres" if self.hard_wall else "bcgs")
+        ksp.setType(newton_ksp_type(self.hard_wall))
         # with the full LJ curve an inexact step is cheaper than an exact one far from the
         # solution (rough benchmark, 256^2: 30 Krylov iterations at most, 1.7x fewer FFT
         # pairs than 1000; some steps took 450)
