@@ -86,13 +86,16 @@ def _point(step, branch, st) -> PathPoint:
 
 def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0.05,
           refine: int = 6, on_state=None, path: Path | None = None, stop_on_failure: bool = False,
-          on_failure=None, previous: tuple | None = None) -> Path:
+          on_failure=None, previous: tuple | None = None, substeps: int = 3) -> Path:
     """Displacement-controlled path through ``approaches`` [m] (loading where they rise,
     unloading where they fall).  ``on_state(step, state, point)`` is called for each
     converged step (e.g. to write fields), ``on_failure(step, state, point)`` for each
     failed one.  ``previous`` = (approach [m], force [N], dF/d delta [N/m] or NaN) of the
     problem's current state when the path continues one (a restart), so that a jump between
-    it and the first step is found too.  A step that fails is kept as a point (not converged, with its reason)
+    it and the first step is found too.  A step that fails is tried again from the last
+    converged state in halved steps, down to 2**-``substeps`` of it (``_advance``); the
+    sub-steps' states are not points of the path, their cost is counted in the step's.
+    A step that still fails is kept as a point (not converged, with its reason)
     and the path goes on from the last converged state, or,
     with ``stop_on_failure``, ends there (a run that must stay contiguous, to restart
     from).  Returns the Path with its jumps."""
@@ -100,22 +103,8 @@ def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0
     approaches = [float(a) for a in approaches]
     prev = previous      # (approach, force, stiffness) of the last state
     for k, delta in enumerate(approaches):
-        snap = problem.snapshot() if prev is not None else None
-        st = problem.solve(approach=delta, raise_on_failure=False)
         here = branch or ("loading" if prev is None or delta >= prev[0] else "unloading")
-        if prev is not None and st.converged:
-            d0, w0, k0 = prev
-            predicted = w0 + (k0 if np.isfinite(k0) else 0.0) * (delta - d0)
-            scale = max(abs(w0), abs(st.force), np.finfo(float).tiny)
-            # the fallback was needed, or the force missed the tangent prediction by
-            # more than the predicted change itself: another branch
-            if st.fallback or abs(st.force - predicted) > max(jump_tol * scale, abs(predicted - w0)):
-                jump = _locate_jump(problem, snap, prev, st, refine)
-                if abs(jump.force_after - jump.force_before) > jump_tol * scale:
-                    jump.kind = "jump-on" if delta > d0 else "jump-off"
-                    path.jumps.append(jump)
-        if snap is not None:
-            _free(snap)
+        st, prev = _advance(problem, delta, prev, path, jump_tol, refine, substeps)
         pt = _point(k, here, st)
         path.points.append(pt)
         if not st.converged and on_failure is not None:
@@ -123,7 +112,6 @@ def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0
         if not st.converged and stop_on_failure:
             break
         if st.converged:
-            prev = (st.approach, st.force, st.stiffness)
             if st.stable is not False:
                 best = path._best
                 if best is None or st.force < path.points[best[0]].force:
@@ -133,6 +121,55 @@ def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0
             if on_state is not None:
                 on_state(k, st, pt)
     return path
+
+
+def _advance(problem, target, prev, path, jump_tol, refine, substeps):
+    """Solve at ``target`` from the present state, testing for a jump; where that fails,
+    go back to the last converged state and get there in halved steps, at least
+    2**-``substeps`` of the whole step each.  A step longer than Newton's basin is not the
+    end of the branch: at the hard-wall law's mu = 2 sphere (96^2) every compressed state
+    failed in steps of 0.5 z0 and converged in steps of 0.1 z0 (docs/studies.md).  Returns
+    the state at ``target`` (or the failed one) with the cost of every try and sub-step in
+    it, and the (approach, force, stiffness) of the last converged state."""
+    whole = None if prev is None else target - prev[0]
+    h, spent, done = whole, np.zeros(4), 0
+    while True:
+        d = target if h is None or abs(target - prev[0]) <= abs(h) * (1 + 1e-12) else prev[0] + h
+        snap = problem.snapshot() if prev is not None else None
+        st = problem.solve(approach=d, raise_on_failure=False)
+        if prev is not None and st.converged:
+            d0, w0, k0 = prev
+            predicted = w0 + (k0 if np.isfinite(k0) else 0.0) * (d - d0)
+            scale = max(abs(w0), abs(st.force), np.finfo(float).tiny)
+            # the fallback was needed, or the force missed the tangent prediction by
+            # more than the predicted change itself: another branch
+            if st.fallback or abs(st.force - predicted) > max(jump_tol * scale, abs(predicted - w0)):
+                jump = _locate_jump(problem, snap, prev, st, refine)
+                if abs(jump.force_after - jump.force_before) > jump_tol * scale:
+                    jump.kind = "jump-on" if d > d0 else "jump-off"
+                    path.jumps.append(jump)
+        final = (st.converged and d == target) or prev is None or problem.out_of_time() or (
+            not st.converged and (substeps <= 0 or abs(h) <= abs(whole) * 2.0 ** -substeps * (1 + 1e-12)))
+        if not final:
+            spent += (st.fft_pairs, st.wall_time, st.newton_iterations, st.linear_iterations)
+            if st.converged:
+                prev, done = (st.approach, st.force, st.stiffness), done + 1
+            else:
+                problem.restore(snap)   # the last converged state, with its tangent
+                h *= 0.5
+        if snap is not None:
+            _free(snap)
+        if final:
+            break
+    if spent.any():
+        st.fft_pairs += spent[0]
+        st.wall_time += spent[1]
+        st.newton_iterations += int(spent[2])
+        st.linear_iterations += int(spent[3])
+        st.solver += f" ({done} sub-step{'' if done == 1 else 's'})"
+    if st.converged:
+        prev = (st.approach, st.force, st.stiffness)
+    return st, prev
 
 
 def refine_pull_off(problem, path: Path, xtol: float, max_solves: int = 30) -> float:

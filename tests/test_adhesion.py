@@ -243,6 +243,35 @@ def test_stalled_newton_hands_over_to_ptc_and_ends_in_the_same_state(coll):
     assert coll.max(np.abs(grid.rows(stalled.gap, readonly=True) - grid.rows(plain.gap, readonly=True))) < 1e-6
 
 
+def test_a_step_too_long_for_newton_is_reached_in_sub_steps(coll):
+    """Newton limited to 5 steps and no fallback cannot go from 1 to 7 z0 in one step; the
+    sweep halves the step from the last converged state and must reach the state that steps
+    of 2 z0 reach (the branch is the same: mu = 0.5, in compression, no jumps)."""
+    opts = PETSc.Options()
+    for key, value in dict(max_it=5, fallback="ptc", ptc_max_it=1, stall_steps=0).items():
+        opts.setValue("short_" + key, value)
+    try:
+        ref = sphere_problem(0.5, law="lj", n=48, dx=1.0, radius=100.0, prefix="long_ref_")
+        fine = sweep(ref, [1.0, 3.0, 5.0, 7.0])
+        plain = ref.solve(approach=7.0)
+        for substeps in (0, 3):
+            pb = sphere_problem(0.5, law="lj", n=48, dx=1.0, radius=100.0, prefix="short_")
+            seen = []
+            path = sweep(pb, [1.0, 7.0], substeps=substeps, on_state=lambda k, st, pt: seen.append(st))
+            assert [p.approach for p in path.points] == [1.0, 7.0]
+            assert path.points[1].converged == bool(substeps), path.points[1].reason
+        stepped = pb.solve(approach=7.0)
+    finally:
+        for key in ("max_it", "fallback", "ptc_max_it", "stall_steps"):
+            opts.delValue("short_" + key)
+    assert all(p.converged for p in fine.points) and not fine.jumps
+    assert "sub-step" in path.points[1].solver and not path.jumps
+    # the tries' and sub-steps' Newton steps are counted: one solve makes at most 5 + 1 (PTC)
+    assert seen[-1].newton_iterations > 6
+    assert abs(stepped.force - plain.force) < 1e-7 * abs(plain.force)
+    assert coll.max(np.abs(pb.grid.rows(stepped.gap, readonly=True) - ref.grid.rows(plain.gap, readonly=True))) < 1e-6
+
+
 # -- stability and paths ------------------------------------------------------------------------------
 def test_loading_unloading_hysteresis_and_jumps(coll):
     """mu = 1, full LJ: jump-on while loading, jump-off while unloading at a smaller
