@@ -152,6 +152,26 @@ def test_smooth_sphere_higher_tabor_jumps_and_maugis_pull_off(coll):
     assert stable[0] and False in stable
 
 
+def test_smooth_sphere_hard_wall_law_at_higher_tabor(coll):
+    """mu = 1, hard-wall law (the example's mu = 2 path costs minutes): every state converged,
+    a jump-on and a later jump-off at a smaller approach, pull-off within 8 % of Maugis-Dugdale
+    (lambda = 1.16 mu), between DMT and JKR; positive hysteresis."""
+    from contactpetsc.physics.maugis import maugis_pull_off_bar
+    ss = study("smooth_sphere")
+    mu, r = 1.0, 100.0
+    w = np.sqrt(mu ** 3 / r)
+    dx = 3.2 * study("common").jkr_contact_radius(r, w, 1.0) / 48     # the zone spans 4.6 dx
+    app = np.concatenate([np.arange(-2.5, 1.01, 0.5), np.arange(0.5, -2.51, -0.5)])
+    c = ss.greenwood_case(mu, r, "hardwall-lj", 48, dx, np.round(app, 10), prefix="t_high_wall_", refine=4)
+    assert all(p.converged and p.stable for p in c["path"].points)
+    assert [j.kind for j in c["path"].jumps] == ["jump-on", "jump-off"]
+    on, off = c["path"].jumps
+    assert off.approach_after < on.approach_before
+    bar = c["pull_off"] / (np.pi * r * w)
+    assert coll.max(abs(bar / maugis_pull_off_bar(1.16 * mu) - 1)) < 0.08 and -2.0 < bar < -1.5
+    assert metrics.path_hysteresis(c["path"]) > 0
+
+
 def test_adhesion_ratios_of_smooth_spheres(coll):
     """Both ratios in [0, 1]; more load, smaller ratios; the same mu, R and load with w and E*
     both 4x: a different load ratio (the paper: mu alone does not fix the adhesive share)."""
