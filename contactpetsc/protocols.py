@@ -382,7 +382,7 @@ def _run_adhesive(scene: dict, grid: SurfaceGrid, h: PETSc.Vec, *, output: str |
         previous = (float(last[CURVE_COLUMNS.index("approach_m")]), float(last[CURVE_COLUMNS.index("force_N")]),
                     NAN) if last else None
         path = sweep(problem, todo, refine=proto["jump_refinement"], on_state=record, stop_on_failure=True,
-                     on_failure=stop, previous=previous)
+                     on_failure=stop, previous=previous, substeps=proto["substeps"])
     summary = {"steps": len(rows), "converged": not failed}
     if failed:
         step, st = failed[0]

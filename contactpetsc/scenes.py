@@ -70,6 +70,8 @@ SCHEMA = {
         "refine_pull_off": _k(bool, True, "", "adhesive sweeps: refine the most tensile force by golden "
                               "section (Newton solves on its branch)"),
         "jump_refinement": _k(int, 6, "", "adhesive sweeps: bisections locating each jump", (0, 40, True)),
+        "substeps": _k(int, 3, "", "adhesive sweeps: halvings of a step that fails, tried from the last "
+                       "converged state (0: none)", (0, 20, True)),
     },
     "solver": {
         "method": _k(str, "newton", "", "with adhesion: SNES VI Newton, or the reference paper's MLMI "
