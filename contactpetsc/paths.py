@@ -148,8 +148,9 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps):
                 if abs(jump.force_after - jump.force_before) > jump_tol * scale:
                     jump.kind = "jump-on" if d > d0 else "jump-off"
                     path.jumps.append(jump)
-        final = (st.converged and d == target) or prev is None or problem.out_of_time() or (
-            not st.converged and (substeps <= 0 or abs(h) <= abs(whole) * 2.0 ** -substeps * (1 + 1e-12)))
+        # (a converged sub-step goes on even past a time budget: the next solve says so)
+        final = (st.converged and d == target) or prev is None or (not st.converged and (
+            substeps <= 0 or problem.out_of_time() or abs(h) <= abs(whole) * 2.0 ** -substeps * (1 + 1e-12)))
         if not final:
             spent += (st.fft_pairs, st.wall_time, st.newton_iterations, st.linear_iterations)
             if st.converged:
@@ -161,6 +162,8 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps):
             _free(snap)
         if final:
             break
+    if not st.converged and st.approach != target:
+        st.reason += f" (at the sub-step to approach {st.approach:.6e} m of the step to {target:.6e} m)"
     if spent.any():
         st.fft_pairs += spent[0]
         st.wall_time += spent[1]
