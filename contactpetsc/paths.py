@@ -131,13 +131,16 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps):
     failed in steps of 0.5 z0 and converged in steps of 0.1 z0 (docs/studies.md).  Returns
     the state at ``target`` (or the failed one) with the cost of every try and sub-step in
     it, and the (approach, force, stiffness) of the last converged state."""
-    whole = None if prev is None else target - prev[0]
+    if prev is None:   # the path's first state: nothing to jump from or go back to
+        st = problem.solve(approach=target, raise_on_failure=False)
+        return st, ((st.approach, st.force, st.stiffness) if st.converged else None)
+    whole = target - prev[0]
     h, spent, done = whole, np.zeros(4), 0
     while True:
-        d = target if h is None or abs(target - prev[0]) <= abs(h) * (1 + 1e-12) else prev[0] + h
-        snap = problem.snapshot() if prev is not None else None
+        d = target if abs(target - prev[0]) <= abs(h) * (1 + 1e-12) else prev[0] + h
+        snap = problem.snapshot()
         st = problem.solve(approach=d, raise_on_failure=False)
-        if prev is not None and st.converged:
+        if st.converged:
             d0, w0, k0 = prev
             predicted = w0 + (k0 if np.isfinite(k0) else 0.0) * (d - d0)
             scale = max(abs(w0), abs(st.force), np.finfo(float).tiny)
@@ -149,7 +152,7 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps):
                     jump.kind = "jump-on" if d > d0 else "jump-off"
                     path.jumps.append(jump)
         # (a converged sub-step goes on even past a time budget: the next solve says so)
-        final = (st.converged and d == target) or prev is None or (not st.converged and (
+        final = (st.converged and d == target) or (not st.converged and (
             substeps <= 0 or problem.out_of_time() or abs(h) <= abs(whole) * 2.0 ** -substeps * (1 + 1e-12)))
         if not final:
             spent += (st.fft_pairs, st.wall_time, st.newton_iterations, st.linear_iterations)
@@ -158,8 +161,7 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps):
             else:
                 problem.restore(snap)   # the last converged state, with its tangent
                 h *= 0.5
-        if snap is not None:
-            _free(snap)
+        _free(snap)
         if final:
             break
     if not st.converged and st.approach != target:
