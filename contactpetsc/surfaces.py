@@ -95,7 +95,7 @@ def inspect_height_file(path: str, dataset: str, shape: tuple, spacing: tuple) -
     """
     ext = os.path.splitext(path)[1].lower()
     if ext == ".npy":
-        stored, fortran, dtype, offset = _npy_header(path)
+        stored, _, dtype, offset = _npy_header(path)
         need = offset + int(np.prod(stored)) * dtype.itemsize
         if os.path.getsize(path) < need:
             raise ValueError(f"truncated: {os.path.getsize(path)} bytes, its header announces {need}")
@@ -126,8 +126,10 @@ def inspect_height_file(path: str, dataset: str, shape: tuple, spacing: tuple) -
     nx, ny = shape
     want = (ny, nx) if transposed else (nx, ny)
     if tuple(stored) != want:
-        hint = (" (the file's rows are x: stamp it axes = 'y,x' if they are y)"
-                if tuple(stored) == want[::-1] and nx != ny and not transposed else "")
+        hint = ""
+        if tuple(stored) == want[::-1] and not transposed:
+            hint = ("; a .npy file holds (nx, ny): save the transpose" if ext == ".npy" else
+                    "; if the dataset's rows are y, stamp it with the attribute axes = 'y,x'")
         raise ValueError(f"heights have shape {tuple(stored)} stored as {stamp}, the grid (geometry.nx, "
                          f"geometry.ny) = {(nx, ny)} needs {want}{hint}")
     if fspacing is not None:
