@@ -2,7 +2,10 @@
 
 SI units throughout.  Every key is checked: unknown keys, wrong types and
 values outside the accepted range raise ``SceneError`` naming the key, the
-value and what is accepted.  The built-in default scene (``DEFAULT_SCENE``)
+value and what is accepted; so do keys that contradict each other or that the
+geometry kind or interaction law would ignore, loads too small to be more than
+round-off, and a ``kind = "file"`` scene's height file (checked from its
+metadata, so a dry run checks it too).  The built-in default scene (``DEFAULT_SCENE``)
 is a scene like any other.  Sections and keys are documented in
 docs/scenes.md (generated from ``SCHEMA`` by ``schema_markdown``).
 """
@@ -139,7 +142,8 @@ def _check_value(path: str, spec: dict, value):
 
 
 def validate(scene: dict) -> dict:
-    """A complete scene (defaults filled in) or SceneError."""
+    """A complete scene (defaults filled in) or SceneError (a height file is opened to read its
+    metadata; no rank talks to another: every rank reaches the same verdict on a shared file)."""
     if not isinstance(scene, dict):
         raise SceneError("a scene is a table of sections")
     out = {}
