@@ -11,6 +11,9 @@ view of the Vec (Fortran order), ``rows`` the same memory as (ny_loc, nx).
 """
 from __future__ import annotations
 
+import math
+import resource
+
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -27,8 +30,33 @@ def check_index_range(n_unknowns: int, what: str = "grid") -> None:
     if n_unknowns > limit:
         raise GridError(
             f"{what}: {n_unknowns} unknowns exceed the {bits}-bit PETSc index limit "
-            f"({limit}); use a PETSc built with 64-bit indices "
+            f"({limit}); use a smaller grid or a PETSc built with 64-bit indices "
             f"(Debian: python3-petsc4py-64-real, PETSC_DIR=/usr/lib/petscdir/petsc64)")
+
+
+def available_memory(comm) -> float:
+    """Bytes of memory one rank of ``comm`` can still allocate (inf when unknown); the same on
+    every rank: the node's available memory shared by the ranks on that node, or what the
+    address-space limit (ulimit -v) leaves, whichever is smaller, minimised over the ranks."""
+    avail = math.inf
+    try:
+        with open("/proc/meminfo") as f:
+            info = dict(line.split(":", 1) for line in f)
+        avail = 1024.0 * float(info["MemAvailable"].split()[0])
+        node = comm.Split_type(MPI.COMM_TYPE_SHARED)
+        avail /= node.Get_size()
+        node.Free()
+    except (OSError, KeyError, ValueError, IndexError):
+        pass
+    limit = resource.getrlimit(resource.RLIMIT_AS)[0]
+    if limit != resource.RLIM_INFINITY:
+        try:
+            with open("/proc/self/statm") as f:
+                used = float(f.read().split()[0]) * resource.getpagesize()
+        except (OSError, ValueError, IndexError):
+            used = 0.0
+        avail = min(avail, max(limit - used, 0.0))
+    return comm.allreduce(avail, op=MPI.MIN)
 
 
 def aligned_split(n: int, parts: int, alignment: int = 1) -> list[int]:
@@ -83,7 +111,8 @@ class SurfaceGrid:
         self.nx, self.ny = int(nx), int(ny)
         self.dx, self.dy = float(dx), float(dy)
         self.periodic = bool(periodic)
-        check_index_range(self.nx * self.ny, f"{self.nx} x {self.ny} grid")
+        check_index_range(self.nx * self.ny,
+                          f"a {self.nx} x {self.ny} grid (geometry.nx x geometry.ny)")
 
         comm = PETSc.COMM_WORLD if comm is None else comm
         if not isinstance(comm, PETSc.Comm):
@@ -93,7 +122,7 @@ class SurfaceGrid:
         size = self.mpi_comm.Get_size()
         if size > self.ny:
             raise GridError(
-                f"{size} MPI ranks but only ny = {self.ny} grid rows: the grid is split "
+                f"{size} MPI ranks but only ny = {self.ny} grid rows (geometry.ny): the grid is split "
                 f"along y, so use at most {self.ny} ranks")
         if y_ownership is None:
             y_ownership = aligned_split(self.ny, size, row_alignment)
@@ -101,17 +130,54 @@ class SurfaceGrid:
         if len(y_ownership) != size or sum(y_ownership) != self.ny or min(y_ownership) < 1:
             raise GridError(f"y_ownership {y_ownership} must give >= 1 row to each of {size} ranks, "
                             f"{self.ny} rows in all")
-        bt = PETSc.DM.BoundaryType.PERIODIC if self.periodic else PETSc.DM.BoundaryType.NONE
-        self.da = PETSc.DMDA().create(
-            dim=2, dof=1, sizes=(self.nx, self.ny), proc_sizes=(1, size),
-            ownership_ranges=((self.nx,), tuple(y_ownership)),
-            boundary_type=(bt, bt), stencil_type=PETSc.DMDA.StencilType.STAR,
-            stencil_width=stencil_width, comm=comm, setup=False)
-        self.da.setUp()
-        (self.xs, self.xe), (self.ys, self.ye) = self.da.getRanges()
-        ly = self.da.getOwnershipRanges()[1]
-        starts = np.concatenate([[0], np.cumsum(ly)])
+        starts = np.concatenate([[0], np.cumsum(y_ownership)])
         self.y_ranges = [(int(starts[r]), int(starts[r + 1])) for r in range(size)]
+        self.xs, self.xe = 0, self.nx
+        self.ys, self.ye = self.y_ranges[self.mpi_comm.Get_rank()]
+        self._stencil_width = int(stencil_width)
+        self._da = None
+
+    @property
+    def da(self) -> PETSc.DMDA:
+        """The grid's DMDA, created at first use (collective: every rank must ask for it).
+
+        A plan or a dry run that only needs the sizes and the decomposition never
+        allocates PETSc's index maps (about 5 PETSc integers per node).
+        """
+        if self._da is None:
+            self.check_memory()
+            bt = PETSc.DM.BoundaryType.PERIODIC if self.periodic else PETSc.DM.BoundaryType.NONE
+            rows = tuple(b - a for a, b in self.y_ranges)
+            da = PETSc.DMDA().create(
+                dim=2, dof=1, sizes=(self.nx, self.ny), proc_sizes=(1, len(rows)),
+                ownership_ranges=((self.nx,), rows),
+                boundary_type=(bt, bt), stencil_type=PETSc.DMDA.StencilType.STAR,
+                stencil_width=self._stencil_width, comm=self.comm, setup=False)
+            da.setUp()
+            self._da = da
+        return self._da
+
+    def check_memory(self, need: float | None = None, what: str = "PETSc's index maps and one field") -> None:
+        """GridError (on every rank) when ``need`` bytes per rank cannot be allocated.
+
+        Default ``need``: the DMDA's index maps (about 5 PETSc integers per node) and one
+        field, what the first Vec of the grid costs.  Called before the DMDA is created, so
+        a grid too big for the machine is refused in the user's terms, not by PETSc's
+        allocator.  Collective.
+        """
+        if need is None:
+            sw = self._stencil_width
+            rows = max(b - a for a, b in self.y_ranges)
+            need = ((self.nx + 2 * sw) * (rows + 2 * sw) * 5 * np.dtype(PETSc.IntType).itemsize
+                    + 8 * self.nx * rows)
+        need = self.mpi_comm.allreduce(float(need), op=MPI.MAX)
+        avail = available_memory(self.mpi_comm)
+        if need > avail:
+            raise GridError(
+                f"a {self.nx} x {self.ny} grid (geometry.nx x geometry.ny) on "
+                f"{self.mpi_comm.Get_size()} rank(s) needs {need / 2**30:.2f} GiB per rank for "
+                f"{what}, but only {avail / 2**30:.2f} GiB can be allocated per rank; use more "
+                f"ranks on more nodes or a smaller grid")
 
     # -- sizes -------------------------------------------------------------
     @property
@@ -137,6 +203,29 @@ class SurfaceGrid:
         if value is not None:
             v.set(value)
         return v
+
+    def check_vec(self, vec: PETSc.Vec, name: str = "vec") -> PETSc.Vec:
+        """``vec`` if it is a field of this grid, else GridError naming both shapes (collective).
+
+        Checks the global size, this rank's rows and, when ``vec`` belongs to a DMDA,
+        the DMDA's sizes: a 16 x 12 grid's field has the size of a 12 x 16 grid's,
+        but its rows are not this grid's rows.
+        """
+        if not isinstance(vec, PETSc.Vec):
+            raise GridError(f"{name} must be a PETSc Vec of the {self.nx} x {self.ny} grid, "
+                            f"got {type(vec).__name__}")
+        shape = None
+        dm = vec.query("__PETSc_dm")
+        if isinstance(dm, PETSc.DMDA) and dm.getDim() == 2 and dm.getDof() == 1:
+            shape = tuple(int(n) for n in dm.getSizes())  # PETSc lists x first: (nx, ny)
+        fits = (vec.getSize() == self.nx * self.ny and vec.getLocalSize() == self.nx * self.ny_local
+                and (shape is None or shape == self.shape))
+        if not self.mpi_comm.allreduce(fits, op=MPI.LAND):
+            got = (f"a field of a {shape[0]} x {shape[1]} grid" if shape is not None
+                   else f"a Vec of {vec.getSize()} entries")
+            raise GridError(f"{name} is {got}, this grid is (nx, ny) = ({self.nx}, {self.ny}) "
+                            f"({self.nx * self.ny} nodes, split by rows along y)")
+        return vec
 
     def rows(self, vec: PETSc.Vec, readonly: bool = False) -> np.ndarray:
         """The rank's part of ``vec`` as a C-ordered (ny_loc, nx) view (row j = one y)."""

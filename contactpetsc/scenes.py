@@ -2,7 +2,10 @@
 
 SI units throughout.  Every key is checked: unknown keys, wrong types and
 values outside the accepted range raise ``SceneError`` naming the key, the
-value and what is accepted.  The built-in default scene (``DEFAULT_SCENE``)
+value and what is accepted; so do keys that contradict each other or that the
+geometry kind or interaction law would ignore, loads too small to be more than
+round-off, and a ``kind = "file"`` scene's height file (checked from its
+metadata, so a dry run checks it too).  The built-in default scene (``DEFAULT_SCENE``)
 is a scene like any other.  Sections and keys are documented in
 docs/scenes.md (generated from ``SCHEMA`` by ``schema_markdown``).
 """
@@ -11,8 +14,10 @@ from __future__ import annotations
 import math
 import tomllib
 
-POS = (0.0, math.inf, False)      # (low, high, low included?)
-NONNEG = (0.0, math.inf, True)
+POS = (0.0, math.inf, False, False)      # (low, high, low included?, high included?)
+NONNEG = (0.0, math.inf, True, False)
+TOL = (0.0, 1e-2, False, True)           # a tolerance: above 1e-2 a solve is not a solution
+LOAD_RESOLUTION = 1e-12   #: smallest non-zero load or approach, relative to E* or the grid spacing
 
 
 class SceneError(ValueError):
@@ -27,8 +32,8 @@ SCHEMA = {
     "name": _k(str, "scene", "", "label used in outputs"),
     "geometry": {
         "kind": _k(str, "sphere", "", "composite surface", choices=("sphere", "self-affine", "file", "tip")),
-        "nx": _k(int, 128, "", "nodes along x", (2, 2**31 - 1, True)),
-        "ny": _k(int, None, "", "nodes along y (default nx)", (2, 2**31 - 1, True)),
+        "nx": _k(int, 128, "", "nodes along x", (2, 2**31 - 1, True, True)),
+        "ny": _k(int, None, "", "nodes along y (default nx)", (2, 2**31 - 1, True, True)),
         "dx": _k(float, None, "m", "grid spacing along x (required)", POS),
         "dy": _k(float, None, "m", "grid spacing along y (default dx)", POS),
         "periodic": _k(bool, None, "", "periodic cell (default: false for a sphere or tip, true otherwise)"),
@@ -37,13 +42,17 @@ SCHEMA = {
                   choices=("bent-commensurate", "bent-incommensurate", "amorphous", "stepped")),
         "atom_spacing": _k(float, None, "m", "nearest-neighbour atom spacing d (kind = tip)", POS),
         "atom_radius": _k(float, None, "m", "hard-sphere atom radius (kind = tip; default d / 2)", POS),
-        "hurst": _k(float, 0.8, "", "Hurst exponent (self-affine)", (0.0, 1.0, False)),
+        "hurst": _k(float, 0.8, "", "Hurst exponent (self-affine)", (0.0, 1.0, False, False)),
         "rms_height": _k(float, None, "m", "rms height (self-affine; or rms_slope)", NONNEG),
         "rms_slope": _k(float, None, "", "rms slope (self-affine; or rms_height)", NONNEG),
-        "rolloff_wavelength": _k(float, None, "m", "roll-off wavelength (default: cell size)", POS),
-        "short_cutoff_wavelength": _k(float, None, "m", "short cut-off (default: 2 dx)", POS),
-        "seed": _k(int, 0, "", "random seed (self-affine, amorphous tip)", (0, 2**63 - 1, True)),
-        "path": _k(str, None, "", "height file, .npy or HDF5 (kind = file), heights in m"),
+        "rolloff_wavelength": _k(float, None, "m", "roll-off wavelength (default: cell size; above the "
+                                 "short cut-off)", POS),
+        "short_cutoff_wavelength": _k(float, None, "m", "short cut-off (default: 2 max(dx, dy); below "
+                                      "the cell size)", POS),
+        "seed": _k(int, 0, "", "random seed (self-affine, amorphous tip)", (0, 2**63 - 1, True, True)),
+        "path": _k(str, None, "", "height file, .npy or HDF5 (kind = file), real heights in m, shape "
+                  "(nx, ny); an HDF5 dataset (or file) with attribute axes = \"y,x\" is stored (ny, nx) "
+                  "(as step_NNNN.h5); attributes dx, dy (m) must match the grid's"),
         "dataset": _k(str, "heights", "", "HDF5 dataset name (kind = file)"),
     },
     "material": {
@@ -53,7 +62,8 @@ SCHEMA = {
         "law": _k(str, "none", "", "interaction law (docs/formulation.md): Signorini, the reference "
                   "paper's eq. 7 and eq. 8, or for comparison exponential and Maugis-Dugdale",
                   choices=("none", "hardwall-lj", "lj", "exponential", "dugdale")),
-        "work_of_adhesion": _k(float, 0.0, "J/m^2", "w; 0 means no adhesion (law none)", NONNEG),
+        "work_of_adhesion": _k(float, 0.0, "J/m^2", "w; 0 means no adhesion (and is the only value for "
+                               "law none)", NONNEG),
         "z0": _k(float, None, "m", "equilibrium separation (hardwall-lj, lj)", POS),
         "rho": _k(float, None, "m", "decay length (exponential)", POS),
         "sigma0": _k(float, None, "Pa", "Dugdale stress (dugdale)", POS),
@@ -69,9 +79,9 @@ SCHEMA = {
                      "with warm starts (required)"),
         "refine_pull_off": _k(bool, True, "", "adhesive sweeps: refine the most tensile force by golden "
                               "section (Newton solves on its branch)"),
-        "jump_refinement": _k(int, 6, "", "adhesive sweeps: bisections locating each jump", (0, 40, True)),
+        "jump_refinement": _k(int, 6, "", "adhesive sweeps: bisections locating each jump", (0, 40, True, True)),
         "substeps": _k(int, 3, "", "adhesive sweeps: halvings of a step that fails, tried from the last "
-                       "converged state (0: none)", (0, 20, True)),
+                       "converged state (0: none)", (0, 20, True, True)),
     },
     "solver": {
         "method": _k(str, "newton", "", "with adhesion: SNES VI Newton, or the reference paper's MLMI "
@@ -79,7 +89,7 @@ SCHEMA = {
         "preconditioner": _k(str, "spectral", "", "reduced-system preconditioner",
                              choices=("spectral", "mlmi", "none")),
         "tol": _k(float, None, "", "error tolerance: complementarity error relative to the rms height "
-                  "(default 1e-10); with adhesion, the errors in z0 (default 1e-8; relaxation: 1e-4)", POS),
+                  "(default 1e-10); with adhesion, the errors in z0 (default 1e-8; relaxation: E_Total, 1e-4)", TOL),
         "options": _k(dict, {}, "", "further PETSc options under the solver's prefix (contact_, or "
                       "adhesion_ with adhesion), e.g. {snes_monitor = \"\", ksp_type = \"cg\"}"),
     },
@@ -103,6 +113,16 @@ DEFAULT_SCENE = {
 }
 
 
+def _number_text(v) -> str:
+    return str(v) if isinstance(v, int) else ("inf" if v == math.inf else f"{v:g}")
+
+
+def range_text(rng) -> str:
+    """An accepted range as printed in messages and docs: [ and ] include the bound."""
+    lo, hi, lo_in, hi_in = rng
+    return f"{'[' if lo_in else '('}{_number_text(lo)}, {_number_text(hi)}{']' if hi_in else ')'}"
+
+
 def _check_value(path: str, spec: dict, value):
     kind = spec["kind"]
     if kind is float and isinstance(value, int) and not isinstance(value, bool):
@@ -112,16 +132,18 @@ def _check_value(path: str, spec: dict, value):
     if spec["choices"] is not None and value not in spec["choices"]:
         raise SceneError(f"{path} = {value!r}: accepted values are {', '.join(spec['choices'])}")
     if spec["range"] is not None:
-        lo, hi, inclusive = spec["range"]
-        ok = (value >= lo if inclusive else value > lo) and value <= hi and math.isfinite(value)
+        lo, hi, lo_in, hi_in = spec["range"]
+        ok = ((value >= lo if lo_in else value > lo) and (value <= hi if hi_in else value < hi)
+              and math.isfinite(value))
         if not ok:
-            rng = f"{'[' if inclusive else '('}{lo:g}, {hi:g}]"
-            raise SceneError(f"{path} = {value!r}: accepted range {rng} {spec['unit']}".rstrip())
+            raise SceneError(f"{path} = {value!r}: accepted range {range_text(spec['range'])} "
+                             f"{spec['unit']}".rstrip())
     return value
 
 
 def validate(scene: dict) -> dict:
-    """A complete scene (defaults filled in) or SceneError."""
+    """A complete scene (defaults filled in) or SceneError (a height file is opened to read its
+    metadata; no rank talks to another: every rank reaches the same verdict on a shared file)."""
     if not isinstance(scene, dict):
         raise SceneError("a scene is a table of sections")
     out = {}
@@ -143,50 +165,146 @@ def validate(scene: dict) -> dict:
             value = given.get(sub, s["default"])
             section[sub] = None if value is None else _check_value(f"{key}.{sub}", s, value)
         out[key] = section
-    g = out["geometry"]
     for required in ("geometry.dx", "material.e_star", "protocol.values"):
         sec, sub = required.split(".")
         if out[sec][sub] is None:
             raise SceneError(f"{required} is required")
-    if g["kind"] == "sphere" and g["radius"] is None:
-        raise SceneError("geometry.radius is required for geometry.kind = sphere")
-    if g["kind"] == "tip":
-        for key in ("radius", "atom_spacing"):
-            if g[key] is None:
-                raise SceneError(f"geometry.{key} is required for geometry.kind = tip")
-    if out["output"]["atom_forces"] and g["kind"] != "tip":
-        raise SceneError("output.atom_forces needs geometry.kind = tip (forces per atom of a tip)")
-    if g["kind"] == "file" and g["path"] is None:
-        raise SceneError("geometry.path is required for geometry.kind = file")
-    if g["kind"] == "self-affine" and (g["rms_height"] is None) == (g["rms_slope"] is None):
-        raise SceneError("give exactly one of geometry.rms_height or geometry.rms_slope")
-    it = out["interaction"]
-    if it["law"] != "none" and it["work_of_adhesion"] > 0:
-        needed = {"hardwall-lj": "z0", "lj": "z0", "exponential": "rho", "dugdale": "sigma0"}[it["law"]]
-        if it[needed] is None:
-            raise SceneError(f"interaction.{needed} is required for interaction.law = {it['law']}")
-        if out["protocol"]["control"] in ("mean_pressure", "force"):
-            raise SceneError(f"protocol.control = {out['protocol']['control']!r} with adhesion: load "
-                             f"control is unstable on parts of adhesive paths; use approach or central_gap")
-        if out["solver"]["method"] == "relaxation" and it["law"] == "lj":
-            raise SceneError("solver.method = 'relaxation' needs a hard-wall law (hardwall-lj, "
-                             "exponential, dugdale); the full LJ curve (lj) is solved by newton")
-    elif out["protocol"]["control"] == "central_gap":
-        raise SceneError("protocol.control = 'central_gap' needs adhesion (interaction.law and "
-                         "interaction.work_of_adhesion > 0)")
-    values = out["protocol"]["values"]
-    if not values or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
-                             and math.isfinite(v) for v in values):
-        raise SceneError(f"protocol.values = {values!r}: a non-empty list of finite numbers")
-    if out["protocol"]["control"] in ("mean_pressure", "force") and min(values) <= 0:
-        raise SceneError(f"protocol.values = {values!r}: loads must be > 0 without adhesion")
+    g = out["geometry"]
     g["ny"] = g["ny"] or g["nx"]
     g["dy"] = g["dy"] or g["dx"]
     if g["periodic"] is None:
         g["periodic"] = g["kind"] not in ("sphere", "tip")
+    _check_geometry(g, _given(scene, "geometry"))
+    if out["output"]["atom_forces"] and g["kind"] != "tip":
+        raise SceneError("output.atom_forces needs geometry.kind = tip (forces per atom of a tip)")
+    _check_interaction(out, _given(scene, "interaction"))
+    _check_protocol(out)
     if adhesive(out):
         _check_adhesive_resolution(out)
+    if g["kind"] == "file":
+        _check_height_file(g)
     return out
+
+
+def _given(scene: dict, section: str) -> set:
+    """Keys of ``section`` set to something other than their default (a validated scene
+    validates again)."""
+    return {k for k, v in scene.get(section, {}).items()
+            if v is not None and v != SCHEMA[section][k]["default"]}
+
+
+#: the geometry keys each kind uses (besides kind, nx, ny, dx, dy, periodic)
+KIND_KEYS = {"sphere": ("radius",),
+             "tip": ("radius", "tip", "atom_spacing", "atom_radius", "seed"),
+             "self-affine": ("hurst", "rms_height", "rms_slope", "rolloff_wavelength",
+                             "short_cutoff_wavelength", "seed"),
+             "file": ("path", "dataset")}
+#: the parameter each interaction law takes besides work_of_adhesion
+LAW_PARAMETER = {"hardwall-lj": "z0", "lj": "z0", "exponential": "rho", "dugdale": "sigma0"}
+
+
+def _check_geometry(g: dict, given: set) -> None:
+    kind = g["kind"]
+    for key in sorted(given):
+        users = [k for k, keys in KIND_KEYS.items() if key in keys]
+        if users and kind not in users:
+            raise SceneError(f"geometry.{key} is not used by geometry.kind = {kind!r} (only by "
+                             f"kind = {', '.join(users)})")
+    for key in {"sphere": ("radius",), "tip": ("radius", "atom_spacing"), "file": ("path",)}.get(kind, ()):
+        if g[key] is None:
+            raise SceneError(f"geometry.{key} is required for geometry.kind = {kind}")
+    size = max(g["nx"] * g["dx"], g["ny"] * g["dy"])
+    if kind == "self-affine":
+        if (g["rms_height"] is None) == (g["rms_slope"] is None):
+            raise SceneError("give exactly one of geometry.rms_height or geometry.rms_slope")
+        short = g["short_cutoff_wavelength"] or 2 * max(g["dx"], g["dy"])
+        rolloff = g["rolloff_wavelength"] or size
+        if g["short_cutoff_wavelength"] is not None and short >= size:
+            raise SceneError(f"geometry.short_cutoff_wavelength = {short!r}: accepted range (0, {size:g}) "
+                             f"m (below the cell size max(nx dx, ny dy): longer cut-offs leave no modes)")
+        if short >= rolloff:
+            raise SceneError(f"geometry.rolloff_wavelength = {rolloff!r} m (default: the cell size) must "
+                             f"exceed geometry.short_cutoff_wavelength = {short!r} m (default: 2 max(dx, "
+                             f"dy)): the self-affine band between them is empty")
+    if kind == "tip":
+        # tips.make_tip: atoms must cover the window and 2 atom radii around it
+        spacing = g["atom_spacing"] * (0.94 if g["tip"] == "bent-incommensurate" else 1.0)
+        atom_radius = g["atom_radius"] or 0.5 * spacing
+        need = 0.5 * size + 2 * atom_radius
+        if g["radius"] <= need:
+            raise SceneError(f"geometry.radius = {g['radius']!r}: accepted range ({need:g}, inf) m for "
+                             f"this window (half of max(nx dx, ny dy) plus 2 atom radii): the tip must "
+                             f"be wider than the grid")
+
+
+def _check_interaction(out: dict, given: set) -> None:
+    it, law = out["interaction"], out["interaction"]["law"]
+    if law == "none":
+        if it["work_of_adhesion"] > 0:
+            raise SceneError(f"interaction.work_of_adhesion = {it['work_of_adhesion']!r} with "
+                             f"interaction.law = 'none': set a law ({', '.join(LAW_PARAMETER)}) for "
+                             f"adhesion, or work_of_adhesion = 0")
+    for key in sorted(given & set(LAW_PARAMETER.values())):
+        if LAW_PARAMETER.get(law) != key:
+            users = [name for name, k in LAW_PARAMETER.items() if k == key]
+            raise SceneError(f"interaction.{key} is not used by interaction.law = {law!r} (only by "
+                             f"law = {', '.join(users)})")
+    if not adhesive(out):
+        if it["element_integration"]:
+            raise SceneError("interaction.element_integration = true needs adhesion (interaction.law "
+                             "and interaction.work_of_adhesion > 0)")
+        if out["solver"]["method"] == "relaxation":
+            raise SceneError("solver.method = 'relaxation' is the adhesive relaxation: it needs adhesion "
+                             "(interaction.law and interaction.work_of_adhesion > 0)")
+        if out["protocol"]["control"] == "central_gap":
+            raise SceneError("protocol.control = 'central_gap' needs adhesion (interaction.law and "
+                             "interaction.work_of_adhesion > 0)")
+        return
+    needed = LAW_PARAMETER[law]
+    if it[needed] is None:
+        raise SceneError(f"interaction.{needed} is required for interaction.law = {law}")
+    if out["protocol"]["control"] in ("mean_pressure", "force"):
+        raise SceneError(f"protocol.control = {out['protocol']['control']!r} with adhesion: load "
+                         f"control is unstable on parts of adhesive paths; use approach or central_gap")
+    if out["solver"]["method"] == "relaxation" and law == "lj":
+        raise SceneError("solver.method = 'relaxation' needs a hard-wall law (hardwall-lj, "
+                         "exponential, dugdale); the full LJ curve (lj) is solved by newton")
+
+
+def _check_protocol(out: dict) -> None:
+    """Values must be finite numbers, loads positive, and no value so small that it is round-off:
+    non-zero values below LOAD_RESOLUTION E* (mean pressure), E* nx dx ny dy (force) or min(dx, dy)
+    (approach, central gap) would be solved to a relative error that means nothing."""
+    control, values = out["protocol"]["control"], out["protocol"]["values"]
+    if not values or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                             and math.isfinite(v) for v in values):
+        raise SceneError(f"protocol.values = {values!r}: a non-empty list of finite numbers")
+    if control in ("mean_pressure", "force") and min(values) <= 0:
+        raise SceneError(f"protocol.values = {values!r}: loads must be > 0 without adhesion")
+    g, e_star = out["geometry"], out["material"]["e_star"]
+    smallest, unit, what = {
+        "mean_pressure": (e_star, "Pa", "1e-12 material.e_star"),
+        "force": (e_star * g["nx"] * g["dx"] * g["ny"] * g["dy"], "N",
+                  "1e-12 material.e_star times the window area nx dx ny dy"),
+    }.get(control, (min(g["dx"], g["dy"]), "m", "1e-12 min(geometry.dx, geometry.dy)"))
+    smallest *= LOAD_RESOLUTION
+    tiny = [v for v in values if v != 0 and abs(v) < smallest]
+    if tiny:
+        accepted = f"[{smallest:.3g}, inf) {unit}" if control in ("mean_pressure", "force") else \
+            f"0 or |value| >= {smallest:.3g} {unit}"
+        raise SceneError(f"protocol.values: {tiny[0]!r} {unit} is below {what} (round-off, not a "
+                         f"{control.replace('_', ' ')}); accepted: {accepted}")
+
+
+def _check_height_file(g: dict) -> None:
+    """The height file of a ``kind = file`` scene, from its metadata: the run (and a dry run)
+    must not start on a file that cannot be read into the grid."""
+    from .surfaces import inspect_height_file
+    try:
+        inspect_height_file(g["path"], g["dataset"], (g["nx"], g["ny"]), (g["dx"], g["dy"]))
+    except (OSError, ValueError, KeyError) as exc:
+        cause = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
+        raise SceneError(f"geometry.path = {g['path']!r}: {cause}") from None
 
 
 def _check_adhesive_resolution(scene: dict) -> None:
@@ -194,7 +312,7 @@ def _check_adhesive_resolution(scene: dict) -> None:
     ``interactions.check_resolution``'s); the same on every rank."""
     from .physics.interactions import check_resolution, make_law
     it, g = scene["interaction"], scene["geometry"]
-    param = {"hardwall-lj": "z0", "lj": "z0", "exponential": "rho", "dugdale": "sigma0"}[it["law"]]
+    param = LAW_PARAMETER[it["law"]]
     law = make_law(it["law"], work_of_adhesion=it["work_of_adhesion"], **{param: it[param]})
     check_resolution(law, scene["material"]["e_star"], max(g["dx"], g["dy"]),
                      radius=g["radius"] if g["kind"] in ("sphere", "tip") else None,
@@ -228,8 +346,7 @@ def schema_markdown() -> str:
         lines += [f"### `{key}`", "", "| key | type | unit | default | accepted | meaning |",
                   "|---|---|---|---|---|---|"]
         for name, s in items:
-            acc = ", ".join(s["choices"]) if s["choices"] else (
-                f"{'[' if s['range'][2] else '('}{s['range'][0]:g}, {s['range'][1]:g}]" if s["range"] else "")
+            acc = ", ".join(s["choices"]) if s["choices"] else (range_text(s["range"]) if s["range"] else "")
             lines.append(f"| `{name}` | {s['kind'].__name__} | {s['unit']} | {s['default']!r} | {acc} | {s['doc']} |")
         lines.append("")
     return "\n".join(lines)

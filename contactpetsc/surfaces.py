@@ -9,6 +9,7 @@ by (seed, kx), so the draw does not depend on which rank owns the column.
 from __future__ import annotations
 
 import os
+import warnings
 
 import numpy as np
 from mpi4py import MPI
@@ -17,6 +18,27 @@ from petsc4py import PETSc
 from .errors import collective_call
 from .fft import SlabRFFT
 from .grid import GridError, SurfaceGrid
+
+
+class HeightDtypeWarning(UserWarning):
+    """Heights given as integers: taken as metres, which is rarely what integer data mean."""
+
+
+def check_height_dtype(dtype, what: str = "heights") -> None:
+    """Refuse heights that are not real numbers (complex, bool, text, objects); warn for integers.
+
+    Floating-point heights of any precision are taken as they are [m].
+    """
+    dtype = np.dtype(dtype)
+    if dtype.kind == "f":
+        return
+    if dtype.kind in "iu":
+        warnings.warn(f"{what}: heights of integer dtype {dtype} are taken as metres; convert them "
+                      f"to float (in m) to silence this", HeightDtypeWarning, stacklevel=3)
+        return
+    kind = {"b": "boolean", "c": "complex"}.get(dtype.kind, "not numeric")
+    raise GridError(f"{what}: heights of dtype {dtype} ({kind}); heights must be real numbers "
+                    f"(float, in m)")
 
 
 def _check_finite(grid: SurfaceGrid, vec: PETSc.Vec, what: str) -> PETSc.Vec:
@@ -28,45 +50,125 @@ def _check_finite(grid: SurfaceGrid, vec: PETSc.Vec, what: str) -> PETSc.Vec:
 
 
 def from_array(grid: SurfaceGrid, heights: np.ndarray) -> PETSc.Vec:
-    """Heights [m] from a global (nx, ny) array (the same array on every rank)."""
-    return _check_finite(grid, grid.vec_from_array(heights, "heights"), "heights array")
+    """Heights [m] from a global (nx, ny) real array (the same array on every rank)."""
+    heights = np.asarray(heights)
+    check_height_dtype(heights.dtype, "heights array")
+    return _check_finite(grid, grid.vec_from_array(heights.astype(float, copy=False), "heights"),
+                         "heights array")
 
 
-def _local_rows(grid: SurfaceGrid, data, path: str) -> np.ndarray:
-    if tuple(data.shape) != grid.shape:
-        raise ValueError(f"{path}: heights have shape {tuple(data.shape)}, the grid needs {grid.shape}")
-    return np.asarray(data[:, grid.ys:grid.ye], dtype=float)
+HDF5_EXTENSIONS = (".h5", ".hdf5", ".hdf")
+AXES = {"x,y": False, "y,x": True}   #: the ``axes`` stamp -> stored transposed, (ny, nx)
+
+
+def _attr_text(value) -> str:
+    if isinstance(value, bytes):
+        value = value.decode("utf-8", "replace")
+    return str(value).replace(" ", "").lower()
+
+
+def _npy_header(path: str):
+    """(shape, fortran_order, dtype, data offset) of a .npy file, without reading its data."""
+    with open(path, "rb") as f:
+        if f.read(6) != b"\x93NUMPY":
+            raise ValueError("empty or not a .npy file (no .npy header)")
+        f.seek(0)
+        try:
+            version = np.lib.format.read_magic(f)
+            read = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                    else np.lib.format.read_array_header_2_0)
+            shape, fortran, dtype = read(f)
+        except ValueError as exc:
+            raise ValueError(f"a damaged .npy header ({exc})") from None
+        return shape, fortran, dtype, f.tell()
+
+
+def inspect_height_file(path: str, dataset: str, shape: tuple, spacing: tuple) -> bool:
+    """Check a height file against a grid of ``shape`` (nx, ny) and ``spacing`` (dx, dy) [m]
+    from its metadata only (no height is read); True when it is stored transposed, (ny, nx).
+
+    ``.npy`` files hold (nx, ny).  HDF5 datasets hold (nx, ny) unless the dataset, or
+    else its file, carries the attribute ``axes``: "y,x" (stored (ny, nx), as contactpetsc's
+    step files) or "x,y"; any other stamp is refused.  A file with attributes ``dx``
+    and ``dy`` [m] must match the grid's spacing.  Raises ValueError, KeyError or OSError
+    with the cause.
+    """
+    ext = os.path.splitext(path)[1].lower()
+    if ext == ".npy":
+        stored, _, dtype, offset = _npy_header(path)
+        need = offset + int(np.prod(stored)) * dtype.itemsize
+        if os.path.getsize(path) < need:
+            raise ValueError(f"truncated: {os.path.getsize(path)} bytes, its header announces {need}")
+        transposed, fspacing, stamp = False, None, "x,y"
+    elif ext in HDF5_EXTENSIONS:
+        import h5py
+        with h5py.File(path, "r") as f:
+            if dataset not in f or not isinstance(f[dataset], h5py.Dataset):
+                raise KeyError(f"no dataset {dataset!r} (geometry.dataset) in {path} "
+                               f"(has {sorted(f.keys())})")
+            ds = f[dataset]
+            stored, dtype = tuple(ds.shape), ds.dtype
+            raw = ds.attrs.get("axes", f.attrs.get("axes"))
+            if raw is None and "approach" in f.attrs and "complementarity_error" in f.attrs:
+                raise ValueError("a contactpetsc step file without an axes stamp: its fields are "
+                                 "stored (ny, nx); set the attribute axes = 'y,x' on the file to "
+                                 "read it")
+            stamp = "x,y" if raw is None else _attr_text(raw)
+            if stamp not in AXES:
+                raise ValueError(f"dataset {dataset!r} has axes = {raw!r}; accepted: 'x,y' (stored "
+                                 f"(nx, ny)) or 'y,x' (stored (ny, nx))")
+            transposed = AXES[stamp]
+            attrs = ds.attrs if "dx" in ds.attrs else f.attrs
+            fspacing = (float(attrs["dx"]), float(attrs.get("dy", attrs["dx"]))) if "dx" in attrs else None
+    else:
+        raise ValueError(f"unknown height file type {ext!r} (accepted: .npy, {', '.join(HDF5_EXTENSIONS)})")
+    check_height_dtype(dtype, path)
+    nx, ny = shape
+    want = (ny, nx) if transposed else (nx, ny)
+    if tuple(stored) != want:
+        hint = ""
+        if tuple(stored) == want[::-1] and not transposed:
+            hint = ("; a .npy file holds (nx, ny): save the transpose" if ext == ".npy" else
+                    "; if the dataset's rows are y, stamp it with the attribute axes = 'y,x'")
+        raise ValueError(f"heights have shape {tuple(stored)} stored as {stamp}, the grid (geometry.nx, "
+                         f"geometry.ny) = {(nx, ny)} needs {want}{hint}")
+    if fspacing is not None:
+        for key, got, grid_d in (("dx", fspacing[0], spacing[0]), ("dy", fspacing[1], spacing[1])):
+            if not np.isclose(got, grid_d, rtol=1e-9, atol=0.0):
+                raise ValueError(f"the file's {key} = {got!r} m, the scene's geometry.{key} = {grid_d!r} m")
+    return transposed
 
 
 def from_file(grid: SurfaceGrid, path: str, dataset: str = "heights") -> PETSc.Vec:
-    """Heights [m] from ``.npy`` (memory-mapped) or HDF5 (``dataset``), shape (nx, ny).
+    """Heights [m] from ``.npy`` (memory-mapped) or HDF5 (``dataset``), checked first by
+    ``inspect_height_file``: shape (nx, ny), or (ny, nx) when stamped axes = "y,x".
 
-    Each rank reads only its own rows.  Errors (missing, unreadable, truncated
-    or wrongly shaped files) are raised on every rank.
+    Each rank reads only its own rows.  Errors (missing, unreadable, truncated,
+    wrongly shaped or stamped files, heights that are not real numbers) are raised on
+    every rank.
     """
     ext = os.path.splitext(path)[1].lower()
 
     def read():
+        transposed = inspect_height_file(path, dataset, grid.shape, (grid.dx, grid.dy))
         if ext == ".npy":
-            return _local_rows(grid, np.load(path, mmap_mode="r"), path)
-        if ext in (".h5", ".hdf5", ".hdf"):
-            import h5py
-            with h5py.File(path, "r") as f:
-                if dataset not in f:
-                    raise KeyError(f"no dataset {dataset!r} in {path} (has {sorted(f.keys())})")
-                return _local_rows(grid, f[dataset], path)
-        raise ValueError(f"unknown height file type {ext!r} (accepted: .npy, .h5, .hdf5)")
+            return np.asarray(np.load(path, mmap_mode="r")[:, grid.ys:grid.ye], dtype=float)
+        import h5py
+        with h5py.File(path, "r") as f:
+            if transposed:
+                return np.asarray(f[dataset][grid.ys:grid.ye, :], dtype=float).T
+            return np.asarray(f[dataset][:, grid.ys:grid.ye], dtype=float)
 
-    local = collective_call(grid.mpi_comm, GridError, f"cannot read heights from {path}: {{error}}", read)
     v = grid.create_vec()
+    local = collective_call(grid.mpi_comm, GridError, f"cannot read heights from {path}: {{error}}", read)
     grid.local_array(v)[...] = local
     return _check_finite(grid, v, path)
 
 
 def from_function(grid: SurfaceGrid, func) -> PETSc.Vec:
     """Heights [m] = func(x, y) on the local nodes; x, y [m] arrays of shape (nx, ny_local)."""
+    v = grid.create_vec()   # first: a grid too big for memory is refused in its own terms
     x, y = grid.coordinates()
-    v = grid.create_vec()
     values = collective_call(grid.mpi_comm, GridError, "height function failed: {error!r}", func, x, y)
     grid.local_array(v)[...] = values
     return _check_finite(grid, v, "height function")
@@ -136,6 +238,7 @@ def gaussian_correlated(grid: SurfaceGrid, *, rms_height: float, correlation_len
 
 
 def _random_surface(grid: SurfaceGrid, seed: int, psd_amplitude, rms_height, rms_slope) -> PETSc.Vec:
+    h = grid.create_vec()   # first: a grid too big for memory is refused in its own terms
     fft = SlabRFFT(grid.mpi_comm, grid.nx, grid.ny, grid.y_ranges, planner="estimate")
     qx, qy = fft.wavevectors(*grid.lengths)
     # draw per kx column, [kx_local, ky], from a stream keyed by (seed, kx): rank-independent
@@ -161,7 +264,6 @@ def _random_surface(grid: SurfaceGrid, seed: int, psd_amplitude, rms_height, rms
         raise GridError("random surface: the spectrum is empty (cut-offs leave no modes)")
     # unnormalised transforms: h = (1/N) * backward(h_hat)
     fft.spectrum[...] = spec * (target / current / (fft.Nx * fft.Ny))
-    h = grid.create_vec()
     fft.backward(grid.rows(h))
     h.shift(-h.min()[1])
     return h
@@ -169,6 +271,7 @@ def _random_surface(grid: SurfaceGrid, seed: int, psd_amplitude, rms_height, rms
 
 def rms_height(grid: SurfaceGrid, h: PETSc.Vec) -> float:
     """Root-mean-square deviation of h from its mean [m]."""
+    grid.check_vec(h, "heights")
     n = grid.nx * grid.ny
     mean = h.sum() / n
     # two passes: <h^2> - <h>^2 cancels (a flat h far from 0 would give round-off, not 0)
@@ -187,6 +290,7 @@ def scale_to_rms(grid: SurfaceGrid, h: PETSc.Vec, rms: float) -> PETSc.Vec:
     """
     if not (np.isfinite(rms) and rms >= 0):
         raise GridError(f"rms (m) must be finite and >= 0, got {rms!r}")
+    grid.check_vec(h, "heights")
     current = rms_height(grid, h)
     if current == 0 and rms > 0:
         raise GridError("scale_to_rms: the surface is flat (rms 0), it has no pattern to scale")
@@ -201,6 +305,8 @@ def composite(grid: SurfaceGrid, *parts: PETSc.Vec) -> PETSc.Vec:
     """The composite surface (assumption 1): the sum of height fields, shifted so min h = 0."""
     if not parts:
         raise GridError("composite: give at least one height field")
+    for k, p in enumerate(parts):
+        grid.check_vec(p, f"height field {k + 1} of the composite")
     out = parts[0].copy()
     for p in parts[1:]:
         out.axpy(1.0, p)

@@ -101,12 +101,13 @@ def make_tip(kind: str, grid: SurfaceGrid, radius: float, spacing: float, *,
     """One of the four tips (``KINDS``) of radius R [m], counter-surface spacing d [m],
     with atoms over the grid's window in a shell ``layers`` (001) layer spacings deep:
     default 3 for the crystals, 8 for the amorphous tip (measured: 3 leave ~2 % of the
-    nodes uncovered, 8 none)."""
+    nodes uncovered, 8 none).  Collective over the grid's communicator (its memory check)."""
     if kind not in KINDS:
         raise ValueError(f"tip kind must be one of {KINDS}, got {kind!r}")
     for name, v in (("radius", radius), ("spacing", spacing)):
         if not (np.isfinite(v) and v > 0):
             raise GridError(f"{name} (m) must be finite and > 0, got {v!r}")
+    grid.check_memory()   # collective: a window too big for memory is refused in its own terms
     d = spacing * ratio if kind == "bent-incommensurate" else spacing
     r_a = 0.5 * d if atom_radius is None else float(atom_radius)
     half = _window(grid, r_a)

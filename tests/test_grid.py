@@ -105,3 +105,87 @@ def test_row_alignment_and_explicit_ownership(coll):
         bad_splits.append([ny] + [0] * (coll.size - 1))              # ranks without rows
     for bad in bad_splits:
         coll.raises(GridError, "y_ownership", SurfaceGrid, nx, ny, 1.0, y_ownership=bad)
+
+
+def test_layout_is_the_dmda_layout(coll):
+    """The rows computed up front (the DMDA is created at first use) are the DMDA's."""
+    g = SurfaceGrid(5, 37, 1.0, row_alignment=4)
+    assert g._da is None                       # sizes and rows need no PETSc allocation
+    (xs, xe), (ys, ye) = g.da.getRanges()
+    ly = g.da.getOwnershipRanges()[1]
+    assert coll.all((xs, xe, ys, ye) == (0, 5, g.ys, g.ye))
+    assert coll.all(list(np.cumsum(ly)) == [e for _, e in g.y_ranges])
+    assert coll.all(g.create_vec().getLocalSize() == 5 * g.ny_local)
+
+
+def test_check_vec_refuses_a_field_of_another_grid(coll):
+    """16 x 12 and 12 x 16 grids have fields of one size (and, on 2 ranks, one local size):
+    only the DMDA's sizes tell them apart."""
+    from contactpetsc import surfaces
+    g, other = SurfaceGrid(12, 16, 1.0), SurfaceGrid(16, 12, 1.0)
+    v = other.create_vec(1.0)
+    coll.raises(GridError, ["heights", "16 x 12", "(nx, ny) = (12, 16)"], g.check_vec, v, "heights")
+    for call in (lambda: surfaces.rms_height(g, v), lambda: surfaces.scale_to_rms(g, v, 1.0),
+                 lambda: surfaces.composite(g, g.create_vec(0.0), v),
+                 lambda: surfaces.rough_sphere(g, 100.0, v)):
+        coll.raises(GridError, "16 x 12", call)
+    assert g.check_vec(g.create_vec(), "heights") is not None
+    assert g.check_vec(g.create_vec().duplicate(), "heights") is not None
+    plain = PETSc.Vec().createMPI((12 * g.ny_local, 12 * 16), comm=g.comm)   # no DMDA: sizes only
+    assert g.check_vec(plain) is plain
+    short = PETSc.Vec().createMPI(12 * 15, comm=g.comm)
+    coll.raises(GridError, ["180 entries", "(12, 16)"], g.check_vec, short, "roughness")
+    coll.raises(GridError, ["PETSc Vec", "ndarray"], g.check_vec, np.zeros((12, 16)), "roughness")
+
+
+def test_a_grid_too_big_for_memory_is_refused_in_its_terms(coll, monkeypatch):
+    """Before PETSc allocates (its error would be a bare code): the grid size, the memory
+    needed and available per rank, the scene keys."""
+    import contactpetsc.grid as grid_module
+    g = SurfaceGrid(512, 512, 1.0)
+    monkeypatch.setattr(grid_module, "available_memory", lambda comm: 2.0 ** 20)
+    coll.raises(GridError, ["512 x 512 grid (geometry.nx x geometry.ny)", "GiB per rank",
+                            "0.00 GiB can be allocated"], g.create_vec)
+    from contactpetsc import surfaces, tips      # the builders that allocate before any Vec
+    coll.raises(GridError, "geometry.nx x geometry.ny", surfaces.self_affine, g, hurst=0.8, seed=0,
+                rms_height=1.0)
+    coll.raises(GridError, "geometry.nx x geometry.ny", tips.make_tip, "amorphous", g, 1e4, 1.0)
+    monkeypatch.setattr(grid_module, "available_memory", lambda comm: 2.0 ** 30)
+    assert coll.all(g.create_vec().getSize() == 512 * 512)
+
+
+def test_available_memory_is_positive_and_rank_independent(coll):
+    from contactpetsc.grid import available_memory
+    avail = available_memory(PETSc.COMM_WORLD.tompi4py())
+    assert avail > 0
+    assert coll.max(avail) == -coll.max(-avail)
+
+
+@pytest.mark.serial
+def test_dry_run_of_a_huge_grid_allocates_nothing_and_a_run_says_why_it_cannot(tmp_path):
+    """46000^2 nodes (within 32-bit indices) under an 8 GB address-space limit: the dry run
+    prints the plan; the run stops before PETSc with the grid size and memory per rank."""
+    import os
+    import resource
+    import subprocess
+    import sys
+    scene = tmp_path / "huge.toml"
+    scene.write_text('[geometry]\nkind = "sphere"\nradius = 1e-3\nnx = 46000\ndx = 1e-8\n'
+                     '[material]\ne_star = 1e9\n[protocol]\nvalues = [1e-9]\n')
+    env = dict(os.environ, PYTHONPATH=os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+               OMP_NUM_THREADS="1")
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_AS, (8 * 2**30, 8 * 2**30))
+
+    def run(*extra):
+        return subprocess.run([sys.executable, "-m", "contactpetsc.cli", "run", str(scene),
+                               "--output", str(tmp_path / "out"), *extra], capture_output=True,
+                              text=True, env=env, timeout=300, preexec_fn=limit)
+
+    dry = run("--dry-run")
+    assert dry.returncode == 0 and "SurfaceGrid(46000 x 46000" in dry.stdout, dry.stdout + dry.stderr
+    real = run()
+    assert real.returncode == 1, real.stdout + real.stderr
+    assert "46000 x 46000 grid (geometry.nx x geometry.ny)" in real.stderr, real.stderr
+    assert "GiB per rank" in real.stderr and "error code" not in real.stderr, real.stderr

@@ -168,11 +168,11 @@ def test_bad_law_parameters(coll, law, params, key, unit):
 
 
 @pytest.mark.parametrize("section, values, message", [
-    ("interaction", {"law": "lj", "work_of_adhesion": 0.1, "z0": 0.0}, "interaction.z0 = 0.0: accepted range (0, inf] m"),
+    ("interaction", {"law": "lj", "work_of_adhesion": 0.1, "z0": 0.0}, "interaction.z0 = 0.0: accepted range (0, inf) m"),
     ("interaction", {"law": "lj", "work_of_adhesion": 0.1, "z0": 1e-9, "range": 2}, "unknown key interaction.range"),
-    ("material", {"e_star": -5.0}, "material.e_star = -5.0: accepted range (0, inf] Pa"),
+    ("material", {"e_star": -5.0}, "material.e_star = -5.0: accepted range (0, inf) Pa"),
     ("material", {"e_star": float("inf")}, "material.e_star = inf: accepted range"),
-    ("solver", {"tol": 0.0}, "solver.tol = 0.0: accepted range (0, inf]"),
+    ("solver", {"tol": 0.0}, "solver.tol = 0.0: accepted range (0, 0.01]"),
     ("output", {"dir": "x"}, "unknown key output.dir"),
 ])
 def test_bad_scene_values(section, values, message):

@@ -25,13 +25,13 @@ def minimal(**geometry):
 @pytest.mark.parametrize("scene, message", [
     ({"foo": 1}, "unknown key 'foo'"),
     (minimal(radiu=1.0), "unknown key geometry.radiu"),
-    (minimal(dx=-1.0), "geometry.dx = -1.0: accepted range (0, inf] m"),
+    (minimal(dx=-1.0), "geometry.dx = -1.0: accepted range (0, inf) m"),
     (minimal(nx=1), "geometry.nx = 1: accepted range [2,"),
     (minimal(nx=32.5), "geometry.nx = 32.5: expected int"),
     (minimal(kind="cone"), "geometry.kind = 'cone': accepted values are sphere, self-affine, file"),
-    (minimal(hurst=1.5, kind="self-affine", rms_slope=0.1), "geometry.hurst = 1.5: accepted range (0, 1]"),
-    (minimal(kind="self-affine"), "exactly one of geometry.rms_height or geometry.rms_slope"),
-    (dict(minimal(), material={"e_star": 0.0}), "material.e_star = 0.0: accepted range (0, inf] Pa"),
+    (minimal(hurst=1.5, kind="self-affine", rms_slope=0.1), "geometry.hurst = 1.5: accepted range (0, 1)"),
+    (minimal(kind="self-affine", radius=None), "exactly one of geometry.rms_height or geometry.rms_slope"),
+    (dict(minimal(), material={"e_star": 0.0}), "material.e_star = 0.0: accepted range (0, inf) Pa"),
     (dict(minimal(), material={}), "material.e_star is required"),
     (dict(minimal(), interaction={"law": "morse"}), "interaction.law = 'morse': accepted values are none"),
     (dict(minimal(), interaction={"law": "lj", "work_of_adhesion": 0.1}), "interaction.z0 is required"),
@@ -53,7 +53,7 @@ def test_defaults_are_filled_in_and_the_default_scene_is_valid():
     s = scenes.validate(minimal())
     assert s["geometry"]["ny"] == 32 and s["geometry"]["dy"] == 5e-8
     assert s["geometry"]["periodic"] is False          # a sphere is isolated by default
-    assert scenes.validate(minimal(kind="self-affine", rms_slope=0.1))["geometry"]["periodic"] is True
+    assert scenes.validate(minimal(kind="self-affine", radius=None, rms_slope=0.1))["geometry"]["periodic"] is True
     assert scenes.validate(scenes.DEFAULT_SCENE)["name"] == "hertz-sphere"
 
 
