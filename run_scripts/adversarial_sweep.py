@@ -19,6 +19,7 @@ Outcomes:
   HANG          the wall-time bound was reached
   UNCLEAR       refused, but the message names no key or file (or names internals)
   FAILED-LOUD   valid input that should give an answer ended with a non-zero exit instead
+  SLOW          the per-step cost grows along a run (bookkeeping)
 
     python run_scripts/adversarial_sweep.py --list
     python run_scripts/adversarial_sweep.py --only flat --timeout 60 --markdown sweep.md
@@ -50,8 +51,8 @@ MPI_ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
            "OMPI_MCA_rmaps_base_oversubscribe": "1", "OMP_NUM_THREADS": "1"}
 TIMEOUT = 60.0          # s per process; set by --timeout
 Z0 = 0.3e-9             # m, the equilibrium separation of most cases (and their grid spacing)
-OK, WRONG, LOST, CRASH, HANG, UNCLEAR, LOUD = ("OK", "SILENT-WRONG", "LOST-WORK", "CRASH", "HANG",
-                                              "UNCLEAR", "FAILED-LOUD")
+OK, WRONG, LOST, CRASH, HANG, UNCLEAR, LOUD, SLOW = ("OK", "SILENT-WRONG", "LOST-WORK", "CRASH", "HANG",
+                                                    "UNCLEAR", "FAILED-LOUD", "SLOW")
 
 
 @dataclasses.dataclass
@@ -842,7 +843,8 @@ def killed_run(d: Path, scene_file: Path, rows: int, mode="self", ranks=1, kill_
     extra = {"SWEEP_PID_DIR": str(piddir), "SWEEP_CURVE": str(d / out / "curve.csv"),
              "SWEEP_KILL_ROWS": str(rows), "SWEEP_KILL_MODE": mode, "SWEEP_KILL_RANK": str(kill_rank)}
     return run_py([str(d / "killer.py"), "run", str(scene_file), *(["--restart"] if (d / out).exists()
-                                                                    else [])], d, ranks, extra)
+                                                                    else [])], d, ranks, extra,
+                  timeout=TIMEOUT / 2)
 
 
 def read_jumps(out: Path) -> list[dict]:
@@ -900,14 +902,17 @@ def kill_restart_case(name, scene, kills: list[tuple[int, str]], ranks=1, kill_r
         if res.rc != 0:
             return LOUD, f"uninterrupted run failed: {message(res)}"
         scene_file = write_scene(d / "scene.toml", scene)
+        notes = []
         for rows, mode in kills:
             res = killed_run(d, scene_file, rows, mode, ranks, kill_rank)
             if res.timed_out:
-                return HANG, f"the job did not end within {TIMEOUT:g} s after the kill ({mode}, rank {kill_rank})"
+                # mpirun's business rather than the product's: noted, and the restart judged
+                notes.append(f"mpirun did not end within {TIMEOUT / 2:g} s of the kill")
             if res.rc == 0:
                 return OK, f"run finished before the kill at {rows} rows (inconclusive)"
         res = cli(d, "run", scene_file, "--restart", ranks=restart_ranks or ranks)
-        return judge_success(res, lambda: compare_runs(d / "ref", d / "out", step))
+        verdict, detail = judge_success(res, lambda: compare_runs(d / "ref", d / "out", step))
+        return verdict, "; ".join([detail] + notes)
     how = ", then ".join(f"{m} at {r} rows" for r, m in kills)
     return Case(name, klass, f"{scene['name']}: kill ({how}, rank {kill_rank} of {ranks}), --restart",
                 "curve, jumps, pull-off, atom forces as the uninterrupted run", run, ranks)
@@ -927,7 +932,7 @@ def budget_restart_case(name, scene, budget) -> Case:
                 "pull-off and jumps of the whole path, as uninterrupted", run)
 
 
-def changed_physics_case(key: str, value, base=None, kill_rows=4) -> Case:
+def changed_physics_case(key: str, value, base=None, kill_rows=4, suffix="") -> Case:
     """A stopped run restarted with one physics key changed: refused, naming the key."""
     base = base or adhesive_sphere(values=JUMP_VALUES)
     table, k = key.split(".")
@@ -941,7 +946,7 @@ def changed_physics_case(key: str, value, base=None, kill_rows=4) -> Case:
         changed = merged(base, **{table: {k: value}})
         res = run_scene(d, changed, "--restart", name="changed.toml")
         return judge_refusal(res, [k])
-    return Case(f"restart-changed-{key}", "9", f"--restart with {key} = {value!r} "
+    return Case(f"restart-changed-{key}{suffix}", "9", f"--restart with {key} = {value!r} "
                 f"({'after a kill' if kill_rows else 'after a finished run'})",
                 f"exit 1 naming {k}", run)
 
@@ -1111,7 +1116,7 @@ def disk_full_case(name, scene, limit_bytes, ranks=1) -> Case:
 
 # --------------------------------------------------------------------------------------------
 # class 12: per-step bookkeeping must stay flat
-def bookkeeping_case(steps=400) -> Case:
+def bookkeeping_case(steps=600) -> Case:
     values = [1e-9 * (1 + 0.5 * (k % 2)) for k in range(steps)]
     scene = merged(hertz_scene(nx=32, dx=8e-9, values=values), output={"fields": False})
 
@@ -1141,9 +1146,9 @@ def bookkeeping_case(steps=400) -> Case:
         early, late = rate(20, 120), rate(steps - 100, steps - 5)
         ratio = late / early
         detail = f"{early * 1e3:.1f} ms/step at 20-120, {late * 1e3:.1f} ms/step at the end (x{ratio:.2f})"
-        return (OK if ratio < 2 else WRONG), detail
+        return (OK if ratio < 1.6 else SLOW), detail
     return Case(f"bookkeeping-{steps}-steps", "12", f"{steps} cheap Signorini steps, no fields",
-                "time per step at the end within 2x of steps 20-120", run)
+                "time per step at the end within 1.6x of steps 20-120", run)
 
 
 # --------------------------------------------------------------------------------------------
@@ -1269,7 +1274,7 @@ def all_cases() -> list[Case]:
     add(rigid_sphere_case("far-sphere-lj-w0.05", 0.05, 1e10, values=FAR, klass="3", no_jumps=True, tol=1e-2))
     add(rigid_sphere_case("far-sphere-lj-w0.3", 0.3, 1e10, values=FAR, klass="3", no_jumps=True, tol=1e-2))
     add(rigid_sphere_case("far-sphere-hardwall", 0.3, 1e10, law="hardwall-lj", values=FAR, klass="3",
-                          no_jumps=True))
+                          no_jumps=True, tol=1e-2))
     add(rigid_sphere_case("far-sphere-fine-steps", 0.05, 1e10, klass="3", no_jumps=True, tol=1e-2,
                           values=z0s(*np.arange(-20, -9.9, 0.5), *np.arange(-10.5, -20.1, -0.5))))
     add(rigid_sphere_case("far-sphere-np2", 0.3, 1e10, values=FAR, klass="3", no_jumps=True, tol=1e-2, ranks=2))
@@ -1394,7 +1399,7 @@ def all_cases() -> list[Case]:
         add(changed_physics_case(key, value))
     add(changed_physics_case("geometry.seed", 4, base=rough_cell(), kill_rows=0))
     add(changed_physics_case("protocol.control", "force", base=merged(
-        big, protocol={"control": "approach", "values": [1e-9, 2e-9]}), kill_rows=0))
+        big, protocol={"control": "approach", "values": [1e-9, 2e-9]}), kill_rows=0, suffix="-signorini"))
     add(restart_allowed_case("restart-plots-toggled", {"output": {"plots": True}}))
     add(restart_allowed_case("restart-on-2-ranks", {}, ranks=2))
     # 10: the output directory
