@@ -375,7 +375,8 @@ def check_rigid_sphere(scene: dict, out: Path, tol: float, no_jumps=False) -> tu
         errors[f"p(g) step {r['step']}"] = float(np.max(np.abs(p - law_pressure(law, gap, w, **kw)))) / peak
         rigid_gap = h - float(r["approach_m"])
         errors[f"gap/z0 step {r['step']}"] = float(np.max(np.abs(gap - rigid_gap))) / Z0
-    verdict, detail = within(errors, tol, "rigid-sphere F (rel. max|F|), nodal p - p(g) (rel. peak), gap (z0)")
+    verdict, detail = within(errors, tol,
+                             "rigid-sphere F (rel. max|F|), nodal p - p(g) (rel. peak), gap (z0)")
     if no_jumps and verdict == OK:
         summary = strict_json(out / "summary.json")
         with open(out / "jumps.csv") as f:
@@ -399,7 +400,8 @@ def rigid_sphere_case(name, w, e_star, law="lj", values=None, ranks=1, tol=1e-3,
     what = "far sphere (min gap 10 z0)" if no_jumps else "rigid sphere"
     return Case(name, klass, f"{law} sphere, w = {w:g} J/m^2, E* = {e_star:g} Pa (w/E*z0 = {ratio:.0e}), "
                 f"{ranks} rank(s)",
-                f"{what}: F = sum p(h-delta) dxdy, p = p(g) at every node, g = h - delta, all within {tol:g}" +
+                f"{what}: F = sum p(h-delta) dxdy, p = p(g) at every node, g = h - delta, "
+                f"all within {tol:g}" +
                 ("; no jumps, pull-off null" if no_jumps else ""), run, ranks)
 
 
@@ -577,7 +579,7 @@ def refuse_or_match_case(name, klass, description, scene, names, tol=1e-3, args=
                 f"within {tol:g}", run)
 
 
-def load_case(name, scene, target_index=0) -> Case:
+def load_case(name, scene) -> Case:
     """Subnormal or huge loads: refused naming protocol.values, or the load met."""
     def run(d):
         res = run_scene(d, scene)
@@ -1011,7 +1013,8 @@ def concurrent_case(name, ranks=(1, 1), same=False) -> Case:
             return UNCLEAR, f"second run refused without naming the lock: {msg}"
         verdict, detail = step_consistency(d / "out", scenes[winner]["material"]["e_star"])
         return verdict, f"one refused ({msg[:80]}); {detail}"
-    return Case(name, "10", f"two concurrent runs into one directory ({'same scene' if same else 'E* 1e10 vs 2e10'}, "
+    pair = "same scene" if same else "E* 1e10 vs 2e10"
+    return Case(name, "10", f"two concurrent runs into one directory ({pair}, "
                 f"ranks {ranks})", "one exits 0 with consistent files, the other exit 1 naming the lock",
                 run, max(ranks))
 
@@ -1033,7 +1036,8 @@ def old_directory_case(name, flags=(), plant=None, expect="refuse") -> Case:
                          if p.name.endswith(".png") or (p.name.startswith("step_") and
                                                         int(p.name[5:9]) > 3)]
             if leftovers:
-                return WRONG, f"{len(leftovers)} files of the other run left beside the new one: {leftovers[:3]}"
+                return WRONG, (f"{len(leftovers)} files of the other run left beside the new one: "
+                               f"{leftovers[:3]}")
             if plant and not (d / "out" / plant).exists():
                 return WRONG, f"the user's {plant} was deleted"
             return step_consistency(d / "out", 1e10)
@@ -1203,7 +1207,8 @@ GOOD_CURVE_HEAD = "step,branch,approach_m,force_N,mean_pressure_Pa,contact_fract
 
 
 def api_refusal_case(name, klass, code, names, ranks=1) -> Case:
-    """API misuse (``code`` defines misuse() on API_GRID's 12 x 16 grid): the call must raise on every rank with a message naming one of ``names``."""
+    """API misuse (``code`` defines misuse() on API_GRID's 12 x 16 grid): the call must raise
+    on every rank with a message naming one of ``names``."""
     wrapped = textwrap.dedent(API_GRID) + textwrap.dedent(code) + textwrap.dedent("""
         try:
             misuse()
@@ -1277,7 +1282,8 @@ def all_cases() -> list[Case]:
                           no_jumps=True, tol=1e-2))
     add(rigid_sphere_case("far-sphere-fine-steps", 0.05, 1e10, klass="3", no_jumps=True, tol=1e-2,
                           values=z0s(*np.arange(-20, -9.9, 0.5), *np.arange(-10.5, -20.1, -0.5))))
-    add(rigid_sphere_case("far-sphere-np2", 0.3, 1e10, values=FAR, klass="3", no_jumps=True, tol=1e-2, ranks=2))
+    add(rigid_sphere_case("far-sphere-np2", 0.3, 1e10, values=FAR, klass="3", no_jumps=True, tol=1e-2,
+                          ranks=2))
     add(flat_case("flat-tail-smooth", 0.1, klass="3", no_jumps=True, tol=1e-2, refine=False,
                   values=z0s(-3, -2.5, -2, -1.5, -1, -0.6, -0.4, -0.6, -1, -1.5, -2, -3)))
     add(flat_case("flat-through-peak-smooth", 0.1, klass="3", no_jumps=True, tol=1e-2,
@@ -1358,8 +1364,7 @@ def all_cases() -> list[Case]:
     add(stamped_input_case("heights-h5-stamped-xy", "xy", "x,y"))
     add(api_from_step_file_case())
     # 7: the window edge
-    add(window_case(hertz_scene(values=(1e-9, 2e-9, 3e-9))["name"] + "-docs-minimal",
-                    hertz_scene(), expect_warning=True))
+    add(window_case("docs-minimal-scene", hertz_scene(), expect_warning=True))
     add(window_case("hertz-big-window", merged(hertz_scene(dx=4e-9, values=(0.5e-9, 1e-9, 2e-9)),
                                                name="hertz-big-window"), False, hertz_tol=0.03))
     add(window_case("adhesive-zone-at-edge", adhesive_sphere(w=0.05), expect_warning=True))
