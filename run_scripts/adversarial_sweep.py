@@ -1009,7 +1009,7 @@ def concurrent_case(name, ranks=(1, 1), same=False) -> Case:
             return LOUD, f"exits {rcs}"
         loser, winner = (0, 1) if rcs[0] == 1 else (1, 0)
         msg = message(results[loser])
-        if not any(w in msg.lower() for w in ("lock", "in use", "another run", "busy", "running")):
+        if not any(w in msg.lower() for w in ("lock", "in use", "another", "busy", "running", "concurrent")):
             return UNCLEAR, f"second run refused without naming the lock: {msg}"
         verdict, detail = step_consistency(d / "out", scenes[winner]["material"]["e_star"])
         return verdict, f"one refused ({msg[:80]}); {detail}"
@@ -1042,7 +1042,7 @@ def old_directory_case(name, flags=(), plant=None, expect="refuse") -> Case:
                 return WRONG, f"the user's {plant} was deleted"
             return step_consistency(d / "out", 1e10)
         if expect == "refuse":
-            return judge_refusal(res, ["--restart", "--overwrite", "out"], accept=check)
+            return judge_refusal(res, ["--restart", "--overwrite"], accept=check)
         return judge_success(res, check)
     return Case(name, "10", f"new scene into another run's directory {' '.join(flags)}"
                 + (f" (with the user's {plant})" if plant else ""),
