@@ -1571,12 +1571,24 @@ def run_case(case: Case, keep: bool) -> dict:
             "detail": detail, "seconds": round(time.time() - t0, 1), **({"dir": str(d)} if keep else {})}
 
 
-def markdown(results: list[dict]) -> str:
-    lines = ["| case | class | expected | outcome | classification | detail |", "|---|---|---|---|---|---|"]
+def summary_line(results: list[dict]) -> str:
+    counts: dict[str, int] = {}
     for r in results:
-        cell = lambda s: str(s).replace("|", "\\|").replace("\n", " ")  # noqa: E731
-        lines.append(f"| `{r['case']}` | {r['class']} | {cell(r['expected'])} | "
-                     f"{cell(r['description'])} | **{r['outcome']}** | {cell(r['detail'])} |")
+        counts[r["outcome"]] = counts.get(r["outcome"], 0) + 1
+    failed = len(results) - counts.get(OK, 0)
+    return (f"{counts.get(OK, 0)} passed, {failed} failed: " +
+            ", ".join(f"{n} {k}" for k, n in sorted(counts.items()) if k != OK))
+
+
+def markdown(results: list[dict]) -> str:
+    """The table: case, issue class, what it does, expected, what happened, classification."""
+    def cell(s):
+        return str(s).replace("|", "\\|").replace("\n", " ")
+    lines = [summary_line(results), "",
+             "| case | class | probe | expected | outcome | classification |", "|---|---|---|---|---|---|"]
+    for r in results:
+        lines.append(f"| `{r['case']}` | {r['class']} | {cell(r['description'])} | {cell(r['expected'])} | "
+                     f"{cell(r['detail'])} | **{r['outcome']}** |")
     return "\n".join(lines) + "\n"
 
 
@@ -1604,13 +1616,8 @@ def main(argv=None) -> int:
             results.append(r)
     if args.markdown:
         Path(args.markdown).write_text(markdown(results))
-    counts = {}
-    for r in results:
-        counts[r["outcome"]] = counts.get(r["outcome"], 0) + 1
-    failed = len(results) - counts.get(OK, 0)
-    print(f"{counts.get(OK, 0)} passed, {failed} failed: " +
-          ", ".join(f"{n} {k}" for k, n in sorted(counts.items()) if k != OK))
-    return 0 if failed == 0 else 1
+    print(summary_line(results))
+    return 0 if all(r["outcome"] == OK for r in results) else 1
 
 
 if __name__ == "__main__":
