@@ -821,7 +821,7 @@ def count():
 
 
 def watch():
-    while count() < rows or (mode == "refine" and os.path.exists(os.path.dirname(curve) + "/summary.json")):
+    while count() < rows:      # the last row: the pull-off refinement runs after it
         time.sleep(0.0005)
     if mode == "all":
         for name in os.listdir(piddir):
