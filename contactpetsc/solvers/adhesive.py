@@ -317,6 +317,8 @@ class AdhesiveProblem:
         J.setUp()
         self._x, self._f = self.create_unknown(), self.create_unknown()
         self._x_best = self.create_unknown()
+        self._x_solve_best = self.create_unknown()   # the iterate of smallest error of the running solve
+        self._solve_best = (np.inf, "")
         lower, upper = self.create_unknown(), self.create_unknown()
         upper.set(PETSc.INFINITY)
         lower.set(PETSc.NINFINITY)
@@ -500,10 +502,15 @@ class AdhesiveProblem:
             complementarity_error=err_c, load_error=float("nan"), approach=self._approach,
             mean_pressure=mean_p, contact_fraction=frac, solver=self.solver_name,
             adhesive_error=err_a, pressure_error=err_p)
-        # gaps right in z0 and pressures right on the law's scale, both to tol
-        err = max(err_c, err_a, err_p)
+        # the PTC shift and the stall watch follow the errors in z0 (their trend, not their size)
+        err = max(err_c, err_a)
         self._last_error = err
-        verdict = convergence_verdict(snes, it, err, self.tol)
+        # converged: gaps right in z0 and pressures right on the law's scale, both to tol
+        full = max(err, err_p)
+        if not full >= self._solve_best[0]:   # NaN never replaces a real iterate
+            self._solve_best = (full, f"{'ptc' if self.shift else 'Newton'} iteration {it}")
+            x.copy(self._x_solve_best)
+        verdict = convergence_verdict(snes, it, full, self.tol)
         if verdict == PETSc.SNES.ConvergedReason.ITERATING and self._stall_watch and not self.shift:
             if it == 0 or err < self._best[0]:
                 self._best = (err, it)
@@ -772,7 +779,8 @@ class AdhesiveProblem:
             if self._approach is None:
                 self._approach = float(approach) if approach is not None else self.centre_value(
                     self.grid.rows(self.heights, readonly=True)) - float(central_gap)
-            return self._state(False, self.budget_reason, 0, 0, pairs0, t0, float("nan"), self.solver_name)
+            return self._state(False, self.budget_reason + " (state: the last converged state's pressures)",
+                               0, 0, pairs0, t0, float("nan"), self.solver_name)
         if approach is not None and self.hard_wall and self.grid.periodic:
             # K has no mean mode on a periodic cell: the mean gap is mean(h) - delta
             g = self.grid
@@ -780,7 +788,8 @@ class AdhesiveProblem:
                 g.nx * g.ny) - float(approach)
             if mean_gap < 0:
                 reason = (f"NO_EQUILIBRIUM (periodic cell: the mean gap mean(h) - delta = {mean_gap:.4e} m "
-                          f"is negative, a hard wall cannot keep g >= 0)")
+                          f"is negative, a hard wall cannot keep g >= 0; state: the last converged state's "
+                          f"pressures)")
                 if raise_on_failure:
                     raise AdhesiveSolveError(f"adhesive solve at approach {approach:.4e} m: {reason}")
                 self._approach = float(approach)
@@ -801,6 +810,7 @@ class AdhesiveProblem:
             self.centre_owner = None
             self._prev_approach, self._approach = self._approach, float(approach)
         self._check_time = 0.0
+        self._solve_best = (np.inf, "")
         x_start = self._x.copy()
         coarse_predicted = approach is not None and self._coarse_step(float(approach))
         if not coarse_predicted and approach is not None and self.use_predictor:
@@ -845,16 +855,26 @@ class AdhesiveProblem:
                     break
             converged = ok
         if not converged:
-            x_start.copy(self._x)   # keep the last good state as the next start
+            # the state reported: the iterate of smallest error (never what a failed SNES
+            # left in its solution); the next solve starts from the last converged state
+            if np.isfinite(self._solve_best[0]):
+                self._x_solve_best.copy(self._x)
+                reason += (f" (state: the iterate of smallest error, {self._solve_best[0]:.3e}, at "
+                           f"{self._solve_best[1]}; the next solve starts from the last converged state)")
+            else:
+                x_start.copy(self._x)
+                reason += " (state: the last converged state's pressures; no iterate was measured)"
             if self.snap_number > 1.0:
                 reason += (f" [under-resolved adhesion: K_ii max da/dg = {self.snap_number:.2f} > 1, every "
                            f"node can snap on its own; refine the grid until this is below 1]")
             elif self.zone_nodes < RESOLUTION_NODES:
                 reason += (f" [under-resolved adhesion: the adhesive zone spans {self.zone_nodes:.2g} grid "
                            f"spacings, the criterion is {RESOLUTION_NODES:g}]")
-        x_start.destroy()
         state = self._state(converged, reason, newton, linear, pairs0, t0, margin,
                             solver, tangent=approach is not None and converged and self.compute_tangent)
+        if not converged:
+            x_start.copy(self._x)   # keep the last good state as the next start
+        x_start.destroy()
         self.centre_owner = None
         PETSc.garbage_cleanup(self.grid.comm)
         if not converged and raise_on_failure:

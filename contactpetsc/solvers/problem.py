@@ -163,6 +163,7 @@ class ContactProblem:
         snes.setOptionsPrefix(self.prefix)
         snes.setType("vinewtonrsls")
         self._x, self._f = g.create_vec(0.0), g.create_vec(0.0)
+        self._x_best = g.create_vec(0.0)   # the iterate of smallest error of the running solve
         snes.setFunction(self._residual, self._f)
         snes.setVariableBounds(g.create_vec(0.0), g.create_vec(PETSc.INFINITY))
         snes.setJacobian(self._jacobian, J, J)
@@ -278,6 +279,9 @@ class ContactProblem:
             complementarity_error=err, load_error=load_err, approach=self._approach,
             mean_pressure=mean_p, contact_fraction=frac, solver=solver)
         self._last_error = err
+        if not err >= self._best[0]:   # NaN never replaces a real iterate
+            self._best = (err, it)
+            x.copy(self._x_best)
         return convergence_verdict(snes, it, err, self._inner_tol)
 
     def _operators(self) -> dict:
@@ -330,12 +334,21 @@ class ContactProblem:
         self._inner_tol = self.tol if tol is None else max(tol, self.tol)
         pressure.copy(self._x)
         self._lin0 = self.history[-1].linear_iterations if len(self.history) else 0
+        self._best = (np.inf, -1)
         snes.solve(None, self._x)
         self._newton += snes.getIterationNumber()
         self._linear += snes.getLinearSolveIterations()
         self._root._n_solves += 1
         reason = snes.getConvergedReason()
-        return reason > 0, _reason_name(reason)
+        name = _reason_name(reason)
+        if reason < 0:
+            # a failed SNES leaves whatever its last stage wrote in the solution (after a
+            # failed line search: a random vector, VecSetRandom in PETSc's VI Newton): go
+            # back to the iterate of smallest error, or to the start if none was measured
+            (self._x_best if self._best[1] >= 0 else pressure).copy(self._x)
+            name += (f" (state: the iterate of smallest complementarity error, {self._best[0]:.3e} at "
+                     f"Newton iteration {self._best[1]})" if self._best[1] >= 0 else " (state: the initial guess)")
+        return reason > 0, name
 
     def _approach_slope(self):
         """(dW/d delta [Pa/m] as d(mean p)/d delta, z = dp/d delta) on the last solve's inactive set.
