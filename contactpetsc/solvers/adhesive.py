@@ -59,7 +59,7 @@ from ..physics.interactions import RESOLUTION_NODES, InteractionLaw, UnderResolv
 from ..physics.traction import AdhesiveTraction
 from .adhesive_jacobian import AdhesiveJacobian, minloc
 from .history import SolveHistory
-from .problem import ContactSolveError, _reason_name, convergence_verdict
+from .problem import ContactSolveError, _reason_name, check_heights, check_tolerance, convergence_verdict
 from .transfer import can_halve, halved, prolong_bilinear, prolong_constant, restrict
 
 
@@ -149,6 +149,9 @@ class AdhesiveProblem:
                  centre: tuple[int, int] | None = None):
         if law.name == "none":
             raise ValueError("law 'none' has no adhesion: use ContactProblem")
+        check_heights(grid, heights)
+        if tol is not None:
+            check_tolerance(tol, "tol")
         self.grid, self.heights, self.law, self.prefix = grid, heights, law, prefix
         self.op = operator if operator is not None else half_space(grid, e_star, prefix=prefix)
         if not np.isclose(self.op.e_star, e_star, rtol=1e-12, atol=0.0):
@@ -251,7 +254,8 @@ class AdhesiveProblem:
         g = self.grid
         d = self._defaults
         opts = PETSc.Options(self.prefix)
-        self.tol = opts.getReal("tol", 1e-8 if d["tol"] is None else d["tol"])
+        self.tol = check_tolerance(opts.getReal("tol", 1e-8 if d["tol"] is None else d["tol"]),
+                                   f"tol (-{self.prefix}tol)")
         self.max_it = opts.getInt("max_it", 100)
         self.stability_check = opts.getBool(
             "stability_check", True if d["stability_check"] is None else d["stability_check"])
