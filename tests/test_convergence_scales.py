@@ -1,4 +1,5 @@
-"""Convergence measured on the law's own scales, for w from 1e-12 to 1e3 J/m^2.
+"""Convergence measured on the problem's own scales: the law's pressure scale for w from
+1e-12 to 1e3 J/m^2, the interference for non-adhesive contact.
 
 Independent truth: a sphere on a half-space whose stiffness makes the deformation
 negligible (w / (E* z0) = 1e-8 or less) carries the rigid sphere's tractions,
@@ -8,10 +9,12 @@ whatever the path that led there.  SI units: z0 = dx = 0.3 nm, R = 30 nm.
 """
 import numpy as np
 import pytest
+from mpi4py import MPI
 
 from contactpetsc.grid import SurfaceGrid
 from contactpetsc.physics.interactions import make_law
 from contactpetsc.solvers.adhesive import AdhesiveProblem
+from contactpetsc.solvers.problem import ContactProblem
 from contactpetsc.surfaces import sphere
 
 Z0, RADIUS, N = 0.3e-9, 30e-9, 48
@@ -51,3 +54,23 @@ def test_weak_adhesion_on_a_stiff_sphere_gives_the_rigid_tractions(coll, w, law_
         forces.append(st.force)
     # the force follows the approach: equal approaches only give equal forces
     assert np.all(np.abs(np.diff(forces)) > 1e-3 * np.abs(forces[1:]))
+
+
+@pytest.mark.parametrize("tol", [1e-2, 1e-6, 1e-10])
+def test_small_interference_gives_the_single_node_contact(coll, tol):
+    """Non-adhesive contact at an interference below the second-lowest node of a sphere:
+    only the apex node touches, so p = delta / K_ii there and F = delta dx dy / K_ii exactly.
+    The gap error of the zero pressure is the interference itself: it must be measured
+    against the interference, not against the sphere's rms height (which accepted F = 0)."""
+    grid = SurfaceGrid(64, 64, 1e-9, periodic=False)
+    h = sphere(grid, 100e-9)
+    rows = grid.rows(h, readonly=True)
+    h_min = grid.mpi_comm.allreduce(float(rows.min()), op=MPI.MIN)
+    second = grid.mpi_comm.allreduce(float(np.min(rows[rows > h_min], initial=np.inf)), op=MPI.MIN)
+    interference = 1e-12
+    assert second - h_min > 2 * interference
+    problem = ContactProblem(grid, h, 1e10, prefix=f"single_node_{tol:g}_", tol=tol)
+    st = problem.solve(approach=h_min + interference)
+    exact = interference * grid.dx * grid.dy / problem.kappa
+    assert st.converged and abs(st.force / exact - 1) <= max(10 * tol, 1e-9), (st.force, exact)
+    assert st.interference_error <= tol

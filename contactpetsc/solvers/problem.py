@@ -80,6 +80,8 @@ class ContactState:
     force: float              #: total normal force [N] = mean_pressure * area
     contact_fraction: float   #: fraction of nodes with p > 0
     complementarity_error: float  #: max |min(K_ii p, g)| / length_scale
+    #: max |min(K_ii p, g)| / min(length_scale, delta - min h): the measure converged to tol
+    interference_error: float
     load_error: float         #: |mean p - target| / target (load control), else NaN
     converged: bool
     reason: str               #: SNES converged/diverged reason
@@ -154,6 +156,7 @@ class ContactProblem:
         self._pressure = grid.create_vec(0.0)   # last converged pressure: the next warm start
         self._approach = None
         self._target = None
+        self._h_min = None
 
     # -- set-up ------------------------------------------------------------------
     def _build(self):
@@ -261,7 +264,8 @@ class ContactProblem:
         pass  # K does not depend on p: nothing to update
 
     def _measures(self, x, f):
-        """(complementarity error [relative], mean pressure, contact fraction)."""
+        """(complementarity error relative to the length scale and to ``_gap_scale``,
+        mean pressure, contact fraction)."""
         g = self.grid
         comm = g.mpi_comm
         p = g.rows(x, readonly=True)
@@ -271,15 +275,27 @@ class ContactProblem:
         np.minimum(nat, g.rows(f, readonly=True), out=nat)
         # max |min(K_ii p, g)| without an |.| temporary: the larger of max and -min
         local = max(float(nat.max()), -float(nat.min()))
-        err = comm.allreduce(local, op=MPI.MAX) / self.length_scale
+        err = comm.allreduce(local, op=MPI.MAX)
         sums = comm.allreduce(np.array([p.sum(), np.count_nonzero(p)], float))
         n = g.nx * g.ny
-        return err, sums[0] / n, sums[1] / n
+        return err / self.length_scale, err / self._gap_scale(), sums[0] / n, sums[1] / n
+
+    def _gap_scale(self) -> float:
+        """The length [m] the convergence test measures gaps in: the length scale, or under
+        displacement control the interference delta - min(h) where that is smaller (a small
+        interference gives small pressures, whose gap errors K_ii p are below any tolerance
+        of the length scale; under load control the relative load error sees them)."""
+        if self._target is not None or self._approach is None:
+            return self.length_scale
+        if self._h_min is None:
+            self._h_min = float(self.heights.min()[1])
+        interference = self._approach - self._h_min
+        return min(self.length_scale, interference) if interference > 0 else self.length_scale
 
     @collective_guard
     def _converged(self, snes, it, norms):
         x, f = snes.getSolution(), snes.getFunction()[0]
-        err, mean_p, frac = self._measures(x, f)
+        err, err_gap, mean_p, frac = self._measures(x, f)
         load_err = (abs(mean_p - self._target) / self._target) if self._target else float("nan")
         solver = "snes-vi+" + self.preconditioner
         if self._root is not self:
@@ -288,12 +304,12 @@ class ContactProblem:
             solve=self._root._n_solves, iteration=it, fft_pairs=self._fft_pairs(),
             linear_iterations=self._lin0 + snes.getLinearSolveIterations(),
             complementarity_error=err, load_error=load_err, approach=self._approach,
-            mean_pressure=mean_p, contact_fraction=frac, solver=solver)
+            mean_pressure=mean_p, contact_fraction=frac, solver=solver, interference_error=err_gap)
         self._last_error = err
-        if not err >= self._best[0]:   # NaN never replaces a real iterate
-            self._best = (err, it)
+        if not err_gap >= self._best[0]:   # NaN never replaces a real iterate
+            self._best = (err_gap, it)
             x.copy(self._x_best)
-        return convergence_verdict(snes, it, err, self._inner_tol)
+        return convergence_verdict(snes, it, err_gap, self._inner_tol)
 
     def _operators(self) -> dict:
         ops = {id(self.op): self.op}
@@ -453,7 +469,8 @@ class ContactProblem:
             # the load error that a complementarity error tol (a gap error of tol * L,
             # i.e. an approach error of that size) allows: a tighter load_tol cannot be met
             load_tol = max(self.load_tol, 2.0 * slope * self.tol * self.length_scale / target)
-            if load_tol > MAX_TOL and load_err > MAX_TOL:
+            if load_err <= load_tol and load_err > MAX_TOL and self._root is self:
+                # a coarse level's state is only a start; the reported one must carry its load
                 return False, (f"LOAD_ERROR_UNCONTROLLED (relative load error {load_err:.3e}: at this load the "
                                f"complementarity tol {self.tol:.1e} allows load errors up to {load_tol:.3e}; "
                                f"lower -{self.prefix}tol)")
@@ -611,12 +628,12 @@ class ContactProblem:
         gap = v.copy()
         gap.axpy(1.0, self.heights)
         gap.shift(-self._approach)
-        err, mean_p, frac = self._measures(p, gap)
+        err, err_gap, mean_p, frac = self._measures(p, gap)
         load_err = abs(mean_p - mean_pressure) / mean_pressure if mean_pressure else float("nan")
         state = ContactState(
             pressure=p, gap=gap, displacement=v, approach=self._approach, mean_pressure=mean_p,
             force=mean_p * area, contact_fraction=frac, complementarity_error=err,
-            load_error=load_err, converged=converged, reason=reason,
+            interference_error=err_gap, load_error=load_err, converged=converged, reason=reason,
             newton_iterations=self._newton, linear_iterations=self._linear,
             fft_pairs=self._fft_pairs() - pairs0, wall_time=self.history.elapsed() - t0)
         # free the parallel temporaries petsc4py parked in PETSc's garbage (collective)
