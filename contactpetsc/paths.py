@@ -116,7 +116,7 @@ def _point(step, branch, st) -> PathPoint:
                      solver=st.solver, fft_pairs=st.fft_pairs, wall_time=st.wall_time,
                      complementarity_error=st.complementarity_error,
                      adhesive_error=st.adhesive_error, total_error=st.total_error, reason=st.reason,
-                     stiffness=getattr(st, "stiffness", float("nan")))
+                     stiffness=st.stiffness)
 
 
 def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0.05,
