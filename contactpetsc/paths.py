@@ -262,15 +262,20 @@ def refine_pull_off(problem, path: Path, xtol: float, max_solves: int = 40,
     # their 100 iterations and cost most of the search)
     snes.setTolerances(max_it=min(max_it, SEARCH_NEWTON_STEPS))
     try:
-        searched = set()
-        for side, step in zip(sides, (-1, 1)):
+        searched, bracket = set(), [pts[k].approach, pts[k].approach]
+        for n, (side, step) in enumerate(zip(sides, (-1, 1))):
             if side in ("stable", "edge"):
                 towards = pts[k + step].approach
                 searched.add((k, towards))
-                found.append(_continue(problem, snap, pts[k], towards, xtol, max_solves, jump_tol))
+                force, reached, nearest = _continue(problem, snap, pts[k], towards, xtol, max_solves, jump_tol)
+                found.append((force, reached))
+                bracket[n] = nearest
+        if "end" not in sides and bracket[0] != bracket[1]:
+            # the sampled minimum between the nearest stable states on either side
+            found.append((_golden(problem, snap, bracket[0], bracket[1], xtol, max_solves), True))
         for i, towards, edge_snap in path._edges:
             if (i, towards) not in searched:
-                found.append(_continue(problem, edge_snap, pts[i], towards, xtol, max_solves, jump_tol))
+                found.append(_continue(problem, edge_snap, pts[i], towards, xtol, max_solves, jump_tol)[:2])
     finally:
         snes.setTolerances(max_it=max_it)
     # the sampled minimum itself: reached when neither side is the end of its branch;
@@ -285,12 +290,14 @@ def refine_pull_off(problem, path: Path, xtol: float, max_solves: int = 40,
 
 
 def _continue(problem, snap, start, towards, xtol, max_solves, jump_tol):
-    """(smallest force [N], reached) of the stable states connected to ``snap`` (the state
-    of point ``start``) by continuation towards the approach ``towards`` [m]: steps of a
-    quarter of the way, halved where a solve fails, is unstable or jumps (its force misses
-    the tangent prediction by more than ``jump_tol`` of the force), down to ``xtol`` --
-    there the stable segment ends (reached).  A smallest force between two higher ones is
-    refined by golden-section search (reached); one at ``start`` is not reached here."""
+    """(smallest force [N], reached, nearest) of the stable states connected to ``snap``
+    (the state of point ``start``) by continuation towards the approach ``towards`` [m]:
+    steps of a quarter of the way, halved where a solve fails, is unstable or jumps (its
+    force misses the tangent prediction by more than ``jump_tol`` of the force), down to
+    ``xtol`` -- there the stable segment ends (reached).  A smallest force between two
+    higher ones is refined by golden-section search (reached); one at ``start`` is not
+    reached here (inf).  ``nearest``: the approach [m] of the first state beyond ``start``
+    (``start``'s own without one)."""
     problem.restore(snap)
     cur = (start.approach, start.force, start.stiffness)
     states = [(cur[0], cur[1], None)]          # (approach, force, snapshot or None)
@@ -314,15 +321,14 @@ def _continue(problem, snap, start, towards, xtol, max_solves, jump_tol):
                 break
             h *= 0.5
     m = min(range(len(states)), key=lambda i: states[i][1])
-    if m == 0:
-        return np.inf, False     # nothing below the start on this side
-    force, reached = states[m][1], m < len(states) - 1 or ended
+    nearest = states[min(1, len(states) - 1)][0]
+    force, reached = (states[m][1], m < len(states) - 1 or ended) if m else (np.inf, False)
     if 0 < m < len(states) - 1:
         force = min(force, _golden(problem, states[m][2], states[m - 1][0], states[m + 1][0], xtol, max_solves))
     for state in states:
         if state[2] is not None:
             _free(state[2])
-    return force, reached
+    return force, reached, nearest
 
 
 def _golden(problem, snap, lo, hi, xtol, max_solves) -> float:

@@ -60,3 +60,22 @@ def test_far_sphere_has_no_jumps_and_no_pull_off(coll):
     assert not path.jumps, path.jumps
     assert np.isnan(path.pull_off_force)
     assert np.isnan(refine_pull_off(problem, path, xtol=0.01 * z0))
+
+
+def test_sphere_pull_off_does_not_depend_on_the_sampling(coll):
+    """mu = 0.5, full LJ (no jumps): the refined pull-off of a coarse path (steps of 0.5 z0,
+    the minimum between samples) is the fine path's (steps of 0.1 z0), and lies between the
+    JKR and DMT limits (Maugis-Dugdale: -2 < F / (pi R w) < -1.5)."""
+    radius, mu = 100.0, 0.5
+    w = np.sqrt(mu ** 3 / radius)     # E* = z0 = 1
+    bars = []
+    for step in (0.5, 0.1):
+        grid = SurfaceGrid(64, 64, 1.0, periodic=False)
+        problem = AdhesiveProblem(grid, sphere(grid, radius), 1.0, make_law("lj", work_of_adhesion=w, z0=1.0),
+                                  prefix=f"sampling_{step:g}_")
+        approaches = np.concatenate([np.arange(-2.5, 0.51, step), np.arange(0.5 - step, -2.51, -step)])
+        path = sweep(problem, approaches)
+        assert not path.jumps
+        bars.append(refine_pull_off(problem, path, xtol=0.002) / (np.pi * radius * w))
+    assert abs(bars[0] / bars[1] - 1) < 1e-4, bars
+    assert -2.0 < bars[1] < -1.5
