@@ -270,8 +270,9 @@ def refine_pull_off(problem, path: Path, xtol: float, max_solves: int = 40,
                 force, reached, nearest = _continue(problem, snap, pts[k], towards, xtol, max_solves, jump_tol)
                 found.append((force, reached))
                 bracket[n] = nearest
-        if "end" not in sides and bracket[0] != bracket[1]:
-            # the sampled minimum between the nearest stable states on either side
+        if "end" not in sides and bracket[0] != bracket[1] and all(f[0] == np.inf for f in found):
+            # nothing below the sampled minimum on either side: it lies between the nearest
+            # stable states on either side
             found.append((_golden(problem, snap, bracket[0], bracket[1], xtol, max_solves), True))
         for i, towards, edge_snap in path._edges:
             if (i, towards) not in searched:
