@@ -9,7 +9,17 @@ is a jump when that fallback was needed, or when the force differs from the
 tangent prediction by more than ``jump_tol`` times the force scale; the
 jump is then located by bisection of the approach (``refine`` halvings,
 each trying Newton only from the last state on the old branch) and
-reported with the approach and the force just before and just after.
+reported with the approach and the force just before and just after --
+only when it is a discontinuity: the force gap across the final bracket
+must exceed what the branches' slopes give over its width (a steep but
+smooth branch closes the gap as the bracket shrinks; a jump does not).
+
+The pull-off force is the most tensile stable state of the path
+(``refine_pull_off``): searched by continuation from the sampled minimum
+towards its neighbours and from every stable state next to a loss of
+stability or a jump, to the end of each stable segment.  A path whose most
+tensile state is a turning point or an end of the path (e.g. a sphere that
+never left the far field) has not reached a pull-off: NaN.
 
 Central-gap control (Greenwood 1997; the reference paper's Fig. 4c) keeps
 every state, stable or not, and marks the unstable ones: that traces the
@@ -41,6 +51,7 @@ class PathPoint:
     adhesive_error: float
     total_error: float
     reason: str = ""          #: the solver's converged or diverged reason
+    stiffness: float = float("nan")  #: tangent dF/d delta [N/m] (NaN when not computed)
 
 
 @dataclass
@@ -60,19 +71,42 @@ class Path:
 
     refined_pull_off: float | None = None   #: set by ``refine_pull_off``
     _best: tuple | None = None               #: (point index, snapshot) of the most tensile stable state
+    #: (point index, approach to search towards [m], snapshot) of stable states next to a
+    #: loss of stability or a failed step: where a stable segment ends
+    _edges: list = field(default_factory=list)
 
     @property
     def pull_off_force(self) -> float:
-        """The most tensile force [N] on the path's stable states (unloading states when there
-        are any), or the golden-section refinement of it (``refine_pull_off``)."""
+        """The most tensile force [N] of the path's stable states, or its refinement
+        (``refine_pull_off``); NaN when that state is a turning point or an end of the path
+        with no loss of stability next to it (no pull-off reached)."""
         if self.refined_pull_off is not None:
             return self.refined_pull_off
-        pts = [p for p in self.points if p.converged and p.stable is not False]
-        use = [p for p in pts if p.branch == "unloading"] or pts
-        return min(p.force for p in use) if use else float("nan")
+        good = [k for k, p in enumerate(self.points) if _good(p)]
+        if not good:
+            return float("nan")
+        k = min(good, key=lambda i: self.points[i].force)
+        return self.points[k].force if all(self._side(k, s) != "end" for s in (-1, 1)) else float("nan")
+
+    def _side(self, k: int, step: int) -> str:
+        """What lies next to point k along its branch: "end", "jump" (a jump in between),
+        "edge" (an unstable or failed point) or "stable"."""
+        j = k + step
+        pts = self.points
+        if not (0 <= j < len(pts)) or pts[j].branch != pts[k].branch:
+            return "end"
+        lo, hi = sorted((pts[k].approach, pts[j].approach))
+        kind = {"loading": "jump-on", "unloading": "jump-off"}.get(pts[k].branch)
+        jumped = any((kind is None or jp.kind == kind) and
+                     (lo <= jp.approach_before <= hi or lo <= jp.approach_after <= hi) for jp in self.jumps)
+        return "jump" if jumped else ("stable" if _good(pts[j]) else "edge")
 
     def column(self, name: str) -> np.ndarray:
         return np.array([getattr(p, name) for p in self.points])
+
+
+def _good(p) -> bool:
+    return p.converged and p.stable is not False
 
 
 def _point(step, branch, st) -> PathPoint:
@@ -81,7 +115,8 @@ def _point(step, branch, st) -> PathPoint:
                      contact_fraction=st.contact_fraction, stable=st.stable, converged=st.converged,
                      solver=st.solver, fft_pairs=st.fft_pairs, wall_time=st.wall_time,
                      complementarity_error=st.complementarity_error,
-                     adhesive_error=st.adhesive_error, total_error=st.total_error, reason=st.reason)
+                     adhesive_error=st.adhesive_error, total_error=st.total_error, reason=st.reason,
+                     stiffness=st.stiffness)
 
 
 def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0.05,
@@ -102,24 +137,44 @@ def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0
     path = Path() if path is None else path
     approaches = [float(a) for a in approaches]
     prev = previous      # (approach, force, stiffness) of the last state
+    last = None          # (point index, snapshot) of the last point if it was stable
     for k, delta in enumerate(approaches):
         here = branch or ("loading" if prev is None or delta >= prev[0] else "unloading")
+        n_jumps = len(path.jumps)
         st, prev = _advance(problem, delta, prev, path, jump_tol, refine, substeps)
         pt = _point(k, here, st)
         path.points.append(pt)
+        i = len(path.points) - 1
+        good = _good(pt)
+        if last is not None:
+            if path._side(last[0], 1) == "edge":
+                # the stable segment of the last point ends before this one (at a jump the
+                # bisection has found its end already: the jump's force_before)
+                path._edges.append((last[0], pt.approach, last[1]))
+            else:
+                _free(last[1])
+            last = None
+        if good:
+            last = (i, problem.snapshot())
+            if path._side(i, -1) == "edge":
+                # a stable segment begins here after an unstable or failed point (after a
+                # jump the new branch's extension backwards was never traversed)
+                path._edges.append((i, path.points[i - 1].approach, problem.snapshot()))
         if not st.converged and on_failure is not None:
             on_failure(k, st, pt)
         if not st.converged and stop_on_failure:
             break
         if st.converged:
-            if st.stable is not False:
+            if good:
                 best = path._best
                 if best is None or st.force < path.points[best[0]].force:
                     if best is not None:
                         _free(best[1])
-                    path._best = (len(path.points) - 1, problem.snapshot())
+                    path._best = (i, problem.snapshot())
             if on_state is not None:
                 on_state(k, st, pt)
+    if last is not None:
+        _free(last[1])
     return path
 
 
@@ -148,7 +203,7 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps):
             # more than the predicted change itself: another branch
             if st.fallback or abs(st.force - predicted) > max(jump_tol * scale, abs(predicted - w0)):
                 jump = _locate_jump(problem, snap, prev, st, refine)
-                if abs(jump.force_after - jump.force_before) > jump_tol * scale:
+                if jump is not None and abs(jump.force_after - jump.force_before) > jump_tol * scale:
                     jump.kind = "jump-on" if d > d0 else "jump-off"
                     path.jumps.append(jump)
         # (a converged sub-step goes on even past a time budget: the next solve says so)
@@ -177,25 +232,118 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps):
     return st, prev
 
 
-def refine_pull_off(problem, path: Path, xtol: float, max_solves: int = 30) -> float:
-    """Golden-section search of the most tensile force between the neighbours of the sampled
-    minimum, each solve by Newton from the sampled minimum's state (so it stays on that
-    branch); ``xtol`` [m] is the final bracket width.  Sets ``path.refined_pull_off``."""
+#: Newton iterations of a solve of the pull-off search (``refine_pull_off``)
+SEARCH_NEWTON_STEPS = 30
+
+
+def refine_pull_off(problem, path: Path, xtol: float, max_solves: int = 40,
+                    jump_tol: float = 0.05) -> float:
+    """The most tensile stable state of the path [N], to ``xtol`` [m] in approach.
+
+    Searches by continuation (``_continue``) from the sampled minimum towards its
+    neighbours on its branch and from every stable state next to a loss of stability or a
+    failed step towards it (``path._edges``), at most ``max_solves`` solves each;
+    golden-section search where the smallest force lies between two higher ones.  The
+    states on either side of a jump (located by bisection in ``sweep``) are candidates.
+    NaN when the most tensile state found is a turning point or an end of the path (no
+    pull-off reached).  Sets ``path.refined_pull_off``; the problem's state is restored."""
     if path._best is None:
-        return path.pull_off_force
-    k, snap = path._best
+        path.refined_pull_off = float("nan")
+        return path.refined_pull_off
     pts = path.points
-    lo = pts[k - 1].approach if k > 0 and pts[k - 1].branch == pts[k].branch else pts[k].approach
-    hi = pts[k + 1].approach if k + 1 < len(pts) and pts[k + 1].branch == pts[k].branch else pts[k].approach
-    lo, hi = min(lo, hi), max(lo, hi)
     end = problem.snapshot()
-    best = pts[k].force
+    found = []   # (force, reached): reached = bounded by higher forces or at a segment's end
+    k, snap = path._best
+    sides = [path._side(k, s) for s in (-1, 1)]
+    snes = problem.snes()
+    rtol, atol, stol, max_it = snes.getTolerances()
+    # Newton from a state at most a quarter step away needs a few iterations; one that has
+    # not converged in SEARCH_NEWTON_STEPS has left the branch (near its end, such solves ran
+    # their 100 iterations and cost most of the search)
+    snes.setTolerances(max_it=min(max_it, SEARCH_NEWTON_STEPS))
+    try:
+        searched, bracket = set(), [pts[k].approach, pts[k].approach]
+        for n, (side, step) in enumerate(zip(sides, (-1, 1))):
+            if side in ("stable", "edge"):
+                towards = pts[k + step].approach
+                searched.add((k, towards))
+                force, reached, nearest = _continue(problem, snap, pts[k], towards, xtol, max_solves, jump_tol)
+                found.append((force, reached))
+                bracket[n] = nearest
+        if "end" not in sides and bracket[0] != bracket[1] and all(f[0] == np.inf for f in found):
+            # nothing below the sampled minimum on either side: it lies between the nearest
+            # stable states on either side
+            found.append((_golden(problem, snap, bracket[0], bracket[1], xtol, max_solves), True))
+        for i, towards, edge_snap in path._edges:
+            if (i, towards) not in searched:
+                found.append(_continue(problem, edge_snap, pts[i], towards, xtol, max_solves, jump_tol)[:2])
+    finally:
+        snes.setTolerances(max_it=max_it)
+    # the sampled minimum itself: reached when neither side is the end of its branch;
+    # the states on either side of each jump (the end of the old branch, bisected)
+    found.append((pts[k].force, "end" not in sides))
+    found += [(f, True) for j in path.jumps for f in (j.force_before, j.force_after)]
+    problem.restore(end)
+    _free(end)
+    force, reached = min(found, key=lambda f: (f[0], not f[1]))
+    path.refined_pull_off = force if reached else float("nan")
+    return path.refined_pull_off
+
+
+def _continue(problem, snap, start, towards, xtol, max_solves, jump_tol):
+    """(smallest force [N], reached, nearest) of the stable states connected to ``snap``
+    (the state of point ``start``) by continuation towards the approach ``towards`` [m]:
+    steps of a quarter of the way, halved where a solve fails, is unstable or jumps (its
+    force misses the tangent prediction by more than ``jump_tol`` of the force), down to
+    ``xtol`` -- there the stable segment ends (reached).  A smallest force between two
+    higher ones is refined by golden-section search (reached); one at ``start`` is not
+    reached here (inf).  ``nearest``: the approach [m] of the first state beyond ``start``
+    (``start``'s own without one)."""
+    problem.restore(snap)
+    cur = (start.approach, start.force, start.stiffness)
+    states = [(cur[0], cur[1], None)]          # (approach, force, snapshot or None)
+    h, solves, ended = (towards - start.approach) / 4.0, 0, False
+    while solves < max_solves and abs(towards - cur[0]) > 1e-12 * max(abs(towards), xtol):
+        d = towards if abs(towards - cur[0]) <= abs(h) * (1 + 1e-12) else cur[0] + h
+        here = problem.snapshot()
+        st = problem.solve(approach=d, raise_on_failure=False, fallback=False)
+        solves += 1
+        predicted = cur[1] + (cur[2] if np.isfinite(cur[2]) else 0.0) * (d - cur[0])
+        scale = max(abs(cur[1]), abs(st.force), np.finfo(float).tiny)
+        if _good(st) and abs(st.force - predicted) <= max(jump_tol * scale, abs(predicted - cur[1])):
+            cur = (d, st.force, st.stiffness)
+            states.append((d, st.force, problem.snapshot()))
+            _free(here)
+        else:
+            problem.restore(here)
+            _free(here)
+            if abs(h) <= xtol:
+                ended = True
+                break
+            h *= 0.5
+    m = min(range(len(states)), key=lambda i: states[i][1])
+    nearest = states[min(1, len(states) - 1)][0]
+    force, reached = (states[m][1], m < len(states) - 1 or ended) if m else (np.inf, False)
+    if 0 < m < len(states) - 1:
+        force = min(force, _golden(problem, states[m][2], states[m - 1][0], states[m + 1][0], xtol, max_solves))
+    for state in states:
+        if state[2] is not None:
+            _free(state[2])
+    return force, reached, nearest
+
+
+def _golden(problem, snap, lo, hi, xtol, max_solves) -> float:
+    """Golden-section search of the smallest force [N] on [lo, hi] [m], each solve by Newton
+    from ``snap`` (a stable state inside the bracket); an unstable or failed solve counts
+    as +inf."""
+    lo, hi = min(lo, hi), max(lo, hi)
+    best = np.inf
 
     def force(delta):
         nonlocal best
         problem.restore(snap)
         st = problem.solve(approach=delta, raise_on_failure=False, fallback=False)
-        if not (st.converged and st.stable is not False):
+        if not _good(st):
             return np.inf
         best = min(best, st.force)
         return st.force
@@ -214,9 +362,6 @@ def refine_pull_off(problem, path: Path, xtol: float, max_solves: int = 30) -> f
             lo, c, fc = c, d, fd
             d = lo + gr * (hi - lo)
             fd = force(d)
-    problem.restore(end)
-    _free(end)
-    path.refined_pull_off = best
     return best
 
 
@@ -227,9 +372,13 @@ def _free(snap) -> None:
 
 
 def _locate_jump(problem, snap, prev, after, refine) -> Jump | None:
-    """Bisect [prev approach, after.approach] with Newton from the old branch only."""
-    d_lo, w_lo, _ = prev
+    """Bisect [prev approach, after.approach] with Newton from the old branch only; None when
+    the branch is continuous there: the force gap across the final bracket is no larger than
+    twice the larger branch slope times its width (a jump keeps its gap as the bracket
+    shrinks; a steep smooth branch does not)."""
+    d_lo, w_lo, k_lo = prev
     d_hi, w_hi = after.approach, after.force
+    width0, gap0 = abs(d_hi - d_lo), abs(w_hi - w_lo)
     new_branch = problem.snapshot()
     problem.restore(snap)
     snap = problem.snapshot()   # our own copy: the caller frees its own
@@ -243,20 +392,25 @@ def _locate_jump(problem, snap, prev, after, refine) -> Jump | None:
         if on_old:
             _free(snap)
             snap = problem.snapshot()
-            d_lo, w_lo = mid, st.force
-            prev = (mid, st.force, st.stiffness)
+            d_lo, w_lo, k_lo = mid, st.force, st.stiffness
         else:
             d_hi = mid
     problem.restore(new_branch)
     _free(new_branch)
+    k_hi = after.stiffness
     if refine and abs(d_hi - after.approach) > 0:
         # the force just after the jump, on the new branch, at the bisected approach
         st = problem.solve(approach=d_hi, raise_on_failure=False)
-        w_after = st.force
+        w_after, k_hi = st.force, st.stiffness
         problem.solve(approach=after.approach, raise_on_failure=False)
     else:
         w_after = w_hi
     _free(snap)
+    width, gap = abs(d_hi - d_lo), abs(w_after - w_lo)
+    slope = max(abs(k_lo), abs(k_hi))
+    smooth = 2.0 * slope * width if np.isfinite(slope) else 4.0 * gap0 * width / max(width0, np.finfo(float).tiny)
+    if gap <= smooth:
+        return None
     return Jump(kind="", approach_before=d_lo, approach_after=d_hi, force_before=w_lo,
                 force_after=w_after)
 

@@ -115,6 +115,9 @@ def test_no_adhesion_and_bad_parameters():
     law = make_law("none")
     assert isinstance(law, NoAdhesion) and not law.adhesive
     assert np.all(law.pressure(np.linspace(0, 1, 5)) == 0)
+    assert not make_law("none", work_of_adhesion=0.0).adhesive
+    with pytest.raises(ValueError, match=r"work_of_adhesion = 0.3 J/m\^2 with law 'none'.*accepted value 0"):
+        make_law("none", work_of_adhesion=0.3)
     with pytest.raises(ValueError, match="work_of_adhesion"):
         make_law("lj", work_of_adhesion=-1.0, z0=Z0)
     with pytest.raises(ValueError, match="z0"):

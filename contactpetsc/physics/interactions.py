@@ -78,6 +78,12 @@ class NoAdhesion(InteractionLaw):
 
     name = "none"
 
+    def __init__(self, work_of_adhesion: float = 0.0):
+        # a work of adhesion with a law that has none would be silently ignored
+        if work_of_adhesion != 0:
+            raise ValueError(f"work_of_adhesion = {work_of_adhesion!r} J/m^2 with law 'none' (no adhesion): "
+                             f"accepted value 0; choose hardwall-lj, lj, exponential or dugdale for adhesion")
+
     def pressure(self, gap):
         return np.zeros_like(np.asarray(gap, dtype=float))
 

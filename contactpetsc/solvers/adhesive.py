@@ -33,10 +33,13 @@ Controls: ``approach`` delta [m] (displacement control) or ``central_gap``
 [m] (the gap at the apex node is prescribed and delta follows: Greenwood's
 device, which traces the unstable branch of the S-shaped curve of a sphere).
 
-Errors (all in units of z0, the law's range): the complementarity error
+Errors (in units of z0, the law's range): the complementarity error
 max |min(K_ii q, g)|, the self-consistency error max K_ii |a - a(g)|, and the
 paper's E_Total (rms of the gap change when a is replaced by a(g), steps 1-4 of
-section 2), computed for every converged state.
+section 2), computed for every converged state.  These are K_ii times pressure
+errors and vanish with the pressures when w / (E* z0) is small, so a state
+converges only when the pressure error on the law's own scale (``_measures``:
+relative to the peak attraction P) is below the tolerance too.
 """
 from __future__ import annotations
 
@@ -56,7 +59,7 @@ from ..physics.interactions import RESOLUTION_NODES, InteractionLaw, UnderResolv
 from ..physics.traction import AdhesiveTraction
 from .adhesive_jacobian import AdhesiveJacobian, minloc
 from .history import SolveHistory
-from .problem import ContactSolveError, _reason_name, convergence_verdict
+from .problem import ContactSolveError, _reason_name, check_heights, check_tolerance, convergence_verdict
 from .transfer import can_halve, halved, prolong_bilinear, prolong_constant, restrict
 
 
@@ -93,6 +96,8 @@ class AdhesiveState:
     contact_fraction: float       #: fraction of nodes with p > 0
     complementarity_error: float  #: [z0]
     adhesive_error: float         #: max K_ii |a - a(g)| [z0]
+    #: max of |a - a(g)| / (P + |a(g)|) and |min(q / P, g / z0)|, P the law's peak attraction [-]
+    pressure_error: float
     total_error: float            #: the paper's E_Total [z0]
     stable: bool | None           #: None when not checked
     stability_margin: float       #: 1 - lambda_max(A S): > 0 stable, < 0 unstable
@@ -144,6 +149,9 @@ class AdhesiveProblem:
                  centre: tuple[int, int] | None = None):
         if law.name == "none":
             raise ValueError("law 'none' has no adhesion: use ContactProblem")
+        check_heights(grid, heights)
+        if tol is not None:
+            check_tolerance(tol, "tol")
         self.grid, self.heights, self.law, self.prefix = grid, heights, law, prefix
         self.op = operator if operator is not None else half_space(grid, e_star, prefix=prefix)
         if not np.isclose(self.op.e_star, e_star, rtol=1e-12, atol=0.0):
@@ -151,6 +159,7 @@ class AdhesiveProblem:
         self.e_star = self.op.e_star
         self.kappa = self.op.self_influence
         self.z0 = law.length_scale()
+        self.pressure_scale = float(law.peak_attraction)   #: P [Pa], the pressure error's unit
         opts = PETSc.Options(prefix)
         self.element_integration = opts.getBool(
             "element_integration", bool(element_integration) if element_integration is not None else False)
@@ -187,6 +196,7 @@ class AdhesiveProblem:
         self._gap_slope = None          # G'(a) on those rows
         self._gap_at = None             # (flat positions, G'(a)) of those rows
         self._adhesive_residual = np.nan  # local max kappa |a - a(g)| at the last residual
+        self._pressure_residual = np.nan  # local max |a - a(g)| / (P + |a(g)|) there
         self._coarse = None             # the problem on the 2x coarser grid (nested iteration)
         self._coarse_pairs = 0.0        # FFT pairs of a dropped coarse level (fine-grid units)
         self._prev_approach = None
@@ -244,7 +254,8 @@ class AdhesiveProblem:
         g = self.grid
         d = self._defaults
         opts = PETSc.Options(self.prefix)
-        self.tol = opts.getReal("tol", 1e-8 if d["tol"] is None else d["tol"])
+        self.tol = check_tolerance(opts.getReal("tol", 1e-8 if d["tol"] is None else d["tol"]),
+                                   f"tol (-{self.prefix}tol)")
         self.max_it = opts.getInt("max_it", 100)
         self.stability_check = opts.getBool(
             "stability_check", True if d["stability_check"] is None else d["stability_check"])
@@ -310,6 +321,8 @@ class AdhesiveProblem:
         J.setUp()
         self._x, self._f = self.create_unknown(), self.create_unknown()
         self._x_best = self.create_unknown()
+        self._x_solve_best = self.create_unknown()   # the iterate of smallest error of the running solve
+        self._solve_best = (np.inf, "")
         lower, upper = self.create_unknown(), self.create_unknown()
         upper.set(PETSc.INFINITY)
         lower.set(PETSc.NINFINITY)
@@ -388,9 +401,15 @@ class AdhesiveProblem:
             fb[0] = g
         fa, a = fb[-1], xb[-1]
         self.traction.pressure(g, out=fa)
+        # |a - a(g)| relative to P + |a(g)| (P the law's peak attraction): the pressure
+        # error on the law's own scale, which K_ii |a - a(g)| in z0 cannot see when
+        # w / (E* z0) is small; on the repulsive side |a(g)| makes it a gap error
+        scale = np.abs(fa)
+        scale += self.pressure_scale
         np.subtract(a, fa, out=fa)
+        self._adhesive_residual = float(np.abs(fa).max()) * self.kappa
+        self._pressure_residual = float((np.abs(fa) / scale).max())
         fa *= self.kappa
-        self._adhesive_residual = float(np.abs(fa).max())
         if self.gap_form:
             # on the repulsive side (g < 0) the row is g - G(a), G the law's
             # inverse: Newton on a = a(g) there moves g by at most ~g/9 per step when g is
@@ -443,21 +462,26 @@ class AdhesiveProblem:
             self._ptc_prev = err
 
     def _measures(self, x, f):
-        """(complementarity error [z0], self-consistency error [z0], mean p, contact fraction)."""
+        """(complementarity error [z0], self-consistency error [z0], pressure error [relative],
+        mean p, contact fraction) at the last residual evaluation.
+
+        The pressure error is the largest of |a - a(g)| / (P + |a(g)|) and |min(q / P, g / z0)|
+        (P the law's peak attraction, ``pressure_scale``): pressures right on the law's
+        own scale, whatever w / (E* z0) -- the errors in z0 are K_ii times pressure errors
+        and vanish with the pressures themselves."""
         comm = self.grid.mpi_comm
         xb, fb = self.blocks(x, readonly=True), self.blocks(f, readonly=True)
         p = xb.sum(axis=0)
+        errs = np.array([0.0, self._adhesive_residual, self._pressure_residual])
         if self.hard_wall:
-            err_c = float(np.abs(np.minimum(self.kappa * xb[0], fb[0])).max())
-        else:
-            err_c = 0.0
-        err_a = self._adhesive_residual  # kappa |a - a(g)| whatever the form of the rows
-        errs = np.array([err_c, err_a])
+            q, g = xb[0], fb[0]
+            errs[0] = float(np.abs(np.minimum(self.kappa * q, g)).max()) / self.z0
+            errs[2] = max(errs[2], float(np.abs(np.minimum(q / self.pressure_scale, g / self.z0)).max()))
+        errs[1] /= self.z0
         comm.Allreduce(MPI.IN_PLACE, errs, op=MPI.MAX)
-        errs /= self.z0
         sums = comm.allreduce(np.array([p.sum(), np.count_nonzero(p > 0)], float))
         n = self.grid.nx * self.grid.ny
-        return errs[0], errs[1], sums[0] / n, sums[1] / n
+        return errs[0], errs[1], errs[2], sums[0] / n, sums[1] / n
 
     def _fft_pairs(self) -> float:
         """FFT pairs so far in fine-grid units: the operator's, plus those of the coarse
@@ -475,16 +499,22 @@ class AdhesiveProblem:
     @collective_guard
     def _converged(self, snes, it, norms):
         x, f = snes.getSolution(), snes.getFunction()[0]
-        err_c, err_a, mean_p, frac = self._measures(x, f)
+        err_c, err_a, err_p, mean_p, frac = self._measures(x, f)
         self.history.append(
             solve=self._n_solves, iteration=it, fft_pairs=self._fft_pairs(),
             linear_iterations=self._lin0 + snes.getLinearSolveIterations(),
             complementarity_error=err_c, load_error=float("nan"), approach=self._approach,
             mean_pressure=mean_p, contact_fraction=frac, solver=self.solver_name,
-            adhesive_error=err_a)
+            adhesive_error=err_a, pressure_error=err_p)
+        # the PTC shift and the stall watch follow the errors in z0 (their trend, not their size)
         err = max(err_c, err_a)
         self._last_error = err
-        verdict = convergence_verdict(snes, it, err, self.tol)
+        # converged: gaps right in z0 and pressures right on the law's scale, both to tol
+        full = max(err, err_p)
+        if not full >= self._solve_best[0]:   # NaN never replaces a real iterate
+            self._solve_best = (full, f"{'ptc' if self.shift else 'Newton'} iteration {it}")
+            x.copy(self._x_solve_best)
+        verdict = convergence_verdict(snes, it, full, self.tol)
         if verdict == PETSc.SNES.ConvergedReason.ITERATING and self._stall_watch and not self.shift:
             if it == 0 or err < self._best[0]:
                 self._best = (err, it)
@@ -753,7 +783,8 @@ class AdhesiveProblem:
             if self._approach is None:
                 self._approach = float(approach) if approach is not None else self.centre_value(
                     self.grid.rows(self.heights, readonly=True)) - float(central_gap)
-            return self._state(False, self.budget_reason, 0, 0, pairs0, t0, float("nan"), self.solver_name)
+            return self._state(False, self.budget_reason + " (state: the last converged state's pressures)",
+                               0, 0, pairs0, t0, float("nan"), self.solver_name)
         if approach is not None and self.hard_wall and self.grid.periodic:
             # K has no mean mode on a periodic cell: the mean gap is mean(h) - delta
             g = self.grid
@@ -761,7 +792,8 @@ class AdhesiveProblem:
                 g.nx * g.ny) - float(approach)
             if mean_gap < 0:
                 reason = (f"NO_EQUILIBRIUM (periodic cell: the mean gap mean(h) - delta = {mean_gap:.4e} m "
-                          f"is negative, a hard wall cannot keep g >= 0)")
+                          f"is negative, a hard wall cannot keep g >= 0; state: the last converged state's "
+                          f"pressures)")
                 if raise_on_failure:
                     raise AdhesiveSolveError(f"adhesive solve at approach {approach:.4e} m: {reason}")
                 self._approach = float(approach)
@@ -782,6 +814,7 @@ class AdhesiveProblem:
             self.centre_owner = None
             self._prev_approach, self._approach = self._approach, float(approach)
         self._check_time = 0.0
+        self._solve_best = (np.inf, "")
         x_start = self._x.copy()
         coarse_predicted = approach is not None and self._coarse_step(float(approach))
         if not coarse_predicted and approach is not None and self.use_predictor:
@@ -826,16 +859,26 @@ class AdhesiveProblem:
                     break
             converged = ok
         if not converged:
-            x_start.copy(self._x)   # keep the last good state as the next start
+            # the state reported: the iterate of smallest error (never what a failed SNES
+            # left in its solution); the next solve starts from the last converged state
+            if np.isfinite(self._solve_best[0]):
+                self._x_solve_best.copy(self._x)
+                reason += (f" (state: the iterate of smallest error, {self._solve_best[0]:.3e}, at "
+                           f"{self._solve_best[1]}; the next solve starts from the last converged state)")
+            else:
+                x_start.copy(self._x)
+                reason += " (state: the last converged state's pressures; no iterate was measured)"
             if self.snap_number > 1.0:
                 reason += (f" [under-resolved adhesion: K_ii max da/dg = {self.snap_number:.2f} > 1, every "
                            f"node can snap on its own; refine the grid until this is below 1]")
             elif self.zone_nodes < RESOLUTION_NODES:
                 reason += (f" [under-resolved adhesion: the adhesive zone spans {self.zone_nodes:.2g} grid "
                            f"spacings, the criterion is {RESOLUTION_NODES:g}]")
-        x_start.destroy()
         state = self._state(converged, reason, newton, linear, pairs0, t0, margin,
                             solver, tangent=approach is not None and converged and self.compute_tangent)
+        if not converged:
+            x_start.copy(self._x)   # keep the last good state as the next start
+        x_start.destroy()
         self.centre_owner = None
         PETSc.garbage_cleanup(self.grid.comm)
         if not converged and raise_on_failure:
@@ -843,7 +886,8 @@ class AdhesiveProblem:
             raise AdhesiveSolveError(
                 f"adhesive solve did not converge: {reason} after {newton} Newton iterations "
                 f"(last KSP: {ksp_reason}); complementarity error {state.complementarity_error:.3e}, "
-                f"self-consistency error {state.adhesive_error:.3e} z0 (tol {self.tol:.1e} z0)")
+                f"self-consistency error {state.adhesive_error:.3e} z0, pressure error "
+                f"{state.pressure_error:.3e} of the peak attraction (tol {self.tol:.1e})")
         return state
 
     def _run_snes(self, snes: PETSc.SNES | None = None):
@@ -952,7 +996,7 @@ class AdhesiveProblem:
         g.rows(v)[...] = self._v
         f = self.create_unknown()
         self._residual(None, self._x, f)
-        err_c, err_a, mean_p, frac = self._measures(self._x, f)
+        err_c, err_a, err_p, mean_p, frac = self._measures(self._x, f)
         f.destroy()
         total = self.total_error(a_rows=xb[-1], gap_rows=gap_rows)
         prow = g.rows(p, readonly=True)
@@ -976,7 +1020,7 @@ class AdhesiveProblem:
             approach=self._approach, central_gap=self.centre_value(gap_rows),
             mean_pressure=mean_p, force=mean_p * area, adhesive_force=adhesive_force,
             contact_fraction=frac, complementarity_error=err_c, adhesive_error=err_a,
-            total_error=total, stable=stable, stability_margin=margin, stiffness=stiffness,
+            pressure_error=err_p, total_error=total, stable=stable, stability_margin=margin, stiffness=stiffness,
             converged=converged,
             reason=reason, newton_iterations=newton, linear_iterations=linear,
             fft_pairs=self._fft_pairs() - pairs0, wall_time=self.history.elapsed() - t0,

@@ -40,6 +40,9 @@ from the previous z, the first one from the coarse grid's; default true), ...
 """
 from __future__ import annotations
 
+import os
+import re
+import tempfile
 from dataclasses import dataclass
 
 import numpy as np
@@ -77,6 +80,8 @@ class ContactState:
     force: float              #: total normal force [N] = mean_pressure * area
     contact_fraction: float   #: fraction of nodes with p > 0
     complementarity_error: float  #: max |min(K_ii p, g)| / length_scale
+    #: max |min(K_ii p, g)| / min(length_scale, delta - min h): the measure converged to tol
+    interference_error: float
     load_error: float         #: |mean p - target| / target (load control), else NaN
     converged: bool
     reason: str               #: SNES converged/diverged reason
@@ -118,6 +123,10 @@ class ContactProblem:
                  operator: HalfSpaceOperator | None = None, tol: float | None = None,
                  load_tol: float | None = None, preconditioner: str | None = None,
                  fmg: bool | None = None, _root: "ContactProblem | None" = None):
+        check_heights(grid, heights)
+        for name, value in (("tol", tol), ("load_tol", load_tol)):
+            if value is not None:
+                check_tolerance(value, name)
         self.grid, self.heights, self.prefix = grid, heights, prefix
         self._defaults = dict(tol=tol, load_tol=load_tol, preconditioner=preconditioner, fmg=fmg)
         self._root = _root if _root is not None else self
@@ -147,6 +156,7 @@ class ContactProblem:
         self._pressure = grid.create_vec(0.0)   # last converged pressure: the next warm start
         self._approach = None
         self._target = None
+        self._h_min = None
 
     # -- set-up ------------------------------------------------------------------
     def _build(self):
@@ -155,6 +165,12 @@ class ContactProblem:
             return self._snes
         g = self.grid
         d = self._defaults
+        # checked before any PETSc object exists: a refusal leaves nothing half-built
+        opts = PETSc.Options(self.prefix)
+        self.tol = check_tolerance(opts.getReal("tol", 1e-10 if d["tol"] is None else d["tol"]),
+                                   f"tol (-{self.prefix}tol)")
+        self.load_tol = check_tolerance(opts.getReal("load_tol", 1e-10 if d["load_tol"] is None else d["load_tol"]),
+                                        f"load_tol (-{self.prefix}load_tol)")
         self._jac = ContactJacobian(self.op, self.prefix)
         n_local, n = g.nx * g.ny_local, g.nx * g.ny
         J = destroy_at_exit(PETSc.Mat().createPython(((n_local, n), (n_local, n)), self._jac, comm=g.comm))
@@ -163,6 +179,7 @@ class ContactProblem:
         snes.setOptionsPrefix(self.prefix)
         snes.setType("vinewtonrsls")
         self._x, self._f = g.create_vec(0.0), g.create_vec(0.0)
+        self._x_best = g.create_vec(0.0)   # the iterate of smallest error of the running solve
         snes.setFunction(self._residual, self._f)
         snes.setVariableBounds(g.create_vec(0.0), g.create_vec(PETSc.INFINITY))
         snes.setJacobian(self._jacobian, J, J)
@@ -195,8 +212,6 @@ class ContactProblem:
             pc.setType("python")
             pc.setPythonType(PRECONDITIONERS[choice])
         self.preconditioner = choice
-        self.tol = opts.getReal("tol", 1e-10 if d["tol"] is None else d["tol"])
-        self.load_tol = opts.getReal("load_tol", 1e-10 if d["load_tol"] is None else d["load_tol"])
         self.max_outer = opts.getInt("load_max_it", 50)
         # load control: inexact inner solves (see _solve_load); 1e-3 rather than 1e-4
         # saves 8-13 % of the FFT pairs on the benchmark (256^2-2048^2)
@@ -249,7 +264,8 @@ class ContactProblem:
         pass  # K does not depend on p: nothing to update
 
     def _measures(self, x, f):
-        """(complementarity error [relative], mean pressure, contact fraction)."""
+        """(complementarity error relative to the length scale and to ``_gap_scale``,
+        mean pressure, contact fraction)."""
         g = self.grid
         comm = g.mpi_comm
         p = g.rows(x, readonly=True)
@@ -259,15 +275,27 @@ class ContactProblem:
         np.minimum(nat, g.rows(f, readonly=True), out=nat)
         # max |min(K_ii p, g)| without an |.| temporary: the larger of max and -min
         local = max(float(nat.max()), -float(nat.min()))
-        err = comm.allreduce(local, op=MPI.MAX) / self.length_scale
+        err = comm.allreduce(local, op=MPI.MAX)
         sums = comm.allreduce(np.array([p.sum(), np.count_nonzero(p)], float))
         n = g.nx * g.ny
-        return err, sums[0] / n, sums[1] / n
+        return err / self.length_scale, err / self._gap_scale(), sums[0] / n, sums[1] / n
+
+    def _gap_scale(self) -> float:
+        """The length [m] the convergence test measures gaps in: the length scale, or under
+        displacement control the interference delta - min(h) where that is smaller (a small
+        interference gives small pressures, whose gap errors K_ii p are below any tolerance
+        of the length scale; under load control the relative load error sees them)."""
+        if self._target is not None or self._approach is None:
+            return self.length_scale
+        if self._h_min is None:
+            self._h_min = float(self.heights.min()[1])
+        interference = self._approach - self._h_min
+        return min(self.length_scale, interference) if interference > 0 else self.length_scale
 
     @collective_guard
     def _converged(self, snes, it, norms):
         x, f = snes.getSolution(), snes.getFunction()[0]
-        err, mean_p, frac = self._measures(x, f)
+        err, err_gap, mean_p, frac = self._measures(x, f)
         load_err = (abs(mean_p - self._target) / self._target) if self._target else float("nan")
         solver = "snes-vi+" + self.preconditioner
         if self._root is not self:
@@ -276,9 +304,12 @@ class ContactProblem:
             solve=self._root._n_solves, iteration=it, fft_pairs=self._fft_pairs(),
             linear_iterations=self._lin0 + snes.getLinearSolveIterations(),
             complementarity_error=err, load_error=load_err, approach=self._approach,
-            mean_pressure=mean_p, contact_fraction=frac, solver=solver)
+            mean_pressure=mean_p, contact_fraction=frac, solver=solver, interference_error=err_gap)
         self._last_error = err
-        return convergence_verdict(snes, it, err, self._inner_tol)
+        if not err_gap >= self._best[0]:   # NaN never replaces a real iterate
+            self._best = (err_gap, it)
+            x.copy(self._x_best)
+        return convergence_verdict(snes, it, err_gap, self._inner_tol)
 
     def _operators(self) -> dict:
         ops = {id(self.op): self.op}
@@ -330,12 +361,21 @@ class ContactProblem:
         self._inner_tol = self.tol if tol is None else max(tol, self.tol)
         pressure.copy(self._x)
         self._lin0 = self.history[-1].linear_iterations if len(self.history) else 0
+        self._best = (np.inf, -1)
         snes.solve(None, self._x)
         self._newton += snes.getIterationNumber()
         self._linear += snes.getLinearSolveIterations()
         self._root._n_solves += 1
         reason = snes.getConvergedReason()
-        return reason > 0, _reason_name(reason)
+        name = _reason_name(reason)
+        if reason < 0:
+            # a failed SNES leaves whatever its last stage wrote in the solution (after a
+            # failed line search: a random vector, VecSetRandom in PETSc's VI Newton): go
+            # back to the iterate of smallest error, or to the start if none was measured
+            (self._x_best if self._best[1] >= 0 else pressure).copy(self._x)
+            name += (f" (state: the iterate of smallest complementarity error, {self._best[0]:.3e} at "
+                     f"Newton iteration {self._best[1]})" if self._best[1] >= 0 else " (state: the initial guess)")
+        return reason > 0, name
 
     def _approach_slope(self):
         """(dW/d delta [Pa/m] as d(mean p)/d delta, z = dp/d delta) on the last solve's inactive set.
@@ -429,6 +469,11 @@ class ContactProblem:
             # the load error that a complementarity error tol (a gap error of tol * L,
             # i.e. an approach error of that size) allows: a tighter load_tol cannot be met
             load_tol = max(self.load_tol, 2.0 * slope * self.tol * self.length_scale / target)
+            if load_err <= load_tol and load_err > MAX_TOL and self._root is self:
+                # a coarse level's state is only a start; the reported one must carry its load
+                return False, (f"LOAD_ERROR_UNCONTROLLED (relative load error {load_err:.3e}: at this load the "
+                               f"complementarity tol {self.tol:.1e} allows load errors up to {load_tol:.3e}; "
+                               f"lower -{self.prefix}tol)")
             if load_err <= load_tol:
                 if inner <= self.tol:
                     return True, reason
@@ -556,6 +601,14 @@ class ContactProblem:
                 raise ValueError(f"{name} must be finite, got {v!r}")
         if mean_pressure is not None and mean_pressure <= 0:
             raise ValueError(f"mean_pressure / force must be > 0 without adhesion, got {mean_pressure!r}")
+        if mean_pressure is not None and mean_pressure < MIN_LOAD * self.e_star:
+            # far below any load a contact can carry measurably: the approach that gives it
+            # is lost in the round-off of the heights, so its load error cannot be controlled
+            name, value, unit, low = (("force", force, "N", MIN_LOAD * self.e_star * area) if force is not None
+                                      else ("mean_pressure", mean_pressure, "Pa", MIN_LOAD * self.e_star))
+            raise ValueError(f"{name} = {value!r} {unit}: accepted range [{low:.3e}, inf) {unit} "
+                             f"(a mean pressure of at least {MIN_LOAD:g} E*: a smaller load is lost in "
+                             f"the round-off of the approach)")
         self._build()
         self._target = mean_pressure
         self._newton = self._linear = 0
@@ -575,12 +628,12 @@ class ContactProblem:
         gap = v.copy()
         gap.axpy(1.0, self.heights)
         gap.shift(-self._approach)
-        err, mean_p, frac = self._measures(p, gap)
+        err, err_gap, mean_p, frac = self._measures(p, gap)
         load_err = abs(mean_p - mean_pressure) / mean_pressure if mean_pressure else float("nan")
         state = ContactState(
             pressure=p, gap=gap, displacement=v, approach=self._approach, mean_pressure=mean_p,
             force=mean_p * area, contact_fraction=frac, complementarity_error=err,
-            load_error=load_err, converged=converged, reason=reason,
+            interference_error=err_gap, load_error=load_err, converged=converged, reason=reason,
             newton_iterations=self._newton, linear_iterations=self._linear,
             fft_pairs=self._fft_pairs() - pairs0, wall_time=self.history.elapsed() - t0)
         # free the parallel temporaries petsc4py parked in PETSc's garbage (collective)
@@ -593,6 +646,80 @@ class ContactProblem:
                 f"(tol {self.tol:.1e}) of length scale {self.length_scale:.3e} m, "
                 f"load error {load_err:.3e} (tol {self.load_tol:.1e})")
         return state
+
+
+#: accepted range (0, MAX_TOL] of error tolerances (complementarity, self-consistency, pressure
+#: and relative load errors): a larger one accepts states that are not solutions at all
+#: (1e300 marks the zero guess converged), and 1e-2 is already a coarse solve
+MAX_TOL = 1e-2
+#: the smallest mean pressure of load control, in units of E*
+MIN_LOAD = 1e-12
+
+
+def check_tolerance(value, name: str) -> float:
+    """``value`` as a float in (0, MAX_TOL]; a ValueError naming ``name`` otherwise."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ValueError(f"{name} must be a real number in (0, {MAX_TOL:g}], got {value!r}")
+    if not (np.isfinite(value) and 0.0 < value <= MAX_TOL):
+        raise ValueError(f"{name} = {value!r}: accepted range (0, {MAX_TOL:g}]")
+    return float(value)
+
+
+def check_heights(grid: SurfaceGrid, heights: PETSc.Vec) -> None:
+    """Refuse a heights Vec that is not laid out on ``grid`` (ValueError naming ``heights``
+    and both shapes): its DMDA's sizes when it has one, its global and local sizes always."""
+    if not isinstance(heights, PETSc.Vec):
+        raise ValueError(f"heights must be a PETSc.Vec on the {grid.nx} x {grid.ny} grid "
+                         f"(grid.create_vec or grid.vec_from_array), got {type(heights).__name__}")
+    sizes = _dmda_sizes(heights, grid.da)
+    if sizes is not None and sizes != (grid.nx, grid.ny):
+        raise ValueError(f"heights: a Vec of a {sizes[0]} x {sizes[1]} grid does not fit the problem's "
+                         f"{grid.nx} x {grid.ny} grid (nx x ny)")
+    n = heights.getSize()
+    if n != grid.nx * grid.ny:
+        raise ValueError(f"heights: a Vec of {n} values does not fit the problem's {grid.nx} x {grid.ny} "
+                         f"grid ({grid.nx * grid.ny} values)")
+    if heights.getLocalSize() != grid.nx * grid.ny_local:
+        raise ValueError(f"heights: a Vec distributed as {heights.getLocalSize()} values on this rank does not fit "
+                         f"the {grid.nx} x {grid.ny} grid's rows {grid.ys}-{grid.ye - 1} ({grid.nx * grid.ny_local} values)")
+
+
+def _dmda_sizes(vec: PETSc.Vec, known: PETSc.DMDA) -> tuple[int, int] | None:
+    """(M, N) of the DMDA ``vec`` belongs to, None without one; collective on its comm.
+
+    petsc4py 3.18 returns a Vec's DM as a plain DM, without the DMDA's getSizes: the sizes
+    are read from its ASCII view (a transposed grid has the same global and local sizes),
+    unless the DM is ``known``."""
+    dm = vec.getDM()
+    if not dm.handle:
+        return None
+    # petsc4py 3.18's getDM takes no reference, yet the wrapper drops one when collected:
+    # without this the DMDA is freed while its grid still uses it (a crash at exit)
+    dm.incRef()
+    if dm.getType() != "da":
+        return None
+    if dm.handle == known.handle:
+        return tuple(known.getSizes()[:2])
+    return _viewed_sizes(dm, vec.getComm())
+
+
+def _viewed_sizes(dm: PETSc.DM, petsc_comm) -> tuple[int, int] | None:
+    """(M, N) from a DMDA's ASCII view; collective."""
+    comm = petsc_comm.tompi4py()
+    path = comm.bcast(tempfile.mkstemp(prefix="contactpetsc-dm-", suffix=".txt")[1]
+                      if comm.Get_rank() == 0 else None, root=0)
+    viewer = PETSc.Viewer().createASCII(path, comm=petsc_comm)
+    try:
+        dm.view(viewer)
+    finally:
+        viewer.destroy()
+    found = None
+    if comm.Get_rank() == 0:
+        with open(path) as f:
+            found = re.search(r"\bM\s+(\d+)\s+N\s+(\d+)", f.read())
+        os.unlink(path)
+        found = (int(found.group(1)), int(found.group(2))) if found else None
+    return comm.bcast(found, root=0)
 
 
 def _weighted_pairs(ops, fine: SurfaceGrid) -> float:

@@ -33,6 +33,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from .adhesive_jacobian import _SetView
+from .problem import check_tolerance
 
 
 class RelaxationSolver:
@@ -50,8 +51,10 @@ class RelaxationSolver:
                              f"dugdale); law {problem.law.name!r} is solved by Newton (solver = 'newton')")
         self.pb = problem
         opts = PETSc.Options(problem.prefix + "relax_")
-        self.tol = opts.getReal("tol", 1e-4 if tol is None else tol)
-        self.contact_tol = opts.getReal("contact_tol", 1e-4 if contact_tol is None else contact_tol)
+        pre = problem.prefix + "relax_"
+        self.tol = check_tolerance(opts.getReal("tol", 1e-4 if tol is None else tol), f"tol (-{pre}tol)")
+        self.contact_tol = check_tolerance(opts.getReal("contact_tol", 1e-4 if contact_tol is None else contact_tol),
+                                           f"contact_tol (-{pre}contact_tol)")
         self.max_cycles = opts.getInt("max_cycles", 20000 if max_cycles is None else max_cycles)
         self.max_inner = opts.getInt("max_inner", 200)
         self.omega_max = opts.getReal("omega_max", 1.0)

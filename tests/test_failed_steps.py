@@ -1,0 +1,104 @@
+"""A failed solve returns a meaningful state: the iterate of smallest error, never what a
+failed SNES left in its solution vector.
+
+PETSc's VI Newton fills the solution with ``VecSetRandom`` after a failed line search:
+values uniformly spread over [0, 1) at every node.  The truths here: the returned
+pressure has none of that signature (pressures in Pa of a contact of a 1-10 GPa body
+are zero outside the contact and far above 1 Pa inside), it is the state whose force,
+displacement, gap and errors the state reports (recomputed from the pressure), and the
+next solve starts from the last converged state.  The failure is forced with Newton
+steps that go backwards (``snes_linesearch_damping -1``).
+"""
+import numpy as np
+from petsc4py import PETSc
+
+from contactpetsc.grid import SurfaceGrid
+from contactpetsc.physics.interactions import make_law
+from contactpetsc.solvers.adhesive import AdhesiveProblem
+from contactpetsc.solvers.problem import ContactProblem
+from contactpetsc.surfaces import sphere
+
+
+def backward_line_search(prefix, value="-1"):
+    """Set (or with None clear) a line search that steps backwards under ``prefix``."""
+    opts = PETSc.Options()
+    if value is None:
+        opts.delValue(prefix + "snes_linesearch_damping")
+    else:
+        opts.setValue(prefix + "snes_linesearch_damping", value)
+
+
+def assert_not_random(coll, rows):
+    """No trace of VecSetRandom: it leaves every node in [0, 1) with a nonzero value."""
+    n = coll.comm.allreduce(rows.size)
+    in_unit = coll.comm.allreduce(int(np.count_nonzero((rows > 0) & (rows < 1.0))))
+    assert in_unit < 0.01 * n, f"{in_unit} of {n} nodes hold values in (0, 1) Pa"
+
+
+def assert_consistent(coll, problem, st, heights):
+    """The state's displacement, gap and force are those of its own pressure."""
+    g = problem.grid
+    p = g.rows(st.pressure, readonly=True)
+    v = problem.op.apply(p.copy(), np.empty_like(p))
+    scale = coll.max(np.abs(v))
+    assert coll.max(np.abs(g.rows(st.displacement, readonly=True) - v)) <= 1e-12 * scale
+    gap = g.rows(heights, readonly=True) + v - st.approach
+    assert coll.max(np.abs(g.rows(st.gap, readonly=True) - gap)) <= 1e-12 * scale
+    force = g.mpi_comm.allreduce(float(p.sum())) * g.dx * g.dy
+    assert abs(st.force - force) <= 1e-12 * max(abs(force), 1e-300)
+
+
+def test_failed_contact_solve_returns_its_best_iterate(coll):
+    grid = SurfaceGrid(64, 64, 1e-9, periodic=False)
+    h = sphere(grid, 100e-9)
+    prefix = "failed_contact_"
+    backward_line_search(prefix)
+    try:
+        problem = ContactProblem(grid, h, 1e9, prefix=prefix, fmg=False)
+        st = problem.solve(approach=2e-9, raise_on_failure=False)
+    finally:
+        backward_line_search(prefix, None)
+    assert not st.converged and st.reason.startswith(("DIVERGED_LINE_SEARCH", "DIVERGED_LOCAL_MIN")), st.reason
+    assert "smallest complementarity error" in st.reason, st.reason
+    p = grid.rows(st.pressure, readonly=True)
+    assert coll.max(-p) <= 0.0                      # p >= 0: the bound of every VI iterate
+    assert coll.max(p) > 0.0                        # an iterate, not the zero start
+    assert_not_random(coll, p)
+    assert_consistent(coll, problem, st, h)
+    # its reported error is the error of the pressure returned, and below the start's
+    comp = np.abs(np.minimum(problem.kappa * p, grid.rows(st.gap, readonly=True)))
+    assert abs(coll.max(comp) / problem.length_scale - st.complementarity_error) <= 1e-9 * st.complementarity_error
+    assert st.complementarity_error < problem.history[0].complementarity_error
+    # the next start is still the last converged state (here: none, the zero pressure)
+    assert coll.max(np.abs(grid.rows(problem._pressure, readonly=True))) == 0.0
+
+
+def test_failed_adhesive_solve_returns_its_best_iterate(coll):
+    z0 = 0.3e-9
+    grid = SurfaceGrid(48, 48, z0, periodic=False)
+    h = sphere(grid, 30e-9)
+    prefix = "failed_adhesion_"
+    law = make_law("lj", work_of_adhesion=0.3, z0=z0)
+    problem = AdhesiveProblem(grid, h, 10e9, law, prefix=prefix)
+    good = problem.solve(approach=-1.0 * z0)
+    assert good.converged
+    # the full LJ curve takes full Newton steps: a backward step fails by max_it
+    backward_line_search(prefix)
+    try:
+        problem.snes().setFromOptions()
+    finally:
+        backward_line_search(prefix, None)
+    st = problem.solve(approach=0.5 * z0, raise_on_failure=False, fallback=False)
+    assert not st.converged and "DIVERGED" in st.reason, st.reason
+    assert "iterate of smallest error" in st.reason, st.reason
+    p = grid.rows(st.pressure, readonly=True)
+    assert_not_random(coll, np.abs(p))
+    assert_consistent(coll, problem, st, h)
+    assert st.adhesive_error > problem.tol or st.pressure_error > problem.tol
+    # the reported pressure is its own adhesive pressure (no wall: p = a)
+    assert coll.max(np.abs(p - grid.rows(st.adhesive_pressure, readonly=True))) == 0.0
+    # the next solve starts from the last converged state
+    x = problem.snapshot()[0]
+    start = x.getArray(readonly=True)
+    assert coll.max(np.abs(start - grid.rows(good.pressure, readonly=True).ravel())) == 0.0
+    x.destroy()

@@ -1,0 +1,81 @@
+"""Pull-off force and jumps of displacement-controlled paths against exact answers.
+
+Flat periodic cell with the full LJ law: the state is uniform at every approach, so
+F = A p_LJ(-delta) exactly -- a smooth branch without jumps -- and the uniform state is
+stable wherever dp/dg <= 0 (at least down to the law's peak), so the most tensile stable
+state of any path through the peak is -A * (peak attraction), whatever the sampling; on a
+soft cell the states beyond the peak are unstable (sampled points there are marked so).
+A sphere that never comes within 10 z0 of the surface sees a smooth, monotonic
+attraction: no jumps, no pull-off (the most tensile state is the turning point).
+"""
+import numpy as np
+import pytest
+
+from contactpetsc.grid import SurfaceGrid
+from contactpetsc.paths import refine_pull_off, sweep
+from contactpetsc.physics.interactions import make_law
+from contactpetsc.solvers.adhesive import AdhesiveProblem
+from contactpetsc.surfaces import sphere
+
+
+def flat_cell(n, w, prefix):
+    grid = SurfaceGrid(n, n, 1.0, periodic=True)
+    law = make_law("lj", work_of_adhesion=w, z0=1.0)
+    return AdhesiveProblem(grid, grid.create_vec(0.0), 1.0, law, prefix=prefix), law
+
+
+@pytest.mark.filterwarnings("ignore::contactpetsc.physics.interactions.UnderResolvedWarning")
+@pytest.mark.parametrize("w, approaches", [
+    # a coarse load-unload path whose samples straddle the unstable range beyond the peak
+    (0.5, [-2.05, -1.0, 0.05, 0.3, 0.05, -1.0, -2.05]),
+    (0.5, [-1.5, -0.5, 0.5, -0.5, -1.5]),
+    # every state stable, samples off the peak
+    (0.05, [-1.2, -0.9, -0.6, -0.3, 0.0, 0.3, 0.0, -0.3, -0.6, -0.9, -1.2]),
+])
+def test_flat_cell_pull_off_is_the_law_peak_and_its_branch_has_no_jumps(coll, w, approaches):
+    n = 32
+    problem, law = flat_cell(n, w, f"flat_{len(approaches)}_")
+    path = sweep(problem, approaches)
+    area = n * n
+    for p in path.points:
+        if p.converged:
+            assert abs(p.force - area * law.pressure(-p.approach)) <= 1e-6 * area * law.peak_attraction
+    assert not path.jumps, path.jumps
+    pull = refine_pull_off(problem, path, xtol=1e-4)
+    exact = -area * law.peak_attraction
+    assert abs(pull / exact - 1) < 1e-6, (pull, exact)
+    assert path.pull_off_force == pull
+
+
+def test_far_sphere_has_no_jumps_and_no_pull_off(coll):
+    z0 = 0.3e-9
+    grid = SurfaceGrid(64, 64, z0, periodic=False)
+    law = make_law("lj", work_of_adhesion=0.3, z0=z0)
+    problem = AdhesiveProblem(grid, sphere(grid, 30e-9), 10e9, law, prefix="far_sphere_")
+    # a coarse first step, then in and out again, never closer than 10 z0 (apex gap -delta)
+    path = sweep(problem, np.array([-40.0, -11.0, -20.0, -10.0, -25.0, -40.0]) * z0)
+    assert all(p.converged and p.stable for p in path.points)
+    forces = [p.force for p in path.points]
+    assert all(f < 0 for f in forces) and min(forces) == forces[3]   # most tensile: the closest
+    assert not path.jumps, path.jumps
+    assert np.isnan(path.pull_off_force)
+    assert np.isnan(refine_pull_off(problem, path, xtol=0.01 * z0))
+
+
+def test_sphere_pull_off_does_not_depend_on_the_sampling(coll):
+    """mu = 0.5, full LJ (no jumps): the refined pull-off of a coarse path (steps of 0.5 z0,
+    the minimum between samples) is the fine path's (steps of 0.1 z0), and lies between the
+    JKR and DMT limits (Maugis-Dugdale: -2 < F / (pi R w) < -1.5)."""
+    radius, mu = 100.0, 0.5
+    w = np.sqrt(mu ** 3 / radius)     # E* = z0 = 1
+    bars = []
+    for step in (0.5, 0.1):
+        grid = SurfaceGrid(64, 64, 1.0, periodic=False)
+        problem = AdhesiveProblem(grid, sphere(grid, radius), 1.0, make_law("lj", work_of_adhesion=w, z0=1.0),
+                                  prefix=f"sampling_{step:g}_")
+        approaches = np.concatenate([np.arange(-2.5, 0.51, step), np.arange(0.5 - step, -2.51, -step)])
+        path = sweep(problem, approaches)
+        assert not path.jumps
+        bars.append(refine_pull_off(problem, path, xtol=0.002) / (np.pi * radius * w))
+    assert abs(bars[0] / bars[1] - 1) < 1e-4, bars
+    assert -2.0 < bars[1] < -1.5
