@@ -212,8 +212,8 @@ class SurfaceGrid:
         but its rows are not this grid's rows.
         """
         if not isinstance(vec, PETSc.Vec):
-            raise GridError(f"{name} must be a PETSc Vec of the {self.nx} x {self.ny} grid, "
-                            f"got {type(vec).__name__}")
+            raise GridError(f"{name} must be a PETSc Vec (PETSc.Vec) of the {self.nx} x {self.ny} grid "
+                            f"(grid.create_vec or grid.vec_from_array), got {type(vec).__name__}")
         shape = None
         dm = vec.query("__PETSc_dm")
         if isinstance(dm, PETSc.DMDA) and dm.getDim() == 2 and dm.getDof() == 1:
@@ -222,9 +222,9 @@ class SurfaceGrid:
                 and (shape is None or shape == self.shape))
         if not self.mpi_comm.allreduce(fits, op=MPI.LAND):
             got = (f"a field of a {shape[0]} x {shape[1]} grid" if shape is not None
-                   else f"a Vec of {vec.getSize()} entries")
-            raise GridError(f"{name} is {got}, this grid is (nx, ny) = ({self.nx}, {self.ny}) "
-                            f"({self.nx * self.ny} nodes, split by rows along y)")
+                   else f"a Vec of {vec.getSize()} entries ({vec.getSize()} values)")
+            raise GridError(f"{name} is {got}, this grid is {self.nx} x {self.ny}: (nx, ny) = "
+                            f"({self.nx}, {self.ny}) ({self.nx * self.ny} nodes, split by rows along y)")
         return vec
 
     def rows(self, vec: PETSc.Vec, readonly: bool = False) -> np.ndarray:

@@ -40,9 +40,6 @@ from the previous z, the first one from the coarse grid's; default true), ...
 """
 from __future__ import annotations
 
-import os
-import re
-import tempfile
 from dataclasses import dataclass
 
 import numpy as np
@@ -666,60 +663,9 @@ def check_tolerance(value, name: str) -> float:
 
 
 def check_heights(grid: SurfaceGrid, heights: PETSc.Vec) -> None:
-    """Refuse a heights Vec that is not laid out on ``grid`` (ValueError naming ``heights``
-    and both shapes): its DMDA's sizes when it has one, its global and local sizes always."""
-    if not isinstance(heights, PETSc.Vec):
-        raise ValueError(f"heights must be a PETSc.Vec on the {grid.nx} x {grid.ny} grid "
-                         f"(grid.create_vec or grid.vec_from_array), got {type(heights).__name__}")
-    sizes = _dmda_sizes(heights, grid.da)
-    if sizes is not None and sizes != (grid.nx, grid.ny):
-        raise ValueError(f"heights: a Vec of a {sizes[0]} x {sizes[1]} grid does not fit the problem's "
-                         f"{grid.nx} x {grid.ny} grid (nx x ny)")
-    n = heights.getSize()
-    if n != grid.nx * grid.ny:
-        raise ValueError(f"heights: a Vec of {n} values does not fit the problem's {grid.nx} x {grid.ny} "
-                         f"grid ({grid.nx * grid.ny} values)")
-    if heights.getLocalSize() != grid.nx * grid.ny_local:
-        raise ValueError(f"heights: a Vec distributed as {heights.getLocalSize()} values on this rank does not fit "
-                         f"the {grid.nx} x {grid.ny} grid's rows {grid.ys}-{grid.ye - 1} ({grid.nx * grid.ny_local} values)")
-
-
-def _dmda_sizes(vec: PETSc.Vec, known: PETSc.DMDA) -> tuple[int, int] | None:
-    """(M, N) of the DMDA ``vec`` belongs to, None without one; collective on its comm.
-
-    petsc4py 3.18 returns a Vec's DM as a plain DM, without the DMDA's getSizes: the sizes
-    are read from its ASCII view (a transposed grid has the same global and local sizes),
-    unless the DM is ``known``."""
-    dm = vec.getDM()
-    if not dm.handle:
-        return None
-    # petsc4py 3.18's getDM takes no reference, yet the wrapper drops one when collected:
-    # without this the DMDA is freed while its grid still uses it (a crash at exit)
-    dm.incRef()
-    if dm.getType() != "da":
-        return None
-    if dm.handle == known.handle:
-        return tuple(known.getSizes()[:2])
-    return _viewed_sizes(dm, vec.getComm())
-
-
-def _viewed_sizes(dm: PETSc.DM, petsc_comm) -> tuple[int, int] | None:
-    """(M, N) from a DMDA's ASCII view; collective."""
-    comm = petsc_comm.tompi4py()
-    path = comm.bcast(tempfile.mkstemp(prefix="contactpetsc-dm-", suffix=".txt")[1]
-                      if comm.Get_rank() == 0 else None, root=0)
-    viewer = PETSc.Viewer().createASCII(path, comm=petsc_comm)
-    try:
-        dm.view(viewer)
-    finally:
-        viewer.destroy()
-    found = None
-    if comm.Get_rank() == 0:
-        with open(path) as f:
-            found = re.search(r"\bM\s+(\d+)\s+N\s+(\d+)", f.read())
-        os.unlink(path)
-        found = (int(found.group(1)), int(found.group(2))) if found else None
-    return comm.bcast(found, root=0)
+    """Refuse ``heights`` laid out for another grid (ValueError naming the field and both
+    shapes; collective): ``SurfaceGrid.check_vec``."""
+    grid.check_vec(heights, "heights")
 
 
 def _weighted_pairs(ops, fine: SurfaceGrid) -> float:
