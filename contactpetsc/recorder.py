@@ -100,7 +100,7 @@ class StepRecorder:
         comm = self.grid.mpi_comm
         if not self.scene["output"]["fields"]:
             raise RuntimeError("restart needs the field files: set output.fields = true")
-        got = collective_call(comm, RunDirectoryError, "cannot restart: {error}",
+        got = collective_call(comm, RunDirectoryError, f"cannot restart from {self.out_dir}: {{error}}",
                               lambda: self._read_back(fields) if self.rank0 else None)
         self.rows, self.jumps, atoms, notes = comm.bcast(got, root=0)
         differ = differences(stored, self.scene, len(self.rows)) if stored is not None else []
@@ -259,7 +259,11 @@ def check_step_file(path: str, grid, fields: tuple) -> None:
     import h5py
     if not os.path.exists(path):
         raise FileNotFoundError(f"{path} is missing")
-    with h5py.File(path, "r") as f:
+    try:
+        f = h5py.File(path, "r")
+    except OSError as exc:
+        raise ValueError(f"{path} is damaged ({exc})") from None
+    with f:
         axes = f.attrs.get("axes", AXES)
         if axes != AXES:
             raise ValueError(f"{path} has axes {axes!r}; this version reads {AXES!r}")

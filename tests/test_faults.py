@@ -50,15 +50,15 @@ CLI = [sys.executable, "-m", "contactpetsc.cli"]
 CLI_FAULT = textwrap.dedent("""
     import sys
     from mpi4py import MPI
-    from contactpetsc import cli, protocols
+    from contactpetsc import cli, runner
 
-    build = protocols.build_heights
+    build = runner.build_heights
     def build_heights(scene, grid):   # a fault on rank 1 only, while the others go on to solve
         if MPI.COMM_WORLD.Get_rank() == 1:
             raise OSError("injected fault on rank 1")
         return build(scene, grid)
 
-    protocols.build_heights = build_heights
+    runner.build_heights = build_heights
     sys.exit(cli.main(sys.argv[1:]))
 """)
 
@@ -123,7 +123,7 @@ def test_cli_reports_unused_petsc_options(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert "PETSc options nobody used" in proc.stderr and "-contact_snes_monitr" in proc.stderr
     assert "ksp_type" not in proc.stderr
-    proc = subprocess.run(CLI + ["run", scene, "-contact_snes_monitr", "-options_left"],
+    proc = subprocess.run(CLI + ["run", scene, "--overwrite", "-contact_snes_monitr", "-options_left"],
                           env=ENV, capture_output=True, text=True, timeout=120)
     assert "Option left: name:-contact_snes_monitr" in proc.stdout
 
