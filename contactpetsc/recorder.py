@@ -77,9 +77,10 @@ class StepRecorder:
     """
 
     def __init__(self, scene: dict, grid, heights, out_dir: str, header: str, progress, *, tip=None,
-                 zone_threshold: float = 0.0):
+                 zone_threshold: float = 0.0, jumps: bool = False):
         self.scene, self.grid, self.heights, self.out_dir = scene, grid, heights, out_dir
         self.progress, self.tip, self.zone_threshold = progress, tip, zone_threshold
+        self.keeps_jumps = jumps
         self.rank0 = grid.mpi_comm.Get_rank() == 0
         self.total = len(scene["protocol"]["values"])
         self.rows, self.jumps, self.edge_steps = [], [], []
@@ -112,8 +113,9 @@ class StepRecorder:
         if self.rank0:
             write_text_atomic(self.path("curve.csv"), csv_lines([CURVE_COLUMNS] + [
                 [r[c] for c in CURVE_COLUMNS] for r in self.rows]))
-            write_text_atomic(self.path("jumps.csv"), csv_lines([JUMP_COLUMNS] + [
-                [j[c] for c in JUMP_COLUMNS] for j in self.jumps]))
+            if self.keeps_jumps:
+                write_text_atomic(self.path("jumps.csv"), csv_lines([JUMP_COLUMNS] + [
+                    [j[c] for c in JUMP_COLUMNS] for j in self.jumps]))
             if atoms is not None:
                 write_text_atomic(self.path("atom_forces.csv"), csv_lines([ATOM_COLUMNS] + atoms))
             _drop_partial_line(self.path("history.csv"))
@@ -162,7 +164,7 @@ class StepRecorder:
         """Headers of new files; the clock of the progress line starts here."""
         if self.rank0:
             for name, columns in (("curve.csv", CURVE_COLUMNS), ("jumps.csv", JUMP_COLUMNS)):
-                if not os.path.exists(self.path(name)):
+                if not os.path.exists(self.path(name)) and (name != "jumps.csv" or self.keeps_jumps):
                     write_text_atomic(self.path(name), csv_lines([columns]))
             if self.tip is not None and not os.path.exists(self.path("atom_forces.csv")):
                 write_text_atomic(self.path("atom_forces.csv"), csv_lines([ATOM_COLUMNS]))
@@ -184,13 +186,18 @@ class StepRecorder:
                                          j.force_after])) for j in new_jumps]
         self.jumps += jumps
         self.rows.append(row)
-        if self.rank0:
+
+        def append():
             if atoms:
                 append_text(self.path("atom_forces.csv"), csv_lines(atoms))
             if jumps:
                 append_text(self.path("jumps.csv"), csv_lines([[j[c] for c in JUMP_COLUMNS] for j in jumps]))
             append_text(self.path("curve.csv"), csv_lines([[row[c] for c in CURVE_COLUMNS]]))
             self._append_history(problem)
+
+        # rank 0 writes; a failure (a full disk) is raised on every rank
+        collective_call(self.grid.mpi_comm, OSError, f"cannot write step {step} to {self.out_dir}: {{error}}",
+                        lambda: append() if self.rank0 else None)
         self._print(st, row)
         for j in new_jumps:
             PETSc.Sys.Print(f"  {j.kind} between approaches {j.approach_before:.4e} and {j.approach_after:.4e} m: "
@@ -221,6 +228,12 @@ class StepRecorder:
                         f"  the run stopped there: {written}; fix the cause and continue with --restart")
         self.write_summary()
 
+    def flush_history(self, problem) -> None:
+        """The iterations solved after the last step's row (a failed step, the pull-off
+        refinement) appended to history.csv (rank 0)."""
+        collective_call(self.grid.mpi_comm, OSError, f"cannot write {self.path('history.csv')}: {{error}}",
+                        lambda: self._append_history(problem) if self.rank0 else None)
+
     def _append_history(self, problem) -> None:
         from .solvers.history import SolveHistory
         new = problem.history.records[self.history_written:]
@@ -249,9 +262,9 @@ class StepRecorder:
         s["window_edge_steps"] = self.edge_steps
         s["jumps"] = [{c: (j[c] if c == "kind" else float(j[c]) if c != "step" else int(j[c]))
                        for c in JUMP_COLUMNS} for j in self.jumps]
-        if self.rank0:
-            write_text_atomic(self.path("summary.json"),
-                              json.dumps(json_safe(s), indent=1, allow_nan=False) + "\n")
+        text = json.dumps(json_safe(s), indent=1, allow_nan=False) + "\n"
+        collective_call(self.grid.mpi_comm, OSError, f"cannot write {self.path('summary.json')}: {{error}}",
+                        lambda: write_text_atomic(self.path("summary.json"), text) if self.rank0 else None)
 
 
 def check_step_file(path: str, grid, fields: tuple) -> None:

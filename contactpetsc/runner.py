@@ -124,7 +124,8 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
         stepper = (AdhesiveSteps if adhesive(scene) else ContactSteps)(scene, grid, h)
         recorder = StepRecorder(scene, grid, h, out_dir, stepper.header, stepper.progress,
                                 tip=tip if scene["output"]["atom_forces"] else None,
-                                zone_threshold=stepper.zone_threshold)
+                                zone_threshold=stepper.zone_threshold,
+                                jumps=stepper.sweeping)
         if restart:
             recorder.resume(stepper.fields, stored)
             if recorder.rows:
@@ -132,6 +133,7 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
         rundir.write_scene(grid.mpi_comm, out_dir, scene)
         states = _steps(scene, stepper, recorder)
         recorder.write_summary(**stepper.finish())
+        recorder.flush_history(stepper.problem)
         if recorder.edge_steps:
             PETSc.Sys.Print(f"  warning: in {len(recorder.edge_steps)} step(s) the pressure-carrying zone reached "
                             "the window's edge (curve.csv window_reach = 1): those forces are not the isolated "

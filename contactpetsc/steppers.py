@@ -30,6 +30,7 @@ def _push_options(prefix: str, options: dict) -> None:
 class ContactSteps:
     """Signorini contact (no adhesion); a failed step is written and the path goes on."""
     stop_on_failure = False
+    sweeping = False              #: no jumps, no pull-off
     zone_threshold = 0.0          #: the contact zone: p > 0
     fields = ("pressure",)
 
