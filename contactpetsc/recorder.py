@@ -108,6 +108,13 @@ class StepRecorder:
         if differ:
             raise RunDirectoryError(f"cannot restart in {self.out_dir!r}: the run there solved another problem ("
                                     + "; ".join(differ) + "); choose another --output, or --overwrite it")
+
+        def check_files():
+            for k in range(1, len(self.rows) + 1):
+                check_step_file(self.path(f"step_{k:04d}.h5"), self.grid, fields)
+
+        collective_call(comm, RunDirectoryError, f"cannot restart from {self.out_dir}: {{error}}",
+                        lambda: check_files() if self.rank0 else None)
         for line in notes:
             PETSc.Sys.Print(f"  note: {line}")
         if self.rank0:
@@ -127,7 +134,6 @@ class StepRecorder:
         for k, r in enumerate(rows, 1):
             if r["step"] != str(k):
                 raise ValueError(f"{self.path('curve.csv')}, row {k}: step {r['step']!r}, expected {k}")
-            check_step_file(self.path(f"step_{k:04d}.h5"), self.grid, fields)
         done = len(rows)
         jumps = [j for j in _read_rows(self.path("jumps.csv"), JUMP_COLUMNS, notes) if int(j["step"]) <= done]
         atoms = None
