@@ -106,10 +106,14 @@ def differences(old: dict, new: dict, done: int) -> list[str]:
     a, b = _flat(json.loads(json.dumps(old))), _flat(json.loads(json.dumps(new)))
     out = [f"{k}: {a.get(k)!r} on disk, {b.get(k)!r} now" for k in sorted(set(a) | set(b))
            if not k.startswith(NOT_PHYSICS) and a.get(k) != b.get(k)]
-    old_values = list(old.get("protocol", {}).get("values", []))[:done]
-    new_values = list(new["protocol"]["values"])[:done]
-    if old_values != [float(v) for v in new_values] and old_values != new_values:
-        out.append(f"protocol.values of the {done} steps done: {old_values!r} on disk, {new_values!r} now")
+    old_values = [float(v) for v in old.get("protocol", {}).get("values", [])[:done]]
+    new_values = [float(v) for v in new["protocol"]["values"][:done]]
+    if len(new_values) < done:
+        out.append(f"protocol.values: {done} steps are done on disk, the scene now has {len(new_values)} values")
+    else:
+        k = next((k for k, (a, b) in enumerate(zip(old_values, new_values)) if a != b), None)
+        if k is not None:
+            out.append(f"protocol.values: step {k + 1} is {old_values[k]!r} on disk, {new_values[k]!r} now")
     return out
 
 
