@@ -173,7 +173,9 @@ def test_time_budget_ends_a_sweep_loudly_and_restart_completes_it(tmp_path):
     """``-adhesion_time_budget`` ends an adhesive sweep at a step with WALL_TIME_BUDGET: exit
     code 3 and a message naming the step, its reason and --restart; the steps before it are
     written, and --restart completes the run with the uninterrupted run's forces and keeps
-    the jumps found before the stop (jumps.csv)."""
+    the jumps found before the stop (jumps.csv) and the uninterrupted run's pull-off force
+    (summary.json: the most tensile stable state of the whole path, not of the restarted part)."""
+    import json
     import csv
     scene = os.path.join(os.path.dirname(__file__), "..", "examples", "scenes", "adhesive_sphere.toml")
 
@@ -199,3 +201,5 @@ def test_time_budget_ends_a_sweep_loudly_and_restart_completes_it(tmp_path):
     for a, b in zip(resumed, ref):
         assert float(a["force_N"]) == pytest.approx(float(b["force_N"]), rel=1e-5, abs=1e-12)
     assert [r["kind"] for r in rows(cut / "jumps.csv")] == [r["kind"] for r in rows(full / "jumps.csv")]
+    pull = [json.load(open(d / "summary.json"))["pull_off_force_N"] for d in (cut, full)]
+    assert pull[0] == pytest.approx(pull[1], rel=1e-6)
