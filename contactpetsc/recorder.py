@@ -85,7 +85,7 @@ class StepRecorder:
         self.total = len(scene["protocol"]["values"])
         self.rows, self.jumps, self.edge_steps = [], [], []
         self.summary = {}
-        self.history_written = 0
+        self.history_written = self.unconverged = 0
         self.provenance = None
         if scene["output"]["fields"]:
             from .output import versions
@@ -175,6 +175,7 @@ class StepRecorder:
             if self.tip is not None and not os.path.exists(self.path("atom_forces.csv")):
                 write_text_atomic(self.path("atom_forces.csv"), csv_lines([ATOM_COLUMNS]))
         self.first = len(self.rows)
+        self.unconverged = sum(r["converged"] not in (True, "True") for r in self.rows)
         self.t_start = MPI.Wtime()
 
     def record(self, st, row: dict, problem, new_jumps=(), results: dict | None = None) -> None:
@@ -192,6 +193,7 @@ class StepRecorder:
                                          j.force_after])) for j in new_jumps]
         self.jumps += jumps
         self.rows.append(row)
+        self.unconverged += row["converged"] not in (True, "True")
 
         def append():
             if atoms:
@@ -261,9 +263,7 @@ class StepRecorder:
         """summary.json (rank 0): steps, converged, where the run stopped, the window's edge,
         the stepper's ``results`` (pull-off), and the jumps as in jumps.csv."""
         self.summary.update(results)
-        s = {"steps": len(self.rows),
-             "converged": all(r["converged"] in (True, "True") for r in self.rows)
-             and "stopped_at" not in self.summary}
+        s = {"steps": len(self.rows), "converged": self.unconverged == 0 and "stopped_at" not in self.summary}
         s.update(self.summary)
         s["window_edge_steps"] = self.edge_steps
         s["jumps"] = [{c: (j[c] if c == "kind" else float(j[c]) if c != "step" else int(j[c]))
