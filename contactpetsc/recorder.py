@@ -117,7 +117,8 @@ class StepRecorder:
                         lambda: check_files() if self.rank0 else None)
         for line in notes:
             PETSc.Sys.Print(f"  note: {line}")
-        if self.rank0:
+
+        def rewrite():   # the files as the steps kept (current columns; no partial rows)
             write_text_atomic(self.path("curve.csv"), csv_lines([CURVE_COLUMNS] + [
                 [r[c] for c in CURVE_COLUMNS] for r in self.rows]))
             if self.keeps_jumps:
@@ -126,6 +127,9 @@ class StepRecorder:
             if atoms is not None:
                 write_text_atomic(self.path("atom_forces.csv"), csv_lines([ATOM_COLUMNS] + atoms))
             _drop_partial_line(self.path("history.csv"))
+
+        collective_call(comm, OSError, f"cannot rewrite the files of {self.out_dir}: {{error}}",
+                        lambda: rewrite() if self.rank0 else None)
         PETSc.Sys.Print(f"  restart: {len(self.rows)} of {self.total} steps already done")
 
     def _read_back(self, fields):
@@ -135,12 +139,15 @@ class StepRecorder:
             if r["step"] != str(k):
                 raise ValueError(f"{self.path('curve.csv')}, row {k}: step {r['step']!r}, expected {k}")
         done = len(rows)
-        jumps = [j for j in _read_rows(self.path("jumps.csv"), JUMP_COLUMNS, notes) if int(j["step"]) <= done]
+        # rows of the steps on disk (files of an older version have no step column: all kept)
+        jumps = [dict(j, step=j.get("step", "nan"))
+                 for j in _read_rows(self.path("jumps.csv"), JUMP_COLUMNS[1:], notes)
+                 if float(j.get("step", 0)) <= done]
         atoms = None
         if os.path.exists(self.path("atom_forces.csv")):
-            atoms = [[a[c] for c in ATOM_COLUMNS] for a in _read_rows(self.path("atom_forces.csv"),
-                                                                      ATOM_COLUMNS, notes)
-                     if int(a["step"]) <= done]
+            atoms = [[a.get(c, "nan") for c in ATOM_COLUMNS]
+                     for a in _read_rows(self.path("atom_forces.csv"), ATOM_COLUMNS[1:], notes)
+                     if float(a.get("step", 0)) <= done]
         for r in rows:
             for c in CURVE_COLUMNS:
                 r.setdefault(c, "nan")   # a column an older version did not write
@@ -266,7 +273,7 @@ class StepRecorder:
         s = {"steps": len(self.rows), "converged": self.unconverged == 0 and "stopped_at" not in self.summary}
         s.update(self.summary)
         s["window_edge_steps"] = self.edge_steps
-        s["jumps"] = [{c: (j[c] if c == "kind" else float(j[c]) if c != "step" else int(j[c]))
+        s["jumps"] = [{c: (j[c] if c == "kind" else _number(j[c], int if c == "step" else float))
                        for c in JUMP_COLUMNS} for j in self.jumps]
         text = json.dumps(json_safe(s), indent=1, allow_nan=False) + "\n"
         collective_call(self.grid.mpi_comm, OSError, f"cannot write {self.path('summary.json')}: {{error}}",
@@ -316,7 +323,8 @@ def _read_rows(path: str, required, notes: list) -> list[dict]:
     rows = []
     for n, line in enumerate(lines[1:], 1):
         words = next(csv.reader([line]), [])
-        bad = len(words) != len(header) or not line.endswith("\n") or not _numeric(words[header.index("step")])
+        bad = (len(words) != len(header) or not line.endswith("\n")
+               or ("step" in header and not _numeric(words[header.index("step")])))
         if bad and n == len(lines) - 1:
             notes.append(f"{path}: dropped its partial last row {n} (written when the run was interrupted); "
                          "that step is solved again")
@@ -326,6 +334,13 @@ def _read_rows(path: str, required, notes: list) -> list[dict]:
                              "the file is damaged (fix or remove that row, or start again with --overwrite)")
         rows.append(dict(zip(header, words)))
     return rows
+
+
+def _number(word, kind):
+    """``kind(word)``, or None when ``word`` is not a finite number (a step an older version
+    did not record)."""
+    value = float(word)
+    return kind(value) if math.isfinite(value) else None
 
 
 def _numeric(word: str) -> bool:

@@ -79,7 +79,8 @@ def test_another_runs_directory_is_refused_unless_overwrite(tmp_path):
     other = scene_file(tmp_path / "b.toml", out, [3e6, 6e6])
     refused = run(["run", other])
     assert refused.returncode == 1
-    assert "holds another run" in refused.stderr and "--restart" in refused.stderr and "--overwrite" in refused.stderr
+    assert "holds another run" in refused.stderr
+    assert "--restart" in refused.stderr and "--overwrite" in refused.stderr
     assert sorted(os.listdir(out)) == before
     both = run(["run", other, "--restart", "--overwrite"])
     assert both.returncode == 1 and "give one of them" in both.stderr
