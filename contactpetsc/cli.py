@@ -9,10 +9,17 @@ Without a scene file, ``run`` solves the built-in default scene
 (``scenes.DEFAULT_SCENE``): a smooth sphere (R = 100 um, E* = 50 GPa, the
 reference paper's material) pressed onto an isolated elastic half-space,
 swept through five approaches in displacement control with warm starts,
-each state compared with Hertz.  Exit status: 0 when every step converged,
-3 when some did not, 1 on an error.  PETSc options that nothing used by the
+each state compared with Hertz.  PETSc options that nothing used by the
 end of a run (misspelt, or for a solver the scene does not run) are listed in
 a warning; ``-options_left`` also works as in any PETSc program.
+
+Exit status (docs/outputs.md):
+
+- 0: every step converged;
+- 3: some step did not converge (an adhesive run stops there; ``--restart`` continues it);
+- 1: an error: bad input (scene, files), a refused output directory (locked, another
+  run's files, a restart of another problem), an I/O failure (a full disk), a PETSc failure;
+- 2: a usage error (unknown command or argument).
 """
 from __future__ import annotations
 
@@ -31,7 +38,11 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--output", default=None,
                      help="output directory (default: the scene's output.directory)")
     run.add_argument("--restart", action="store_true",
-                     help="keep the steps already in the output directory and resume after the last")
+                     help="keep the steps already in the output directory (the same scene's physics) "
+                          "and resume after the last")
+    run.add_argument("--overwrite", action="store_true",
+                     help="remove another run's files from the output directory (curve.csv, history.csv, "
+                          "jumps.csv, summary.json, scene.json, atom_forces.csv, step files, plots) first")
     run.add_argument("--dry-run", action="store_true",
                      help="print the plan (grid, decomposition, solver, memory, outputs) and exit")
     run.add_argument("--plots", action="store_true",
@@ -99,16 +110,23 @@ def main(argv=None) -> int:
     if args.command == "plot":
         return _plot(args.directory, comm)
     try:
-        from . import protocols, scenes
+        from . import runner, scenes
         scene = scenes.load(args.scene) if args.scene else scenes.validate(scenes.DEFAULT_SCENE)
         scene["output"]["plots"] |= args.plots
-        states = protocols.run(scene, output=args.output, dry_run=args.dry_run, restart=args.restart)
+        if args.restart and args.overwrite:
+            raise ValueError("--restart keeps the run in the output directory, --overwrite removes it: "
+                             "give one of them")
+        states = runner.run(scene, output=args.output, dry_run=args.dry_run, restart=args.restart,
+                            overwrite=args.overwrite)
         unused = [] if args.dry_run else unused_options()
         if unused and comm.Get_rank() == 0:
             sys.stderr.write("contactpetsc: warning: PETSc options nobody used (misspelt, or for a solver "
                              f"this scene does not run): {', '.join(unused)}\n")
         return 0 if all(st.converged for st in states) else 3
     except Exception as exc:  # noqa: BLE001 - reported, then the whole job ends
+        if isinstance(exc, PETSc.Error):
+            from .errors import petsc_error_message
+            exc = f"{petsc_error_message(exc)}; rerun with -log_trace or -info for PETSc's own account"
         sys.stderr.write(f"contactpetsc [rank {comm.Get_rank()}]: error: {exc}\n")
         sys.stderr.flush()
         if comm.Get_size() > 1:
@@ -125,7 +143,7 @@ def _plot(directory: str, comm) -> int:
         for path in plot_run(directory):
             print(f"wrote {path}")
         return 0
-    except (OSError, ImportError, ValueError, KeyError) as exc:
+    except Exception as exc:  # noqa: BLE001 - a damaged file is reported, not a traceback
         sys.stderr.write(f"contactpetsc plot: error: {exc}\n")
         return 1
 

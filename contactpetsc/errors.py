@@ -58,3 +58,21 @@ def collective_guard(method):
             sys.stderr.flush()
             comm.Abort(1)
     return wrapper
+
+
+#: PETSc error codes (petscerror.h) in a user's terms
+PETSC_ERRORS = {55: "out of memory", 56: "an operation this PETSc build does not support",
+                57: "a signal (e.g. a floating-point exception)", 58: "a floating-point exception",
+                60: "sizes that do not match", 62: "an argument out of range", 63: "an argument out of range",
+                65: "a file that cannot be opened", 66: "a file read failure", 67: "a file write failure",
+                73: "an object in the wrong state", 76: "an error in a library PETSc calls",
+                98: "a failed MPI call"}
+
+
+def petsc_error_message(exc) -> str:
+    """What a ``PETSc.Error`` means, in words (its code, the raw "error code N", named)."""
+    code = getattr(exc, "ierr", None)
+    what = PETSC_ERRORS.get(code)
+    if what is None and isinstance(code, int) and code > 0:
+        what = "an internal PETSc failure, most often memory or an index beyond the PETSc build's range"
+    return f"PETSc stopped with {what or 'an error'} (PETSc error code {code})"

@@ -153,3 +153,26 @@ def atom_forces(grid, pressure, owner, n_atoms: int) -> np.ndarray:
     keep = own >= 0
     f = np.bincount(own[keep], weights=p[keep], minlength=n_atoms)[:n_atoms]
     return _allsum(grid, f) * grid.element_area
+
+
+def window_reach(grid, pressure, threshold: float = 0.0) -> tuple[float, float]:
+    """How far the pressure-carrying zone (nodes with |p| > ``threshold`` [Pa]) reaches toward
+    the edge of a non-periodic window: (reach, edge share); collective.
+
+    reach = the largest max(|2 i / (nx - 1) - 1|, |2 j / (ny - 1) - 1|) over those nodes: the
+    fraction of the window's half-width (along x or y, from its centre) the zone reaches, 1 on
+    the edge rows and columns; the edge share is the fraction of the edge nodes in the zone.
+    An isolated half-space has no pressure outside the window, so a zone that reaches the edge
+    is cut there (forces off the isolated contact's).  (0, 0) without any such node.
+    """
+    carrying = np.abs(grid.rows(pressure, readonly=True)) > threshold
+    j, i = np.nonzero(carrying)
+    j = j + grid.ys
+    nx, ny = grid.nx, grid.ny
+    reach = float(np.max(np.maximum(np.abs(2.0 * i / (nx - 1) - 1.0),
+                                    np.abs(2.0 * j / (ny - 1) - 1.0)))) if i.size else 0.0
+    rows = np.arange(grid.ys, grid.ys + carrying.shape[0])
+    edge = carrying[:, [0, -1]].sum() + carrying[(rows == 0) | (rows == ny - 1), 1:-1].sum()
+    reach = grid.mpi_comm.allreduce(reach, op=MPI.MAX)
+    share = float(_allsum(grid, [edge])[0]) / (2 * nx + 2 * ny - 4)
+    return reach, share

@@ -16,8 +16,11 @@ import os
 import h5py
 import numpy as np
 
+from .errors import collective_call
+
 FIELDS = ("pressure", "gap", "displacement", "heights", "contact")
 ADHESIVE_FIELDS = ("contact_pressure", "adhesive_pressure", "adhesive")
+AXES = "y,x"   #: the axis order of every stored field (slowest first), a file and dataset attribute
 UNITS = {"pressure": "Pa", "gap": "m", "displacement": "m", "heights": "m", "contact": "1",
          "contact_pressure": "Pa", "adhesive_pressure": "Pa", "adhesive": "1"}
 
@@ -60,19 +63,40 @@ def write_text_atomic(path: str, text: str) -> None:
     os.replace(tmp, path)
 
 
-def _open(path: str, comm):
+def _check_parallel_h5py() -> None:
+    if not h5py.get_config().mpi:
+        raise RuntimeError("parallel HDF5 output needs h5py built with MPI "
+                           "(Debian: python3-h5py-mpi, run under mpirun)")
+
+
+def _write_h5(path: str, comm, fill) -> None:
+    """Create the HDF5 file ``path`` and ``fill(file)`` it.
+
+    On one rank the file is built in memory and written with Python's own I/O: HDF5 that
+    fails to write (a full disk) and then closes its file crashes the process (SIGSEGV),
+    where a failed Python write raises OSError.  On several ranks every rank writes its own
+    rows through MPI-IO.
+    """
     if comm.Get_size() > 1:
-        if not h5py.get_config().mpi:
-            raise RuntimeError("parallel HDF5 output needs h5py built with MPI "
-                               "(Debian: python3-h5py-mpi, run under mpirun)")
-        return h5py.File(path, "w", driver="mpio", comm=comm)
-    return h5py.File(path, "w")
+        _check_parallel_h5py()
+        with h5py.File(path, "w", driver="mpio", comm=comm) as f:
+            fill(f)
+        return
+    with h5py.File(path, "w", driver="core", backing_store=False) as f:
+        fill(f)
+        f.flush()
+        image = f.id.get_file_image()
+    with open(path, "wb") as f:
+        f.write(image)
+        f.flush()
+        os.fsync(f.fileno())
 
 
 def write_state(directory: str, step: int, grid, heights, state, attrs: dict) -> str:
     """Write step ``step`` of ``state`` (a ContactState) to ``directory/step_NNNN.h5`` (+ ``.xdmf``).
 
-    Collective over the grid's communicator.  Returns the HDF5 path.
+    Collective over the grid's communicator.  Returns the HDF5 path.  A failed write (a
+    full disk) raises OSError naming the file on every rank and leaves no temporary file.
     """
     comm = grid.mpi_comm
     name = f"step_{step:04d}.h5"
@@ -92,26 +116,43 @@ def write_state(directory: str, step: int, grid, heights, state, attrs: dict) ->
         rows["contact_pressure"] = grid.rows(state.contact_pressure, readonly=True)
         rows["adhesive_pressure"] = grid.rows(state.adhesive_pressure, readonly=True)
         rows["adhesive"] = (rows["pressure"] < 0).astype(np.float64)
-    with _open(tmp, comm) as f:
+
+    def fill(f):
         for key, value in attrs.items():
             f.attrs[key] = value if isinstance(value, (int, float, str)) else json.dumps(value)
         for field in ("approach", "mean_pressure", "force", "contact_fraction",
                       "complementarity_error", "converged"):
             f.attrs[field] = getattr(state, field)
         f.attrs["dx"], f.attrs["dy"] = grid.dx, grid.dy
+        f.attrs["axes"] = AXES
         for field in fields:
             dset = f.create_dataset(field, (grid.ny, grid.nx), dtype="f8")
             dset.attrs["unit"] = UNITS[field]
+            dset.attrs["axes"] = AXES
             if comm.Get_size() > 1:
                 with dset.collective:  # one MPI-IO write for all ranks
                     dset[grid.ys:grid.ye, :] = rows[field]
             else:
                 dset[grid.ys:grid.ye, :] = rows[field]
-    comm.Barrier()
-    if comm.Get_rank() == 0:
-        os.replace(tmp, final)
-        _write_xdmf(os.path.join(directory, f"step_{step:04d}.xdmf"), name, grid, fields)
-    comm.Barrier()
+
+    try:
+        _write_h5(tmp, comm, fill)
+        error = None
+    except Exception as exc:  # noqa: BLE001 - reported below, on every rank
+        error = f"{type(exc).__name__}: {exc}"
+    errors = [e for e in comm.allgather(error) if e]
+    if errors:
+        if comm.Get_rank() == 0 and os.path.exists(tmp):
+            os.remove(tmp)
+        comm.Barrier()
+        raise OSError(f"cannot write {final}: {errors[0]}")
+
+    def publish():
+        if comm.Get_rank() == 0:
+            os.replace(tmp, final)
+            _write_xdmf(os.path.join(directory, f"step_{step:04d}.xdmf"), name, grid, fields)
+
+    collective_call(comm, OSError, f"cannot write {final}: {{error}}", publish)
     return final
 
 

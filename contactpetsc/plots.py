@@ -31,6 +31,7 @@ BRANCH_STYLE = {"loading": dict(color="C0", marker="o"),
                 "unloading": dict(color="C1", marker="s"),
                 "central-gap": dict(color="C2", marker=".")}
 ERRORS = ("complementarity_error", "adhesive_error", "total_error", "load_error")
+JUMP_NUMBERS = ("approach_before_m", "approach_after_m", "force_before_N", "force_after_N")
 
 
 def require() -> None:
@@ -60,20 +61,43 @@ def _prefix(values, unit: str) -> tuple[float, str]:
     return 1e-15, "f" + unit
 
 
-def read_csv(path: str) -> dict:
+def read_csv(path: str, numeric: tuple = ()) -> dict:
     """The columns of a CSV file: float arrays where every entry parses (True/False as 1/0),
-    lists of strings otherwise."""
+    lists of strings otherwise.  A row with missing or extra entries, or a ``numeric`` column
+    entry that is not a number, is a ValueError naming the file and the row."""
     with open(path, newline="") as f:
-        rows = list(csv.DictReader(f))
+        reader = csv.DictReader(f)
+        rows = list(reader)
+        header = reader.fieldnames or []
+    for n, r in enumerate(rows, 1):
+        if None in r or any(r[c] is None for c in header):
+            raise ValueError(f"{path}, row {n}: {len([c for c in header if r[c] is not None])} of {len(header)} "
+                             "columns: the file is damaged (an interrupted run can leave a partial last row; "
+                             "contactpetsc run --restart drops it)")
     out, words_to_numbers = {}, {"True": 1.0, "False": 0.0, "": np.nan}
-    for name in (rows[0] if rows else []):
+    for name in header:
         words = [r[name] for r in rows]
         try:
             out[name] = np.array([words_to_numbers[w] if w in words_to_numbers else float(w)
                                   for w in words])
         except ValueError:
+            if name in numeric:
+                n = next(k for k, w in enumerate(words, 1) if not _is_number(w))
+                raise ValueError(f"{path}, row {n}: {name} = {words[n - 1]!r} is not a number: the file is "
+                                 "damaged") from None
             out[name] = words
+    missing = [c for c in numeric if c not in header]
+    if missing:
+        raise ValueError(f"{path}: no column {', '.join(missing)}")
     return out
+
+
+def _is_number(word: str) -> bool:
+    try:
+        float(word)
+    except ValueError:
+        return False
+    return True
 
 
 def load_approach(curve: dict, jumps: dict | None = None, pull_off: float | None = None,
@@ -215,10 +239,10 @@ def plot_run(directory: str, pressure: tuple | None = None) -> list[str]:
     curve_path = os.path.join(directory, "curve.csv")
     if not os.path.exists(curve_path):
         raise FileNotFoundError(f"no curve.csv in {directory}: not a contactpetsc output directory")
-    curve = read_csv(curve_path)
+    curve = read_csv(curve_path, numeric=("step", "approach_m", "force_N"))
     if not curve:
         raise ValueError(f"{curve_path} has no steps yet")
-    jumps = read_csv(os.path.join(directory, "jumps.csv")) if os.path.exists(
+    jumps = read_csv(os.path.join(directory, "jumps.csv"), numeric=JUMP_NUMBERS) if os.path.exists(
         os.path.join(directory, "jumps.csv")) else None
     pull_off = None
     if os.path.exists(os.path.join(directory, "summary.json")):

@@ -50,15 +50,15 @@ CLI = [sys.executable, "-m", "contactpetsc.cli"]
 CLI_FAULT = textwrap.dedent("""
     import sys
     from mpi4py import MPI
-    from contactpetsc import cli, protocols
+    from contactpetsc import cli, runner
 
-    build = protocols.build_heights
+    build = runner.build_heights
     def build_heights(scene, grid):   # a fault on rank 1 only, while the others go on to solve
         if MPI.COMM_WORLD.Get_rank() == 1:
             raise OSError("injected fault on rank 1")
         return build(scene, grid)
 
-    protocols.build_heights = build_heights
+    runner.build_heights = build_heights
     sys.exit(cli.main(sys.argv[1:]))
 """)
 
@@ -123,7 +123,7 @@ def test_cli_reports_unused_petsc_options(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert "PETSc options nobody used" in proc.stderr and "-contact_snes_monitr" in proc.stderr
     assert "ksp_type" not in proc.stderr
-    proc = subprocess.run(CLI + ["run", scene, "-contact_snes_monitr", "-options_left"],
+    proc = subprocess.run(CLI + ["run", scene, "--overwrite", "-contact_snes_monitr", "-options_left"],
                           env=ENV, capture_output=True, text=True, timeout=120)
     assert "Option left: name:-contact_snes_monitr" in proc.stdout
 
@@ -173,7 +173,9 @@ def test_time_budget_ends_a_sweep_loudly_and_restart_completes_it(tmp_path):
     """``-adhesion_time_budget`` ends an adhesive sweep at a step with WALL_TIME_BUDGET: exit
     code 3 and a message naming the step, its reason and --restart; the steps before it are
     written, and --restart completes the run with the uninterrupted run's forces and keeps
-    the jumps found before the stop (jumps.csv)."""
+    the jumps found before the stop (jumps.csv) and the uninterrupted run's pull-off force
+    (summary.json: the most tensile stable state of the whole path, not of the restarted part)."""
+    import json
     import csv
     scene = os.path.join(os.path.dirname(__file__), "..", "examples", "scenes", "adhesive_sphere.toml")
 
@@ -199,3 +201,5 @@ def test_time_budget_ends_a_sweep_loudly_and_restart_completes_it(tmp_path):
     for a, b in zip(resumed, ref):
         assert float(a["force_N"]) == pytest.approx(float(b["force_N"]), rel=1e-5, abs=1e-12)
     assert [r["kind"] for r in rows(cut / "jumps.csv")] == [r["kind"] for r in rows(full / "jumps.csv")]
+    pull = [json.load(open(d / "summary.json"))["pull_off_force_N"] for d in (cut, full)]
+    assert pull[0] == pytest.approx(pull[1], rel=1e-6)

@@ -1,0 +1,244 @@
+"""The output directory of a run: one run per directory, locked while it runs, its scene stored.
+
+``open_directory`` is called by every rank before any solve.  It makes the
+directory, checks that every rank can write there and that the outputs fit,
+takes the lock (``.contactpetsc.lock``: the host and process id of rank 0),
+and then decides what to do with a directory that already holds a run's files
+(``RUN_FILES``, ``step_NNNN.h5`` / ``.xdmf``):
+
+- a new run refuses it, unless ``overwrite`` (``--overwrite``) removes those
+  files (and nothing else);
+- ``restart`` compares the scene stored there (``scene.json``; older runs: the
+  ``scene`` attribute of their first step file) with the new one and refuses
+  when the physics differ, naming the keys: the geometry, the material, the
+  interaction, the control mode and the values of the steps already done.
+  Output keys, the name, the solver's settings and the path's numerical
+  settings (jump and pull-off refinement, sub-steps) may differ.
+
+A lock left by a process that no longer runs on this host (a killed run) is
+taken over with a note; a live one, or one of another host, is refused.
+"""
+from __future__ import annotations
+
+import json
+import os
+import re
+import socket
+
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from .errors import collective_call
+
+LOCK = ".contactpetsc.lock"
+SCENE = "scene.json"
+PLOTS = ("load_approach.png", "pressure_map.png", "error_vs_time.png")
+RUN_FILES = ("curve.csv", "history.csv", "jumps.csv", "summary.json", "atom_forces.csv", SCENE) + PLOTS
+STEP_FILE = re.compile(r"step_\d{4,}\.(h5|xdmf)$")
+#: scene keys that may differ on a restart (they change the outputs or the numerics, not the problem)
+NOT_PHYSICS = ("name", "output.", "solver.", "protocol.refine_pull_off", "protocol.jump_refinement",
+               "protocol.substeps", "protocol.values")
+
+
+class RunDirectoryError(RuntimeError):
+    """A directory the run must not write into (locked, another run's files, another scene)."""
+
+
+def run_files(out_dir: str) -> list[str]:
+    """The names in ``out_dir`` that belong to a run (with their ``.tmp`` leftovers), sorted."""
+    try:
+        names = os.listdir(out_dir)
+    except FileNotFoundError:
+        return []
+    return sorted(n for n in names
+                  if n.removesuffix(".tmp") in RUN_FILES or STEP_FILE.match(n.removesuffix(".tmp")))
+
+
+def open_directory(scene: dict, grid, out_dir: str, *, restart: bool, overwrite: bool) -> dict | None:
+    """Make, probe, lock and check ``out_dir`` (collective; see the module docstring).
+
+    Returns the stored scene of the run being restarted (None for a new run).
+    Raises OSError (cannot write, no room) or RunDirectoryError on every rank.
+    """
+    comm = grid.mpi_comm
+    rank = comm.Get_rank()
+    what = f"output directory {out_dir!r} (output.directory or --output)"
+    collective_call(comm, OSError, f"{what} cannot be created: {{error}}",
+                    lambda: os.makedirs(out_dir, exist_ok=True) if rank == 0 else None)
+    _probe(scene, grid, out_dir, what)
+    note = collective_call(comm, RunDirectoryError, "{error}",
+                           lambda: _lock(out_dir) if rank == 0 else None)
+    try:
+        stored = collective_call(comm, RunDirectoryError, "{error}",
+                                 lambda: _check(scene, out_dir, restart, overwrite) if rank == 0 else None)
+    except RunDirectoryError:
+        release(comm, out_dir)
+        raise
+    for line in comm.bcast(note, root=0) or []:
+        PETSc.Sys.Print(f"  note: {line}")
+    return comm.bcast(stored, root=0)
+
+
+def write_scene(comm, out_dir: str, scene: dict) -> None:
+    """Store the scene (rank 0), for the next ``--restart`` to compare."""
+    from .output import write_text_atomic
+    if comm.Get_rank() == 0:
+        write_text_atomic(os.path.join(out_dir, SCENE), json.dumps(scene, indent=1) + "\n")
+
+
+def release(comm, out_dir: str) -> None:
+    """Remove the lock if this process holds it (rank 0)."""
+    if comm.Get_rank() != 0:
+        return
+    path = os.path.join(out_dir, LOCK)
+    try:
+        with open(path) as f:
+            mine = json.load(f) == _owner()
+    except (OSError, ValueError):
+        return
+    if mine:
+        os.remove(path)
+
+
+def differences(old: dict, new: dict, done: int) -> list[str]:
+    """The physics keys in which scene ``new`` differs from ``old`` (see the module docstring);
+    ``protocol.values`` is compared over the ``done`` steps already on disk."""
+    a, b = _flat(json.loads(json.dumps(old))), _flat(json.loads(json.dumps(new)))
+    out = [f"{k}: {a.get(k)!r} on disk, {b.get(k)!r} now" for k in sorted(set(a) | set(b))
+           if not k.startswith(NOT_PHYSICS) and a.get(k) != b.get(k)]
+    old_values = [float(v) for v in old.get("protocol", {}).get("values", [])[:done]]
+    new_values = [float(v) for v in new["protocol"]["values"][:done]]
+    if len(new_values) < done:
+        out.append(f"protocol.values: {done} steps are done on disk, the scene now has {len(new_values)} values")
+    else:
+        k = next((k for k, (a, b) in enumerate(zip(old_values, new_values)) if a != b), None)
+        if k is not None:
+            out.append(f"protocol.values: step {k + 1} is {old_values[k]!r} on disk, {new_values[k]!r} now")
+    return out
+
+
+def _flat(d: dict, prefix: str = "") -> dict:
+    out = {}
+    for k, v in d.items():
+        if isinstance(v, dict) and not (prefix == "solver." and k == "options"):
+            out.update(_flat(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = v
+    return out
+
+
+def _owner() -> dict:
+    return {"host": socket.gethostname(), "pid": os.getpid()}
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` runs on this host (a zombie, killed but not yet reaped, does not)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except (OSError, IndexError):
+        return True
+
+
+def _lock(out_dir: str) -> list[str]:
+    """Take the lock (rank 0); returns notes (a stale lock taken over)."""
+    path = os.path.join(out_dir, LOCK)
+    notes = []
+    for _ in range(2):
+        try:
+            fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+        except FileExistsError:
+            try:
+                with open(path) as f:
+                    holder = json.load(f)
+            except (OSError, ValueError):
+                holder = {}
+            here = holder.get("host") == socket.gethostname()
+            if here and isinstance(holder.get("pid"), int) and not _alive(holder["pid"]):
+                os.remove(path)
+                notes.append(f"took over the lock {path} of process {holder['pid']}, which no longer runs "
+                             "(an interrupted run)")
+                continue
+            raise RunDirectoryError(
+                f"output directory {out_dir!r} is in use by another run (lock {path}: host "
+                f"{holder.get('host', '?')}, process {holder.get('pid', '?')}); wait for it to end or choose "
+                f"another --output" + ("" if here else "; if no run is left there, remove the lock file"))
+        with os.fdopen(fd, "w") as f:
+            json.dump(_owner(), f)
+        return notes
+    raise RunDirectoryError(f"cannot lock {out_dir!r}: {path} keeps reappearing")
+
+
+def _stored_scene(out_dir: str) -> dict | None:
+    path = os.path.join(out_dir, SCENE)
+    if os.path.exists(path):
+        try:
+            with open(path) as f:
+                return json.load(f)
+        except (OSError, ValueError) as exc:
+            raise RunDirectoryError(f"cannot restart: {path} is not readable ({exc})") from None
+    first = os.path.join(out_dir, "step_0001.h5")
+    if os.path.exists(first):
+        import h5py
+        try:
+            with h5py.File(first, "r") as f:
+                return json.loads(f.attrs["scene"])
+        except (OSError, KeyError, ValueError):
+            return None
+    return None
+
+
+def _check(scene: dict, out_dir: str, restart: bool, overwrite: bool) -> dict | None:
+    """Rank 0: the directory's run files against the request (see the module docstring)."""
+    found = run_files(out_dir)
+    if restart:
+        stored = _stored_scene(out_dir)
+        if stored is None and any(STEP_FILE.match(n) or n == "curve.csv" for n in found):
+            raise RunDirectoryError(f"cannot restart in {out_dir!r}: it holds a run without its scene "
+                                    f"({SCENE} and step_0001.h5 missing or unreadable)")
+        return stored
+    if not found:
+        return None
+    if not overwrite:
+        shown = ", ".join(found[:5]) + (f" and {len(found) - 5} more" if len(found) > 5 else "")
+        raise RunDirectoryError(f"output directory {out_dir!r} holds another run ({shown}): continue it with "
+                                "--restart, replace it with --overwrite, or choose another --output")
+    for name in found:
+        os.remove(os.path.join(out_dir, name))
+    return None
+
+
+def _probe(scene: dict, grid, out_dir: str, what: str) -> None:
+    """Every rank can create a file in ``out_dir``, and it has room for the run's outputs."""
+    from .output import ADHESIVE_FIELDS, FIELDS
+    comm = grid.mpi_comm
+    rank = comm.Get_rank()
+
+    def probe():
+        path = os.path.join(out_dir, f".contactpetsc-write-test-{rank}-{os.getpid()}")
+        try:
+            with open(path, "wb") as f:
+                f.write(b"x")
+                f.flush()
+                os.fsync(f.fileno())
+        finally:
+            if os.path.exists(path):
+                os.remove(path)
+        st = os.statvfs(out_dir)
+        return st.f_bavail * st.f_frsize
+
+    free = collective_call(comm, OSError, f"{what} is not writable: {{error}}", probe)
+    fields = len(FIELDS) + (len(ADHESIVE_FIELDS) if scene["interaction"]["law"] != "none" else 0)
+    steps = len(scene["protocol"]["values"])
+    need = (steps * fields * 8 * grid.nx * grid.ny if scene["output"]["fields"] else 0) + 2**20 * (1 + steps)
+    if comm.allreduce(free < need, op=MPI.LOR):
+        raise OSError(f"{what} has {comm.allreduce(free, op=MPI.MIN) / 2**20:.1f} MiB free; the run writes "
+                      f"about {need / 2**20:.1f} MiB ({steps} steps"
+                      + (f" of {fields} fields of {grid.nx} x {grid.ny}" if scene["output"]["fields"] else "")
+                      + "): free some space, choose another directory or set output.fields = false")

@@ -1,0 +1,227 @@
+"""Steppers: how the runner's loop (``runner.run``) solves one step of a scene's path.
+
+A stepper builds its problem from the scene, solves one prescribed value at
+a time (``step``: the state and the jumps found on the way), fills the
+columns of a step's row that are its own (``row``), prints its progress
+columns, takes up a restarted path (``resume``) and gives the path's
+results (``results``: the pull-off force, refined at the end by ``finish``).
+
+``ContactSteps``: no adhesion, displacement or load control with warm
+starts; a smooth sphere on an isolated half-space is compared with Hertz at
+each step.  ``AdhesiveSteps``: adhesion, through ``paths.sweep`` (jumps
+located, pull-off), ``paths.central_gap_path``, or the reference paper's
+relaxation solver; spheres are reported in Greenwood's alpha* and W*.
+"""
+from __future__ import annotations
+
+import numpy as np
+from petsc4py import PETSc
+
+NAN = float("nan")
+
+
+def _push_options(prefix: str, options: dict) -> None:
+    opts = PETSc.Options(prefix)
+    for key, value in options.items():
+        if not opts.hasName(key):  # the command line wins over the scene
+            opts.setValue(key, str(value))
+
+
+class ContactSteps:
+    """Signorini contact (no adhesion); a failed step is written and the path goes on."""
+    stop_on_failure = False
+    sweeping = False              #: no jumps, no pull-off
+    zone_threshold = 0.0          #: the contact zone: p > 0
+    fields = ("pressure",)
+
+    def __init__(self, scene: dict, grid, heights):
+        from .solvers import ContactProblem
+        _push_options("contact_", scene["solver"]["options"])
+        g = scene["geometry"]
+        self.grid, self.control = grid, scene["protocol"]["control"]
+        self.e_star = scene["material"]["e_star"]
+        self.hertz = g["kind"] == "sphere" and not g["periodic"] and scene["interaction"]["law"] == "none"
+        self.radius = g["radius"]
+        self.problem = ContactProblem(
+            grid, heights, self.e_star, tol=scene["solver"]["tol"] or 1e-10,
+            preconditioner=scene["solver"]["preconditioner"],
+            length_scale=(max(scene["protocol"]["values"]) if self.hertz and self.control == "approach"
+                          else None))
+        self.header = (f"  {'step':>4} {'approach [m]':>12} {'force [N]':>11} {'contact':>8} {'error':>9} "
+                       f"{'Newton':>6} {'time [s]':>8}" + (f" {'F/F_Hertz':>9} {'a/a_Hertz':>9}" if self.hertz
+                                                             else ""))
+
+    def resume(self, recorder) -> None:
+        (p,), approach = recorder.read_step(len(recorder.rows), self.fields)
+        self.problem.warm_start(p, approach)
+
+    def step(self, value: float):
+        return self.problem.solve(**{self.control: value}, raise_on_failure=False), []
+
+    def row(self, st) -> dict:
+        return dict(adhesive_force_N=0.0, adhesive_load_ratio=0.0, adhesive_area_ratio=0.0, stable=True,
+                    load_error=st.load_error, solver="snes-vi+" + self.problem.preconditioner)
+
+    def progress(self, st, row) -> str:
+        line = (f"  {row['step']:4d} {st.approach:12.4e} {st.force:11.4e} {st.contact_fraction:8.4f} "
+                f"{st.complementarity_error:9.2e} {st.newton_iterations:6d} {st.wall_time:8.2f}")
+        if self.hertz:
+            from .physics.maugis import hertz_force
+            f_h = float(hertz_force(self.e_star, self.radius, max(st.approach, 0.0)))
+            a_num = np.sqrt(st.contact_fraction * self.grid.lengths[0] * self.grid.lengths[1] / np.pi)
+            a_h = np.sqrt(self.radius * max(st.approach, 0.0))
+            line += f" {st.force / f_h:9.5f} {a_num / a_h:9.4f}" if f_h > 0 else ""
+        return line
+
+    def results(self) -> dict:
+        return {}
+
+    def finish(self) -> dict:
+        return {}
+
+
+class AdhesiveSteps:
+    """Adhesive contact: a failed step ends the run (the steps on disk stay a path to restart from)."""
+    stop_on_failure = True
+    fields = ("contact_pressure", "adhesive_pressure")
+
+    def __init__(self, scene: dict, grid, heights):
+        from .metrics import CUTOFF
+        from .paths import Path
+        from .physics.interactions import make_law
+        from .solvers.adhesive import AdhesiveProblem
+        from .solvers.relaxation import RelaxationSolver
+        it, sol, self.proto, g = scene["interaction"], scene["solver"], scene["protocol"], scene["geometry"]
+        _push_options("adhesion_", sol["options"])
+        params = {"hardwall-lj": "z0", "lj": "z0", "exponential": "rho", "dugdale": "sigma0"}[it["law"]]
+        self.law = law = make_law(it["law"], work_of_adhesion=it["work_of_adhesion"], **{params: it[params]})
+        tol = sol["tol"] if sol["tol"] is not None else (1e-4 if sol["method"] == "relaxation" else None)
+        self.problem = AdhesiveProblem(grid, heights, scene["material"]["e_star"], law,
+                                       element_integration=it["element_integration"],
+                                       tol=tol if sol["method"] == "newton" else None,
+                                       preconditioner=sol["preconditioner"])
+        self.relax = RelaxationSolver(self.problem, tol=tol) if sol["method"] == "relaxation" else None
+        self.grid, self.z0, self.radius = grid, law.length_scale(), g["radius"]
+        self.sphere = g["kind"] in ("sphere", "tip") and not g["periodic"]   # Greenwood's scaling with R
+        self.zone_threshold = CUTOFF * law.peak_attraction   # the paper's adhesive-zone cut-off
+        # the relaxation solver relaxes wherever it goes: no jump location, no path
+        self.path = Path() if self.relax is None else None
+        self.sweeping = self.relax is None and self.proto["control"] == "approach"
+        self.prev = None          #: (approach, force, dF/d delta) of the last state, for sweep
+        self.header = (f"  {'step':>4} {'approach [m]':>12} {'force [N]':>11} {'contact':>8} {'adh. force':>11} "
+                       f"{'error':>9} {'stable':>6} {'time [s]':>8}" + (f" {'alpha*':>8} {'W*':>9}"
+                                                                       if self.sphere else ""))
+
+    def resume(self, recorder) -> None:
+        """The path on disk: its points and jumps (for the pull-off and the next jump), the most
+        tensile stable state solved again from its file (for the pull-off refinement), then the
+        last state as the warm start."""
+        from .paths import Jump
+        rows = recorder.rows
+        if self.path is not None:
+            self.path.points = [_point(r) for r in rows]
+            self.path.jumps = [Jump(kind=j["kind"], approach_before=float(j["approach_before_m"]),
+                                    approach_after=float(j["approach_after_m"]),
+                                    force_before=float(j["force_before_N"]),
+                                    force_after=float(j["force_after_N"])) for j in recorder.jumps]
+        if self.sweeping and self.proto["refine_pull_off"]:
+            self._restore_best(recorder)
+        (q, a), approach = recorder.read_step(len(rows), self.fields)
+        self.problem.warm_start(q, a, approach)
+        last = rows[-1]
+        self.prev = (float(last["approach_m"]), float(last["force_N"]), NAN)
+
+    def _restore_best(self, recorder) -> None:
+        pts = self.path.points
+        stable = [i for i, p in enumerate(pts) if p.converged and p.stable is not False]
+        if not stable:
+            return
+        best = min(stable, key=lambda i: pts[i].force)
+        (q, a), approach = recorder.read_step(best + 1, self.fields)
+        self.problem.warm_start(q, a, approach)
+        st = self.problem.solve(approach=approach, raise_on_failure=False, fallback=False)
+        if st.converged and st.stable is not False:
+            self.path._best = (best, self.problem.snapshot())
+        else:
+            PETSc.Sys.Print(f"  note: the most tensile state on disk (step {best + 1}) did not solve again "
+                            f"({st.reason}): the pull-off refinement starts from the new steps only")
+
+    def step(self, value: float):
+        from .paths import central_gap_path, sweep
+        if self.relax is not None:
+            return self.relax.solve(approach=value, raise_on_failure=False), []
+        got, n = [], len(self.path.jumps)
+
+        def keep(k, st, pt):
+            got.append(st)
+
+        if self.proto["control"] == "central_gap":
+            central_gap_path(self.problem, [value], path=self.path, on_state=keep, on_failure=keep)
+        else:
+            sweep(self.problem, [value], refine=self.proto["jump_refinement"], on_state=keep,
+                  on_failure=keep, path=self.path, previous=self.prev, substeps=self.proto["substeps"])
+        st = got[0]
+        jumps = self.path.jumps[n:]
+        if not st.converged:
+            del self.path.jumps[n:]   # found again when the step is solved again
+            return st, []
+        self.prev = (st.approach, st.force, st.stiffness)
+        return st, jumps
+
+    def row(self, st) -> dict:
+        from .metrics import adhesion_ratios, greenwood
+        load_ratio, area_ratio = adhesion_ratios(self.grid, st.pressure, self.law.peak_attraction)
+        a_star, w_star = (greenwood(st.approach, st.force, self.radius, self.law.work_of_adhesion, self.z0)
+                          if self.sphere else (NAN, NAN))
+        return dict(adhesive_force_N=st.adhesive_force, adhesive_load_ratio=load_ratio,
+                    adhesive_area_ratio=area_ratio, alpha_star=a_star, W_star=w_star,
+                    central_gap_m=st.central_gap, stable=st.stable, adhesive_error=st.adhesive_error,
+                    total_error=st.total_error, solver=st.solver)
+
+    def progress(self, st, row) -> str:
+        err = max(st.complementarity_error, st.adhesive_error)
+        return (f"  {row['step']:4d} {st.approach:12.4e} {st.force:11.4e} {st.contact_fraction:8.4f} "
+                f"{st.adhesive_force:11.4e} {err:9.2e} {str(st.stable):>6} {st.wall_time:8.2f}"
+                + (f" {row['alpha_star']:8.3f} {row['W_star']:9.4f}" if self.sphere else ""))
+
+    def results(self, pull: float | None = None, refined: bool = False) -> dict:
+        """The pull-off force of a sweep so far (the most tensile stable state on disk)."""
+        if not self.sweeping:
+            return {}
+        pull = self.path.pull_off_force if pull is None else pull
+        out = {"pull_off_force_N": pull, "pull_off_refined": refined}
+        if self.sphere:
+            out["pull_off_W_star"] = pull / (2 * np.pi * self.radius * self.law.work_of_adhesion)
+        return out
+
+    def finish(self) -> dict:
+        """The pull-off force refined by golden section (``protocol.refine_pull_off``)."""
+        from .paths import refine_pull_off
+        if not self.sweeping:
+            return {}
+        pull, refined = self.path.pull_off_force, False
+        if self.proto["refine_pull_off"] and self.path._best is not None:
+            values = self.proto["values"]
+            step = min(np.abs(np.diff(values))) if len(values) > 1 else self.z0
+            pull, refined = refine_pull_off(self.problem, self.path, xtol=0.01 * step), True
+        out = self.results(pull, refined)
+        PETSc.Sys.Print(f"  pull-off force {pull:.6e} N"
+                        + (f" (W* = {out['pull_off_W_star']:.4f})" if self.sphere else ""))
+        return out
+
+
+def _point(row: dict):
+    """A ``paths.PathPoint`` of a ``curve.csv`` row (a restarted path's earlier steps)."""
+    from .paths import PathPoint
+    flag = {"True": True, "False": False}
+    num = {c: float(row[c]) for c in ("approach_m", "central_gap_m", "force_N", "adhesive_force_N",
+                                      "contact_fraction", "fft_pairs", "wall_time_s",
+                                      "complementarity_error", "adhesive_error", "total_error")}
+    return PathPoint(step=int(row["step"]) - 1, branch=row["branch"], approach=num["approach_m"],
+                     central_gap=num["central_gap_m"], force=num["force_N"],
+                     adhesive_force=num["adhesive_force_N"], contact_fraction=num["contact_fraction"],
+                     stable=flag.get(row["stable"]), converged=row["converged"] == "True",
+                     solver=row["solver"], fft_pairs=num["fft_pairs"], wall_time=num["wall_time_s"],
+                     complementarity_error=num["complementarity_error"],
+                     adhesive_error=num["adhesive_error"], total_error=num["total_error"],
+                     reason=row["reason"])

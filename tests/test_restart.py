@@ -1,0 +1,255 @@
+"""Restarts: a killed or stopped run, continued with --restart, reports what an uninterrupted
+run reports (curve, jumps, pull-off, forces per atom); a restart of another problem, or from
+damaged files, is refused naming what differs or the file.
+
+The kill tests launch the command line (serially and under ``mpirun -n 2``) and kill the
+whole job with SIGKILL once some steps are on disk: they are marked serial (a rank of an MPI
+job cannot launch mpirun).  The in-process tests run on any number of ranks.
+"""
+import csv
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+import h5py
+import pytest
+from petsc4py import PETSc
+
+from contactpetsc import protocols, scenes
+from contactpetsc.rundir import RunDirectoryError
+
+SCENES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "examples", "scenes")
+ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+           OMPI_MCA_rmaps_base_oversubscribe="1", OMP_NUM_THREADS="1")
+CLI = [sys.executable, "-m", "contactpetsc.cli"]
+needs_mpirun = pytest.mark.skipif(shutil.which("mpirun") is None, reason="needs mpirun")
+
+
+def command(ranks, args):
+    return (["mpirun", "-n", str(ranks)] if ranks > 1 else []) + CLI + list(args)
+
+
+def cli(ranks, args, code=0):
+    proc = subprocess.run(command(ranks, args), env=ENV, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == code, proc.stdout + proc.stderr
+    return proc
+
+
+def rows(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def finished_rows(path) -> int:
+    """Complete lines of a CSV file being written, header excluded."""
+    try:
+        with open(path) as f:
+            return max(f.read().count("\n") - 1, 0)
+    except FileNotFoundError:
+        return 0
+
+
+def kill_after(ranks, args, curve, n):
+    """Launch a run and SIGKILL the whole job (every rank, mpirun) once ``n`` steps are in
+    ``curve``; returns the steps left on disk."""
+    proc = subprocess.Popen(command(ranks, args), env=ENV, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    t0 = time.time()
+    while finished_rows(curve) < n and time.time() - t0 < 300 and proc.poll() is None:
+        time.sleep(0.005)
+    for pid in [proc.pid] + descendants(proc.pid):   # mpirun and every rank at once, as a scheduler
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+    proc.wait()
+    return finished_rows(curve)
+
+
+def descendants(pid) -> list:
+    """Process ids below ``pid`` (from /proc: mpirun's ranks)."""
+    children = {}
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                with open(f"/proc/{entry}/stat") as f:
+                    ppid = int(f.read().rsplit(")", 1)[1].split()[1])
+            except (OSError, ValueError, IndexError):
+                continue
+            children.setdefault(ppid, []).append(int(entry))
+    out, todo = [], [pid]
+    while todo:
+        for child in children.get(todo.pop(), []):
+            out.append(child)
+            todo.append(child)
+    return out
+
+
+def summary(out):
+    with open(os.path.join(out, "summary.json")) as f:
+        return json.load(f)
+
+
+def same_jumps(a, b):
+    assert [r["kind"] for r in a] == [r["kind"] for r in b]
+    for x, y in zip(a, b):
+        for c in ("approach_before_m", "approach_after_m", "force_before_N", "force_after_N"):
+            assert float(x[c]) == pytest.approx(float(y[c]), rel=1e-6), c
+
+
+@pytest.mark.serial
+@pytest.mark.heavy
+@needs_mpirun
+@pytest.mark.parametrize("ranks", [1, 2])
+def test_killed_adhesive_sweep_restarts_to_the_uninterrupted_results(tmp_path, ranks):
+    """The adhesive sphere (a jump-on while loading, the most tensile state at step 22, a
+    jump-off at step 26), killed after the jump-on and again after the most tensile state:
+    --restart gives the uninterrupted run's curve, jumps.csv and refined pull-off force."""
+    scene = os.path.join(SCENES, "adhesive_sphere.toml")
+    full = tmp_path / "full"
+    cli(ranks, ["run", scene, "--output", str(full)])
+    ref, ref_jumps, ref_summary = rows(full / "curve.csv"), rows(full / "jumps.csv"), summary(full)
+    assert [j["kind"] for j in ref_jumps] == ["jump-on", "jump-off"] and ref_summary["pull_off_refined"]
+    for n in (8, 24):
+        cut = tmp_path / f"cut{n}"
+        kept = kill_after(ranks, ["run", scene, "--output", str(cut)], cut / "curve.csv", n)
+        assert n <= kept < len(ref), "the run was not killed mid-path"
+        out = cli(ranks, ["run", scene, "--output", str(cut), "--restart"]).stdout
+        assert f"restart: {kept} of {len(ref)} steps already done" in out
+        assert "took over the lock" in out
+        resumed = rows(cut / "curve.csv")
+        assert [r["step"] for r in resumed] == [r["step"] for r in ref]
+        for a, b in zip(resumed, ref):
+            assert float(a["force_N"]) == pytest.approx(float(b["force_N"]), rel=1e-5, abs=1e-12)
+        same_jumps(rows(cut / "jumps.csv"), ref_jumps)
+        s = summary(cut)
+        same_jumps(s["jumps"], ref_jumps)
+        assert s["steps"] == len(ref) and s["converged"] and s["pull_off_refined"]
+        assert s["pull_off_force_N"] == pytest.approx(ref_summary["pull_off_force_N"], rel=1e-6)
+
+
+def tip_scene(path, out):
+    scene = scenes.load(os.path.join(SCENES, "atomic_tip.toml"))
+    g = scene["geometry"]
+    lines = ["[geometry]", 'kind = "tip"', f'tip = "{g["tip"]}"', f"radius = {g['radius']!r}",
+             f"atom_spacing = {g['atom_spacing']!r}", "nx = 64", f"dx = {g['dx']!r}",
+             "[material]", f"e_star = {scene['material']['e_star']!r}",
+             "[interaction]", 'law = "lj"', f"work_of_adhesion = {scene['interaction']['work_of_adhesion']!r}",
+             f"z0 = {scene['interaction']['z0']!r}",
+             "[protocol]", f"values = {scene['protocol']['values']!r}",
+             "[output]", f'directory = "{out}"', "atom_forces = true"]
+    path.write_text("\n".join(lines) + "\n")
+    return str(path)
+
+
+@pytest.mark.serial
+@needs_mpirun
+@pytest.mark.parametrize("ranks", [1, 2])
+def test_killed_tip_run_keeps_the_forces_per_atom(tmp_path, ranks):
+    """An atomic tip with atom_forces, killed mid-path and restarted: atom_forces.csv has every
+    step's forces (those before the kill too), equal to the uninterrupted run's, and the
+    pull-off force is the uninterrupted run's."""
+    full = tmp_path / "full"
+    cli(ranks, ["run", tip_scene(tmp_path / "full.toml", full)])
+    cut = tmp_path / "cut"
+    scene = tip_scene(tmp_path / "cut.toml", cut)
+    kept = kill_after(ranks, ["run", scene], cut / "curve.csv", 5)
+    assert 5 <= kept < 17
+    cli(ranks, ["run", scene, "--restart"])
+    a, b = rows(cut / "atom_forces.csv"), rows(full / "atom_forces.csv")
+    assert [(r["step"], r["atom"]) for r in a] == [(r["step"], r["atom"]) for r in b]
+    for x, y in zip(a, b):
+        assert float(x["force_N"]) == pytest.approx(float(y["force_N"]), rel=1e-5, abs=1e-15)
+    # per step the forces on the atoms add up to the step's force
+    for r in rows(cut / "curve.csv"):
+        total = sum(float(x["force_N"]) for x in a if x["step"] == r["step"])
+        assert total == pytest.approx(float(r["force_N"]), rel=1e-9)
+    assert summary(cut)["pull_off_force_N"] == pytest.approx(summary(full)["pull_off_force_N"], rel=1e-6)
+
+
+# -- in-process: what a restart refuses --------------------------------------------------------
+def rough(out, **change):
+    s = {"name": "restart-rough",
+         "geometry": {"kind": "self-affine", "nx": 16, "dx": 1e-8, "rms_slope": 0.1, "seed": 3},
+         "material": {"e_star": 1e9}, "protocol": {"control": "mean_pressure", "values": [5e6, 1e7]},
+         "output": {"directory": str(out)}}
+    for key, value in change.items():
+        section, name = key.split("__")
+        s.setdefault(section, {})[name] = value
+    return scenes.validate(s)
+
+
+@pytest.mark.parametrize("change, named", [
+    ({"material__e_star": 2e9}, "material.e_star"),
+    ({"geometry__seed": 4}, "geometry.seed"),
+    ({"geometry__dx": 2e-8}, "geometry.dx"),
+    ({"geometry__nx": 32}, "geometry.nx"),
+    ({"protocol__control": "force"}, "protocol.control"),
+    ({"protocol__values": [6e6, 1e7, 2e7]}, "protocol.values"),
+])
+def test_restart_of_another_problem_is_refused_naming_the_keys(coll, shared_tmp, change, named):
+    out = shared_tmp / "run"
+    protocols.run(rough(out), comm=PETSc.COMM_WORLD)
+    before = (out / "curve.csv").read_text() if coll.rank == 0 else None
+    coll.raises(RunDirectoryError, ["cannot restart", "another problem", named], protocols.run,
+                rough(out, **change), comm=PETSc.COMM_WORLD, restart=True)
+    if coll.rank == 0:
+        assert (out / "curve.csv").read_text() == before          # nothing written
+    # output keys, the name and the solver's settings may differ; more values continue the path
+    more = rough(out, protocol__values=[5e6, 1e7, 2e7], output__plots=False, solver__tol=1e-9)
+    more["name"] = "renamed"
+    states = protocols.run(more, comm=PETSc.COMM_WORLD, restart=True)
+    assert len(states) == 1 and coll.all(states[0].converged)
+
+
+def test_damaged_files_are_refused_or_redone_naming_the_file(coll, shared_tmp):
+    """A truncated earlier step file and a short row inside curve.csv are refused, naming the
+    file (and the row); a partial last row (a kill while appending) is dropped and its step
+    solved again, to the uninterrupted run's result."""
+    world = PETSc.COMM_WORLD.tompi4py()
+    ref = shared_tmp / "ref"
+    full = protocols.run(rough(ref, protocol__values=[5e6, 1e7, 2e7]), comm=PETSc.COMM_WORLD)
+    out = shared_tmp / "run"
+    protocols.run(rough(out, protocol__values=[5e6, 1e7, 2e7]), comm=PETSc.COMM_WORLD)
+    scene = rough(out, protocol__values=[5e6, 1e7, 2e7, 3e7])
+    good = (out / "curve.csv").read_text() if coll.rank == 0 else None
+    step1 = (out / "step_0001.h5").read_bytes() if coll.rank == 0 else None
+    if coll.rank == 0:
+        (out / "step_0001.h5").write_bytes(step1[: len(step1) // 2])
+    world.Barrier()
+    coll.raises(RunDirectoryError, ["cannot restart", "step_0001.h5"], protocols.run, scene,
+                comm=PETSc.COMM_WORLD, restart=True)
+    if coll.rank == 0:
+        (out / "step_0001.h5").write_bytes(step1)
+        lines = good.splitlines(keepends=True)
+        lines[2] = ",".join(lines[2].split(",")[:5]) + "\n"         # row 2 cut short
+        (out / "curve.csv").write_text("".join(lines))
+    world.Barrier()
+    coll.raises(RunDirectoryError, ["curve.csv, row 2", "columns"], protocols.run, scene,
+                comm=PETSc.COMM_WORLD, restart=True)
+    if coll.rank == 0:
+        (out / "curve.csv").write_text(good[: len(good) - 40])     # the last row half-written
+    world.Barrier()
+    states = protocols.run(rough(out, protocol__values=[5e6, 1e7, 2e7]), comm=PETSc.COMM_WORLD, restart=True)
+    assert len(states) == 1                                          # step 3 solved again
+    assert coll.max(abs(states[0].approach - full[2].approach) / abs(full[2].approach)) <= 1e-8
+    with open(out / "curve.csv") as f:
+        assert [r["step"] for r in csv.DictReader(f)] == ["1", "2", "3"]
+
+
+def test_step_files_carry_the_axis_order_and_restart_checks_it(coll, shared_tmp):
+    out = shared_tmp / "run"
+    protocols.run(rough(out), comm=PETSc.COMM_WORLD)
+    world = PETSc.COMM_WORLD.tompi4py()
+    if coll.rank == 0:
+        with h5py.File(out / "step_0002.h5", "r+") as f:
+            assert f.attrs["axes"] == "y,x" and all(f[name].attrs["axes"] == "y,x" for name in f)
+            assert f["pressure"].shape == (16, 16)
+            f.attrs["axes"] = "x,y"
+    world.Barrier()
+    coll.raises(RunDirectoryError, ["step_0002.h5", "axes 'x,y'"], protocols.run,
+                rough(out, protocol__values=[5e6, 1e7, 2e7]), comm=PETSc.COMM_WORLD, restart=True)
