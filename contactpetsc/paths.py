@@ -18,8 +18,9 @@ The pull-off force is the most tensile stable state of the path
 (``refine_pull_off``): searched by continuation from the sampled minimum
 towards its neighbours and from every stable state next to a loss of
 stability or a jump, to the end of each stable segment.  A path whose most
-tensile state is a turning point or an end of the path (e.g. a sphere that
-never left the far field) has not reached a pull-off: NaN.
+tensile state is not bracketed in approach by the path (e.g. a sphere that
+never left the far field: its most tensile state is where the path turned) has not
+reached a pull-off: NaN.
 
 Central-gap control (Greenwood 1997; the reference paper's Fig. 4c) keeps
 every state, stable or not, and marks the unstable ones: that traces the
@@ -78,28 +79,50 @@ class Path:
     @property
     def pull_off_force(self) -> float:
         """The most tensile force [N] of the path's stable states, or its refinement
-        (``refine_pull_off``); NaN when that state is a turning point or an end of the path
-        with no loss of stability next to it (no pull-off reached)."""
+        (``refine_pull_off``); NaN when the path does not bracket that state (``_bracketed``:
+        no pull-off reached)."""
         if self.refined_pull_off is not None:
             return self.refined_pull_off
         good = [k for k, p in enumerate(self.points) if _good(p)]
         if not good:
             return float("nan")
         k = min(good, key=lambda i: self.points[i].force)
-        return self.points[k].force if all(self._side(k, s) != "end" for s in (-1, 1)) else float("nan")
+        return self.points[k].force if self._bracketed(k) else float("nan")
 
     def _side(self, k: int, step: int) -> str:
-        """What lies next to point k along its branch: "end", "jump" (a jump in between),
-        "edge" (an unstable or failed point) or "stable"."""
+        """What lies next to point k along the path: "end", "jump" (a jump in between),
+        "edge" (an unstable or failed point), "stable", or "turn" (a stable point across a
+        reversal of the approach: the same branch, retraced)."""
         j = k + step
         pts = self.points
-        if not (0 <= j < len(pts)) or pts[j].branch != pts[k].branch:
+        if not (0 <= j < len(pts)):
             return "end"
         lo, hi = sorted((pts[k].approach, pts[j].approach))
-        kind = {"loading": "jump-on", "unloading": "jump-off"}.get(pts[k].branch)
+        turned = pts[j].branch != pts[k].branch
+        kind = None if turned else {"loading": "jump-on", "unloading": "jump-off"}.get(pts[k].branch)
         jumped = any((kind is None or jp.kind == kind) and
                      (lo <= jp.approach_before <= hi or lo <= jp.approach_after <= hi) for jp in self.jumps)
-        return "jump" if jumped else ("stable" if _good(pts[j]) else "edge")
+        if jumped:
+            return "jump"
+        if not _good(pts[j]):
+            return "edge"
+        return "turn" if turned else "stable"
+
+    def _bracketed(self, k: int) -> bool:
+        """Whether point k's force is a pull-off: the path reaches beyond it in approach on
+        both sides (a smaller force would lie between), or a loss of stability or a jump
+        borders it.  A most tensile state at a reversal or an end of the path, with both
+        neighbours on one side of it, is not one: more approach might pull harder (a sphere
+        that never left the far field)."""
+        signs = set()
+        for step in (-1, 1):
+            side = self._side(k, step)
+            if side == "end":
+                continue
+            if side in ("edge", "jump"):
+                return True
+            signs.add(np.sign(self.points[k + step].approach - self.points[k].approach))
+        return {-1.0, 1.0} <= signs
 
     def column(self, name: str) -> np.ndarray:
         return np.array([getattr(p, name) for p in self.points])
@@ -241,12 +264,12 @@ def refine_pull_off(problem, path: Path, xtol: float, max_solves: int = 40,
     """The most tensile stable state of the path [N], to ``xtol`` [m] in approach.
 
     Searches by continuation (``_continue``) from the sampled minimum towards its
-    neighbours on its branch and from every stable state next to a loss of stability or a
+    neighbours along the path (across a reversal of the approach too) and from every stable state next to a loss of stability or a
     failed step towards it (``path._edges``), at most ``max_solves`` solves each;
     golden-section search where the smallest force lies between two higher ones.  The
     states on either side of a jump (located by bisection in ``sweep``) are candidates.
-    NaN when the most tensile state found is a turning point or an end of the path (no
-    pull-off reached).  Sets ``path.refined_pull_off``; the problem's state is restored."""
+    NaN when the most tensile state found is not bracketed by the path (``Path._bracketed``:
+    no pull-off reached).  Sets ``path.refined_pull_off``; the problem's state is restored."""
     if path._best is None:
         path.refined_pull_off = float("nan")
         return path.refined_pull_off
@@ -264,13 +287,14 @@ def refine_pull_off(problem, path: Path, xtol: float, max_solves: int = 40,
     try:
         searched, bracket = set(), [pts[k].approach, pts[k].approach]
         for n, (side, step) in enumerate(zip(sides, (-1, 1))):
-            if side in ("stable", "edge"):
+            if side in ("stable", "edge", "turn"):
                 towards = pts[k + step].approach
                 searched.add((k, towards))
                 force, reached, nearest = _continue(problem, snap, pts[k], towards, xtol, max_solves, jump_tol)
                 found.append((force, reached))
                 bracket[n] = nearest
-        if "end" not in sides and bracket[0] != bracket[1] and all(f[0] == np.inf for f in found):
+        d_k = pts[k].approach
+        if (bracket[0] - d_k) * (bracket[1] - d_k) < 0 and all(f[0] == np.inf for f in found):
             # nothing below the sampled minimum on either side: it lies between the nearest
             # stable states on either side
             found.append((_golden(problem, snap, bracket[0], bracket[1], xtol, max_solves), True))
@@ -279,9 +303,9 @@ def refine_pull_off(problem, path: Path, xtol: float, max_solves: int = 40,
                 found.append(_continue(problem, edge_snap, pts[i], towards, xtol, max_solves, jump_tol)[:2])
     finally:
         snes.setTolerances(max_it=max_it)
-    # the sampled minimum itself: reached when neither side is the end of its branch;
+    # the sampled minimum itself: reached when the path brackets it (``Path._bracketed``);
     # the states on either side of each jump (the end of the old branch, bisected)
-    found.append((pts[k].force, "end" not in sides))
+    found.append((pts[k].force, path._bracketed(k)))
     found += [(f, True) for j in path.jumps for f in (j.force_before, j.force_after)]
     problem.restore(end)
     _free(end)

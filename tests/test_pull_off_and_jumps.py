@@ -31,6 +31,8 @@ def flat_cell(n, w, prefix):
     (0.5, [-1.5, -0.5, 0.5, -0.5, -1.5]),
     # every state stable, samples off the peak
     (0.05, [-1.2, -0.9, -0.6, -0.3, 0.0, 0.3, 0.0, -0.3, -0.6, -0.9, -1.2]),
+    # the peak between the path's reversal and the first unloading sample
+    (0.05, [-2.0, -1.3, -0.6, 0.0, -0.37, -0.74, -1.11, -1.48]),
 ])
 def test_flat_cell_pull_off_is_the_law_peak_and_its_branch_has_no_jumps(coll, w, approaches):
     n = 32
@@ -79,3 +81,13 @@ def test_sphere_pull_off_does_not_depend_on_the_sampling(coll):
         bars.append(refine_pull_off(problem, path, xtol=0.002) / (np.pi * radius * w))
     assert abs(bars[0] / bars[1] - 1) < 1e-4, bars
     assert -2.0 < bars[1] < -1.5
+
+
+def test_flat_cell_path_that_turns_before_the_peak_has_no_pull_off(coll):
+    """Reversed at a gap of 0.4 z0, short of the peak at 3^(1/6) - 1 = 0.12 z0: the most
+    tensile state is the reversal, where the force still falls with the approach."""
+    problem, law = flat_cell(32, 0.05, "flat_turn_")
+    path = sweep(problem, [-3.0, -2.0, -1.0, -0.6, -0.4, -0.6, -1.0, -2.0])
+    assert all(p.converged and p.stable for p in path.points) and not path.jumps
+    assert np.isnan(path.pull_off_force)
+    assert np.isnan(refine_pull_off(problem, path, xtol=1e-4))
