@@ -35,7 +35,7 @@ class ContactSteps:
     fields = ("pressure",)
 
     def __init__(self, scene: dict, grid, heights):
-        from .solvers import ContactProblem
+        from ..solvers import ContactProblem
         _push_options("contact_", scene["solver"]["options"])
         g = scene["geometry"]
         self.grid, self.control = grid, scene["protocol"]["control"]
@@ -66,7 +66,7 @@ class ContactSteps:
         line = (f"  {row['step']:4d} {st.approach:12.4e} {st.force:11.4e} {st.contact_fraction:8.4f} "
                 f"{st.complementarity_error:9.2e} {st.newton_iterations:6d} {st.wall_time:8.2f}")
         if self.hertz:
-            from .physics.maugis import hertz_force
+            from ..physics.closed_forms import hertz_force
             f_h = float(hertz_force(self.e_star, self.radius, max(st.approach, 0.0)))
             a_num = np.sqrt(st.contact_fraction * self.grid.lengths[0] * self.grid.lengths[1] / np.pi)
             a_h = np.sqrt(self.radius * max(st.approach, 0.0))
@@ -86,11 +86,11 @@ class AdhesiveSteps:
     fields = ("contact_pressure", "adhesive_pressure")
 
     def __init__(self, scene: dict, grid, heights):
-        from .metrics import CUTOFF
-        from .paths import Path
-        from .physics.interactions import make_law
-        from .solvers.adhesive import AdhesiveProblem
-        from .solvers.relaxation import RelaxationSolver
+        from ..metrics import CUTOFF
+        from ..paths import Path
+        from ..physics.interactions import make_law
+        from ..solvers.adhesive import AdhesiveProblem
+        from ..solvers.relaxation import RelaxationSolver
         it, sol, self.proto, g = scene["interaction"], scene["solver"], scene["protocol"], scene["geometry"]
         _push_options("adhesion_", sol["options"])
         params = {"hardwall-lj": "z0", "lj": "z0", "exponential": "rho", "dugdale": "sigma0"}[it["law"]]
@@ -116,7 +116,7 @@ class AdhesiveSteps:
         """The path on disk: its points and jumps (for the pull-off and the next jump), the most
         tensile stable state solved again from its file (for the pull-off refinement), then the
         last state as the warm start."""
-        from .paths import Jump
+        from ..paths import Jump
         rows = recorder.rows
         if self.path is not None:
             self.path.points = [_point(r) for r in rows]
@@ -147,7 +147,7 @@ class AdhesiveSteps:
                             f"({st.reason}): the pull-off refinement starts from the new steps only")
 
     def step(self, value: float):
-        from .paths import central_gap_path, sweep
+        from ..paths import central_gap_path, sweep
         if self.relax is not None:
             return self.relax.solve(approach=value, raise_on_failure=False), []
         got, n = [], len(self.path.jumps)
@@ -169,7 +169,7 @@ class AdhesiveSteps:
         return st, jumps
 
     def row(self, st) -> dict:
-        from .metrics import adhesion_ratios, greenwood
+        from ..metrics import adhesion_ratios, greenwood
         load_ratio, area_ratio = adhesion_ratios(self.grid, st.pressure, self.law.peak_attraction)
         a_star, w_star = (greenwood(st.approach, st.force, self.radius, self.law.work_of_adhesion, self.z0)
                           if self.sphere else (NAN, NAN))
@@ -196,7 +196,7 @@ class AdhesiveSteps:
 
     def finish(self) -> dict:
         """The pull-off force refined by golden section (``protocol.refine_pull_off``)."""
-        from .paths import refine_pull_off
+        from ..paths import refine_pull_off
         if not self.sweeping:
             return {}
         pull, refined = self.path.pull_off_force, False
@@ -212,7 +212,7 @@ class AdhesiveSteps:
 
 def _point(row: dict):
     """A ``paths.PathPoint`` of a ``curve.csv`` row (a restarted path's earlier steps)."""
-    from .paths import PathPoint
+    from ..paths import PathPoint
     flag = {"True": True, "False": False}
     num = {c: float(row[c]) for c in ("approach_m", "central_gap_m", "force_N", "adhesive_force_N",
                                       "contact_fraction", "fft_pairs", "wall_time_s",

@@ -13,9 +13,10 @@ from __future__ import annotations
 
 from petsc4py import PETSc
 
-from . import rundir, surfaces
-from .errors import collective_call, petsc_error_message
-from .grid import SurfaceGrid
+from . import rundir
+from ..geometry import surfaces
+from ..collective import collective_call, petsc_error_message
+from ..grid import SurfaceGrid
 from .output import ADHESIVE_FIELDS, FIELDS
 from .recorder import CURVE_COLUMNS, NAN, StepRecorder
 
@@ -45,7 +46,7 @@ def memory_per_rank(scene: dict, size: int) -> float:
 
 def build_tip(scene: dict, grid: SurfaceGrid):
     """(tip, heights, owner) of a ``kind = tip`` scene (``tips.py``)."""
-    from . import tips
+    from ..geometry import tips
     g = scene["geometry"]
     tip = tips.make_tip(g["tip"], grid, g["radius"], g["atom_spacing"], atom_radius=g["atom_radius"],
                         seed=g["seed"])
@@ -75,8 +76,8 @@ def plan(scene: dict, grid: SurfaceGrid, out_dir: str | None = None) -> list[str
         it = scene["interaction"]
         law = f"law {it['law']}, w = {it['work_of_adhesion']:g} J/m^2" + (
             ", element-integrated" if it["element_integration"] else "")
-        from .physics.interactions import LAWS
-        from .solvers.adhesive import newton_ksp_type
+        from ..physics.interactions import LAWS
+        from ..solvers.adhesive import newton_ksp_type
         ksp = newton_ksp_type(LAWS[it["law"]].hard_wall)
         chain = (f"  solver: SNES vinewtonrsls on (contact, adhesive) pressures (prefix adhesion_), "
                  f"KSP {ksp}, preconditioner {sol['preconditioner']}, Lanczos stability check"

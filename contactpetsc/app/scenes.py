@@ -299,7 +299,7 @@ def _check_protocol(out: dict) -> None:
 def _check_height_file(g: dict) -> None:
     """The height file of a ``kind = file`` scene, from its metadata: the run (and a dry run)
     must not start on a file that cannot be read into the grid."""
-    from .surfaces import inspect_height_file
+    from ..geometry.surfaces import inspect_height_file
     try:
         inspect_height_file(g["path"], g["dataset"], (g["nx"], g["ny"]), (g["dx"], g["dy"]))
     except (OSError, ValueError, KeyError) as exc:
@@ -310,7 +310,7 @@ def _check_height_file(g: dict) -> None:
 def _check_adhesive_resolution(scene: dict) -> None:
     """UnderResolvedWarning when the grid is too coarse for the adhesive zone (the criterion is
     ``interactions.check_resolution``'s); the same on every rank."""
-    from .physics.interactions import check_resolution, make_law
+    from ..physics.interactions import check_resolution, make_law
     it, g = scene["interaction"], scene["geometry"]
     param = LAW_PARAMETER[it["law"]]
     law = make_law(it["law"], work_of_adhesion=it["work_of_adhesion"], **{param: it[param]})

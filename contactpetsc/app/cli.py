@@ -125,7 +125,7 @@ def main(argv=None) -> int:
         return 0 if all(st.converged for st in states) else 3
     except Exception as exc:  # noqa: BLE001 - reported, then the whole job ends
         if isinstance(exc, PETSc.Error):
-            from .errors import petsc_error_message
+            from ..collective import petsc_error_message
             exc = f"{petsc_error_message(exc)}; rerun with -log_trace or -info for PETSc's own account"
         sys.stderr.write(f"contactpetsc [rank {comm.Get_rank()}]: error: {exc}\n")
         sys.stderr.flush()

@@ -47,7 +47,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .grid import GridError, SurfaceGrid
+from ..grid import GridError, SurfaceGrid
 from .surfaces import centre
 
 KINDS = ("bent-commensurate", "bent-incommensurate", "amorphous", "stepped")
