@@ -50,15 +50,15 @@ CLI = [sys.executable, "-m", "contactpetsc"]
 CLI_FAULT = textwrap.dedent("""
     import sys
     from mpi4py import MPI
-    from contactpetsc.app import cli, runner
+    from contactpetsc.app import builder, cli
 
-    build = runner.build_heights
+    build = builder.build_heights
     def build_heights(scene, grid):   # a fault on rank 1 only, while the others go on to solve
         if MPI.COMM_WORLD.Get_rank() == 1:
             raise OSError("injected fault on rank 1")
         return build(scene, grid)
 
-    runner.build_heights = build_heights
+    builder.build_heights = build_heights
     sys.exit(cli.main(sys.argv[1:]))
 """)
 

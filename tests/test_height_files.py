@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from contactpetsc.app import output, runner, scenes
+from contactpetsc.app import builder, output, scenes
 from contactpetsc.geometry import surfaces
 from contactpetsc.grid import GridError, SurfaceGrid
 
@@ -66,8 +66,8 @@ def write_step(directory, nx, ny, stamp=True):
 def test_step_heights_fed_back_are_not_transposed(coll, shared_tmp, nx, ny):
     path = write_step(shared_tmp, nx, ny)
     scene = scenes.validate(file_scene(path, nx, ny))
-    grid = runner.build_grid(scene)
-    got = grid.gather(runner.build_heights(scene, grid))
+    grid = builder.build_grid(scene)
+    got = grid.gather(builder.build_heights(scene, grid))
     x, y = np.meshgrid(np.arange(nx) * DX, np.arange(ny) * DY, indexing="ij")
     assert coll.max(np.abs(got - pattern(x, y)).max() / pattern(x, y).max()) <= 1e-15
     # the file keeps (ny, nx): read on one rank, its rows are y

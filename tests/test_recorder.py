@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from contactpetsc.app import runner, scenes
+from contactpetsc.app import builder, runner, scenes
 
 SCENES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "examples", "scenes")
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
@@ -177,10 +177,10 @@ def test_plot_of_a_damaged_curve_names_the_file_and_row(tmp_path):
 def test_petsc_failure_building_the_grid_is_told_in_the_users_terms(coll, monkeypatch):
     def fails(*args, **kwargs):
         raise PETSc.Error(55)
-    monkeypatch.setattr(runner, "SurfaceGrid", fails)
+    monkeypatch.setattr(builder, "SurfaceGrid", fails)
     coll.raises(RuntimeError, ["cannot build the 4096 x 4096 grid", "geometry.nx", "out of memory",
                                "PETSc error code 55", "MiB per rank"],
-                runner.build_grid, hertz("unused", 4096, 1e-9))
+                builder.build_grid, hertz("unused", 4096, 1e-9))
 
 
 @pytest.mark.serial

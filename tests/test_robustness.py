@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from contactpetsc.app import output, runner, scenes
+from contactpetsc.app import builder, output, runner, scenes
 from contactpetsc.geometry import surfaces
 from contactpetsc.grid import GridError, SurfaceGrid
 from contactpetsc.operators.elastic import half_space
@@ -135,15 +135,20 @@ def test_resolution_criterion_and_warning():
 
 
 def test_under_resolved_scene_warns():
+    """The scene's one resolution check (the builder's, with the sphere's radius)."""
+    def check(scene):
+        valid = scenes.validate(scene)
+        return builder.resolution_nodes(valid, builder.build_law(valid))
+
     scene = {"geometry": {"kind": "sphere", "radius": 20.0, "nx": 32, "dx": 1.0},
              "material": {"e_star": 1.0}, "protocol": {"values": [0.0]},
              "interaction": {"law": "hardwall-lj", "work_of_adhesion": 0.028, "z0": 0.25}}
     with pytest.warns(UnderResolvedWarning, match="spans 1.7 grid spacings"):
-        scenes.validate(scene)
+        check(scene)
     scene["geometry"]["dx"] = 0.25
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        scenes.validate(scene)
+        check(scene)
 
 
 # -- bad input: the field and the accepted range, on every rank -------------------------------------
@@ -193,7 +198,7 @@ def test_grids_beyond_32_bit_indices_fail_before_allocating(coll):
     coll.raises(GridError, ["64-bit indices", f"{n} x {n}"], SurfaceGrid, n, n, 1e-9)
     scene = scenes.validate({"geometry": {"kind": "sphere", "radius": 1e-6, "nx": n, "dx": 1e-9},
                              "material": {"e_star": 1e9}, "protocol": {"values": [1e-9]}})
-    coll.raises(GridError, "64-bit indices", runner.build_grid, scene)
+    coll.raises(GridError, "64-bit indices", builder.build_grid, scene)
 
 
 def test_truncated_hdf5_heights_and_restart_files(coll, shared_tmp):

@@ -21,10 +21,32 @@ Laws
                  lies in the repulsive range: a typo).
 ``exponential``  hard wall, p = -(w/rho) exp(-g/rho), Phi = -w exp(-g/rho).
 ``dugdale``      Maugis-Dugdale: hard wall, p = -sigma0 for 0 < g < w/sigma0.
+
+Each law declares its parameters (``Parameter``: name, unit, accepted range, meaning) and is
+registered by name (``register_law``); the scene schema, its docs and ``make_law`` read the
+registry, so a new law is one class here (docs/formulation.md, "Interaction laws").
 """
 from __future__ import annotations
 
+import math
+from typing import NamedTuple
+
 import numpy as np
+
+#: an open interval (0, inf): (low, high, low included?, high included?)
+POSITIVE = (0.0, math.inf, False, False)
+
+
+class Parameter(NamedTuple):
+    """A law parameter as a scene gives it: ``interaction.<name>`` [unit] in ``range``."""
+    name: str
+    unit: str
+    doc: str
+    range: tuple = POSITIVE
+
+
+#: the parameter every adhesive law takes
+WORK_OF_ADHESION = Parameter("work_of_adhesion", "J/m^2", "work of adhesion w")
 
 
 class InteractionLaw:
@@ -33,6 +55,10 @@ class InteractionLaw:
     name = "base"
     hard_wall = True
     work_of_adhesion = 0.0
+    #: the constructor's keyword arguments, work_of_adhesion first (``make_law``, the scene schema)
+    parameters: tuple = ()
+    #: one line for the docs (docs/scenes.md lists the registered laws)
+    summary = ""
 
     def pressure(self, gap):
         raise NotImplementedError
@@ -77,6 +103,7 @@ class NoAdhesion(InteractionLaw):
     """Signorini contact, eq. (4): hard wall, zero traction at any positive gap."""
 
     name = "none"
+    summary = "Signorini contact (eq. 4): hard wall, no adhesion"
 
     def __init__(self, work_of_adhesion: float = 0.0):
         # a work of adhesion with a law that has none would be silently ignored
@@ -91,17 +118,19 @@ class NoAdhesion(InteractionLaw):
     energy = pressure
 
 
-_UNITS = {"work_of_adhesion": "J/m^2", "z0": "m", "rho": "m", "sigma0": "Pa"}
-
-
-def _check_positive(**kw):
-    for key, value in kw.items():
+def check_parameters(law, **values) -> None:
+    """ValueError naming the parameter, its value and its accepted range (the law's ``parameters``)."""
+    for p in type(law).parameters:
+        value = values[p.name]
+        lo, hi, lo_in, hi_in = p.range
         try:
-            ok = bool(np.isfinite(value) and value > 0)
+            ok = bool(np.isfinite(value) and (value >= lo if lo_in else value > lo)
+                      and (value <= hi if hi_in else value < hi))
         except TypeError:
             ok = False
         if not ok:
-            raise ValueError(f"{key} = {value!r}: accepted range (0, inf) {_UNITS[key]} (finite and > 0)")
+            bounds = f"{'[' if lo_in else '('}{lo:g}, {hi:g}{']' if hi_in else ')'}"
+            raise ValueError(f"{p.name} = {value!r}: accepted range {bounds} {p.unit} (finite)")
 
 
 class LennardJones(InteractionLaw):
@@ -109,9 +138,11 @@ class LennardJones(InteractionLaw):
 
     name = "lj"
     hard_wall = False
+    parameters = (WORK_OF_ADHESION, Parameter("z0", "m", "equilibrium separation"))
+    summary = "the full Lennard-Jones curve (eq. 8), no hard wall"
 
     def __init__(self, work_of_adhesion: float, z0: float):
-        _check_positive(work_of_adhesion=work_of_adhesion, z0=z0)
+        check_parameters(self, work_of_adhesion=work_of_adhesion, z0=z0)
         self.work_of_adhesion, self.z0 = float(work_of_adhesion), float(z0)
         self.p_scale = 8.0 * self.work_of_adhesion / (3.0 * self.z0)
 
@@ -147,6 +178,7 @@ class HardWallLennardJones(LennardJones):
 
     name = "hardwall-lj"
     hard_wall = True
+    summary = "hard wall and Lennard-Jones attraction (eq. 7)"
 
     def _g(self, gap):
         return np.maximum(np.asarray(gap, dtype=float), 0.0)
@@ -165,9 +197,11 @@ class Exponential(InteractionLaw):
     """Hard wall and exponential attraction p = -(w/rho) exp(-g/rho)."""
 
     name = "exponential"
+    parameters = (WORK_OF_ADHESION, Parameter("rho", "m", "decay length"))
+    summary = "hard wall and exponential attraction (for comparison)"
 
     def __init__(self, work_of_adhesion: float, rho: float):
-        _check_positive(work_of_adhesion=work_of_adhesion, rho=rho)
+        check_parameters(self, work_of_adhesion=work_of_adhesion, rho=rho)
         self.work_of_adhesion, self.rho = float(work_of_adhesion), float(rho)
 
     def length_scale(self) -> float:
@@ -193,9 +227,11 @@ class Dugdale(InteractionLaw):
     """Maugis-Dugdale: hard wall and constant attraction sigma0 up to the range w / sigma0."""
 
     name = "dugdale"
+    parameters = (WORK_OF_ADHESION, Parameter("sigma0", "Pa", "Dugdale stress"))
+    summary = "Maugis-Dugdale: hard wall and constant attraction (for comparison)"
 
     def __init__(self, work_of_adhesion: float, sigma0: float):
-        _check_positive(work_of_adhesion=work_of_adhesion, sigma0=sigma0)
+        check_parameters(self, work_of_adhesion=work_of_adhesion, sigma0=sigma0)
         self.work_of_adhesion, self.sigma0 = float(work_of_adhesion), float(sigma0)
         self.range = self.work_of_adhesion / self.sigma0
 
@@ -219,13 +255,34 @@ class Dugdale(InteractionLaw):
         return np.where(g < self.range, -self.work_of_adhesion + self.sigma0 * g, 0.0)
 
 
-LAWS = {"none": NoAdhesion, "hardwall-lj": HardWallLennardJones, "lj": LennardJones,
-        "exponential": Exponential, "dugdale": Dugdale}
+#: the registered laws by name (``register_law``)
+LAWS: dict = {}
+
+
+def register_law(cls):
+    """Register an ``InteractionLaw`` subclass under its ``name`` (a class decorator): ``make_law``
+    builds it and the scene schema accepts it with its ``parameters``."""
+    if cls.name in LAWS and LAWS[cls.name] is not cls:
+        raise ValueError(f"an interaction law named {cls.name!r} is registered already ({LAWS[cls.name].__name__})")
+    if cls.parameters and cls.parameters[0] != WORK_OF_ADHESION:
+        raise ValueError(f"law {cls.name!r}: its parameters must start with WORK_OF_ADHESION")
+    for other in LAWS.values():   # a scene key means one thing for every law that takes it
+        for p in cls.parameters:
+            clash = [q for q in other.parameters if q.name == p.name and q[1:] != p[1:]]
+            if clash:
+                raise ValueError(f"law {cls.name!r}: parameter {p.name!r} differs from law {other.name!r}'s "
+                                 f"({p} vs {clash[0]})")
+    LAWS[cls.name] = cls
+    return cls
+
+
+for _law in (NoAdhesion, HardWallLennardJones, LennardJones, Exponential, Dugdale):
+    register_law(_law)
 
 
 def make_law(name: str, **params) -> InteractionLaw:
-    """Build a law by name: none; hardwall-lj / lj (work_of_adhesion, z0);
-    exponential (work_of_adhesion, rho); dugdale (work_of_adhesion, sigma0)."""
+    """Build a registered law by name with its ``parameters`` as keywords, e.g.
+    ``make_law("lj", work_of_adhesion=0.1, z0=0.3e-9)``."""
     if name not in LAWS:
         raise ValueError(f"interaction law must be one of {sorted(LAWS)}, got {name!r}")
     return LAWS[name](**params)
