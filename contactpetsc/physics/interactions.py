@@ -59,6 +59,8 @@ class InteractionLaw:
     parameters: tuple = ()
     #: one line for the docs (docs/scenes.md lists the registered laws)
     summary = ""
+    #: a singular law's gap [m] below which the traction is continued linearly (physics.traction)
+    safe_gap = None
 
     def pressure(self, gap):
         raise NotImplementedError
@@ -133,6 +135,9 @@ def check_parameters(law, **values) -> None:
             raise ValueError(f"{p.name} = {value!r}: accepted range {bounds} {p.unit} (finite)")
 
 
+SAFE_SEPARATION = 0.5  #: z_safe / z0 for the full Lennard-Jones curve (physics.traction)
+
+
 class LennardJones(InteractionLaw):
     """Full Lennard-Jones curve, eq. (8): no hard wall, defined for g > -z0."""
 
@@ -148,6 +153,11 @@ class LennardJones(InteractionLaw):
 
     def length_scale(self) -> float:
         return self.z0
+
+    @property
+    def safe_gap(self) -> float:
+        """g at z = SAFE_SEPARATION z0 [m]: below it the singular curve is continued linearly."""
+        return (SAFE_SEPARATION - 1.0) * self.z0
 
     @property
     def peak_attraction(self) -> float:
