@@ -276,9 +276,12 @@ def register_law(cls):
         raise ValueError(f"an interaction law named {cls.name!r} is registered already ({LAWS[cls.name].__name__})")
     if cls.parameters and cls.parameters[0] != WORK_OF_ADHESION:
         raise ValueError(f"law {cls.name!r}: its parameters must start with WORK_OF_ADHESION")
+    taken = {"law", "element_integration"} & {p.name for p in cls.parameters}
+    if taken:
+        raise ValueError(f"law {cls.name!r}: parameter name(s) {sorted(taken)} are scene keys of their own")
     for other in LAWS.values():   # a scene key means one thing for every law that takes it
         for p in cls.parameters:
-            clash = [q for q in other.parameters if q.name == p.name and q[1:] != p[1:]]
+            clash = [q for q in other.parameters if q.name == p.name and (q.unit, q.range) != (p.unit, p.range)]
             if clash:
                 raise ValueError(f"law {cls.name!r}: parameter {p.name!r} differs from law {other.name!r}'s "
                                  f"({p} vs {clash[0]})")
