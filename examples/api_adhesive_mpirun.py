@@ -26,7 +26,7 @@ from petsc4py import PETSc  # noqa: E402
 from contactpetsc.grid import SurfaceGrid  # noqa: E402
 from contactpetsc.paths import refine_pull_off, sweep  # noqa: E402
 from contactpetsc.physics.interactions import make_law, tabor_parameter  # noqa: E402
-from contactpetsc.physics.maugis import maugis_pull_off  # noqa: E402
+from contactpetsc.physics.closed_forms import maugis_pull_off  # noqa: E402
 from contactpetsc.solvers.adhesive import AdhesiveProblem  # noqa: E402
 
 n = int(sys.argv[1]) if len(sys.argv) > 1 and sys.argv[1].isdigit() else 96

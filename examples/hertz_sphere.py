@@ -16,7 +16,7 @@ petsc4py.init(sys.argv)
 import numpy as np  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
-from contactpetsc import surfaces  # noqa: E402
+from contactpetsc.geometry import surfaces  # noqa: E402
 from contactpetsc.grid import SurfaceGrid  # noqa: E402
 from contactpetsc.solvers import ContactProblem  # noqa: E402
 

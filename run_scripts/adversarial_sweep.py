@@ -249,7 +249,7 @@ def run_py(argv: list, cwd: Path, ranks=1, extra_env=None, timeout=None) -> Resu
 
 
 def cli(cwd: Path, *args, ranks=1, **kw) -> Result:
-    return run_py(["-m", "contactpetsc.cli", *map(str, args)], cwd, ranks, **kw)
+    return run_py(["-m", "contactpetsc", *map(str, args)], cwd, ranks, **kw)
 
 
 def run_scene(cwd: Path, scene: dict, *args, name="scene.toml", ranks=1, **kw) -> Result:
@@ -416,7 +416,7 @@ FAR = z0s(-30, -25, -20, -15, -12, -10, -12, -15, -20, -25, -30)
 def api_weak_adhesion_case(w, ranks) -> Case:
     code = f"""
         from contactpetsc.grid import SurfaceGrid
-        from contactpetsc import surfaces
+        from contactpetsc.geometry import surfaces
         from contactpetsc.physics.interactions import make_law
         from contactpetsc.solvers.adhesive import AdhesiveProblem
         grid = SurfaceGrid(32, 32, {Z0!r}, periodic=False)
@@ -528,7 +528,7 @@ def random_vector_case(name, scene, args=(), ranks=1) -> Case:
 def api_random_vector_case() -> Case:
     code = """
         from contactpetsc.grid import SurfaceGrid
-        from contactpetsc import surfaces
+        from contactpetsc.geometry import surfaces
         from contactpetsc.solvers import ContactProblem
         grid = SurfaceGrid(32, 32, 2e-9, periodic=False)
         problem = ContactProblem(grid, surfaces.sphere(grid, 1e-6), 1e9, tol=1e-18)
@@ -737,12 +737,13 @@ def stamped_input_case(name, shape_order, stamp, nx=24, ny=16) -> Case:
 def api_from_step_file_case() -> Case:
     code = """
         from contactpetsc.grid import SurfaceGrid
-        from contactpetsc import surfaces, scenes, protocols
+        from contactpetsc.geometry import surfaces
+        from contactpetsc.app import runner, scenes
         scene = scenes.validate({"geometry": {"kind": "self-affine", "nx": 32, "ny": 16, "dx": 1e-8,
                                  "rms_height": 1e-9, "seed": 5}, "material": {"e_star": 1e9},
                                  "protocol": {"control": "mean_pressure", "values": [1e6]},
                                  "output": {"directory": "apiout"}})
-        protocols.run(scene)
+        runner.run(scene)
         grid = SurfaceGrid(32, 16, 1e-8, periodic=True)
         try:
             h = grid.gather(surfaces.from_file(grid, "apiout/step_0001.h5"))
@@ -837,7 +838,7 @@ if rank == int(os.environ.get("SWEEP_KILL_RANK", "0")):
     threading.Thread(target=watch, daemon=True).start()
 sys.setswitchinterval(1e-4)
 sys.argv[0] = "contactpetsc"
-from contactpetsc.cli import main
+from contactpetsc.app.cli import main
 sys.exit(main())
 '''
 
@@ -1002,7 +1003,7 @@ def concurrent_case(name, ranks=(1, 1), same=False) -> Case:
         scenes = [jump_sphere(), jump_sphere(e_star=1e10 if same else 2e10)]
         files = [write_scene(d / f"s{i}.toml", s) for i, s in enumerate(scenes)]
         t0 = time.time()
-        procs = [launch(["-m", "contactpetsc.cli", "run", str(f)], d, n) for f, n in zip(files, ranks)]
+        procs = [launch(["-m", "contactpetsc", "run", str(f)], d, n) for f, n in zip(files, ranks)]
         results = [finish(p, t0) for p in procs]
         for r in results:
             bad = abnormal(r)
@@ -1093,7 +1094,7 @@ from mpi4py import MPI
 n = int(os.environ["SWEEP_FSIZE"])
 resource.setrlimit(resource.RLIMIT_FSIZE, (n, n))
 sys.argv[0] = "contactpetsc"
-from contactpetsc.cli import main
+from contactpetsc.app.cli import main
 sys.exit(main())
 '''
 
@@ -1135,7 +1136,7 @@ def bookkeeping_case(steps=400) -> Case:
     scene = merged(hertz_scene(nx=32, dx=8e-9, values=values), output={"fields": False})
 
     def run(d):
-        proc = launch(["-m", "contactpetsc.cli", "run", str(write_scene(d / "scene.toml", scene))], d)
+        proc = launch(["-m", "contactpetsc", "run", str(write_scene(d / "scene.toml", scene))], d)
         t0, marks = time.time(), []
         curve = d / "out/curve.csv"
         while proc.poll() is None and time.time() - t0 < TIMEOUT * 2:
@@ -1244,7 +1245,7 @@ def api_refusal_case(name, klass, code, names, ranks=1) -> Case:
 
 API_GRID = """
     from contactpetsc.grid import SurfaceGrid
-    from contactpetsc import surfaces
+    from contactpetsc.geometry import surfaces
     from contactpetsc.solvers import ContactProblem
     from contactpetsc.physics.interactions import make_law
     from contactpetsc.solvers.adhesive import AdhesiveProblem

@@ -68,11 +68,12 @@ import numpy as np  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
 from contactpetsc.grid import SurfaceGrid  # noqa: E402
-from contactpetsc.physics.interactions import UnderResolvedWarning, make_law  # noqa: E402
+from contactpetsc.physics.interactions import make_law  # noqa: E402
+from contactpetsc.physics.resolution import UnderResolvedWarning  # noqa: E402
 from contactpetsc.solvers.adhesive import AdhesiveProblem  # noqa: E402
 from contactpetsc.solvers.relaxation import RelaxationSolver  # noqa: E402
 from contactpetsc.solvers.transfer import can_halve, halved, restrict  # noqa: E402
-from contactpetsc.surfaces import self_affine, sphere  # noqa: E402
+from contactpetsc.geometry.surfaces import self_affine, sphere  # noqa: E402
 
 rank = PETSc.COMM_WORLD.getRank()
 HERE = os.path.dirname(os.path.abspath(__file__))

@@ -1,7 +1,7 @@
 """Per-step bookkeeping of a long path: is the cost of writing a step flat in the path's length?
 
 Runs a scene of many cheap steps (a 16 x 16 periodic rough cell under load control, no field
-files, no plots) through the product's front door, ``protocols.run``, and times each step's
+files, no plots) through the product's front door, ``runner.run``, and times each step's
 overhead: the time from one solve's start to the next's minus the solve itself (writing
 curve.csv, history.csv, summary.json, the progress line).  Prints the median overhead over the
 first and the last ``--window`` steps and their ratio (1 when the overhead is flat).
@@ -31,7 +31,7 @@ def main() -> None:
     p.add_argument("--window", type=int, default=500)
     p.add_argument("--output", default=None, help="output directory (default: a temporary one, removed)")
     args = p.parse_args()
-    from contactpetsc import protocols, scenes
+    from contactpetsc.app import runner, scenes
     from contactpetsc.solvers import ContactProblem
     out = args.output or tempfile.mkdtemp(prefix="bench-long-path-")
     loads = 5e6 * (1.0 + 0.5 * np.sin(0.01 * np.arange(args.steps)))
@@ -55,7 +55,7 @@ def main() -> None:
     os.dup2(devnull, 1)          # the progress lines of 10^4 steps, not timed on a terminal
     try:
         t0 = time.perf_counter()
-        protocols.run(scene, comm=PETSc.COMM_SELF)
+        runner.run(scene, comm=PETSc.COMM_SELF)
         total = time.perf_counter() - t0
     finally:
         os.dup2(saved, 1)

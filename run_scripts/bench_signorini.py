@@ -3,7 +3,7 @@
 
 The benchmark surface: periodic unit cell (L = 1 m), self-affine, Hurst 0.8,
 rms slope 0.1, roll-off at L/4, short cut-off at 4 grid spacings, Gaussian
-random phases (``contactpetsc.surfaces.self_affine``, seed --seed), E* = 1,
+random phases (``contactpetsc.geometry.surfaces.self_affine``, seed --seed), E* = 1,
 mean pressure 0.005 E*.  For each n in --sizes:
 
 * ours: ``ContactProblem.solve(mean_pressure=...)`` with each preconditioner
@@ -61,7 +61,7 @@ import numpy as np  # noqa: E402
 from mpi4py import MPI  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
-from contactpetsc import surfaces  # noqa: E402
+from contactpetsc.geometry import surfaces  # noqa: E402
 from contactpetsc.grid import SurfaceGrid  # noqa: E402
 from contactpetsc.operators.elastic import half_space  # noqa: E402
 from contactpetsc.solvers import ContactProblem  # noqa: E402

@@ -112,7 +112,7 @@ import numpy as np  # noqa: E402
 from mpi4py import MPI  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
-from contactpetsc import surfaces  # noqa: E402
+from contactpetsc.geometry import surfaces  # noqa: E402
 from contactpetsc.grid import SurfaceGrid  # noqa: E402
 from contactpetsc.operators.elastic import half_space  # noqa: E402
 from contactpetsc.physics.interactions import make_law  # noqa: E402

@@ -44,9 +44,9 @@ def main(argv=None):
     from contactpetsc.grid import SurfaceGrid
     from contactpetsc.paths import refine_pull_off, sweep
     from contactpetsc.physics.interactions import make_law
-    from contactpetsc.physics.maugis import maugis_pull_off_bar
+    from contactpetsc.physics.closed_forms import maugis_pull_off_bar
     from contactpetsc.solvers.adhesive import AdhesiveProblem
-    from contactpetsc.surfaces import sphere
+    from contactpetsc.geometry.surfaces import sphere
 
     rank = PETSc.COMM_WORLD.getRank()
     rows = []

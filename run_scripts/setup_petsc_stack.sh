@@ -70,6 +70,6 @@ fi
 HDF5_MPI=ON HDF5_DIR="$hdf5_dir" "$py" -m pip install -q --no-build-isolation --no-binary h5py --force-reinstall --no-deps \
     "$(printf '%s\n' "${pins[@]}" | grep '^h5py')"
 "$py" -m pip install -q --no-deps --no-build-isolation -e "$here"
-"$py" -m contactpetsc.cli --version
+"$py" -m contactpetsc --version
 echo "$want" > "$stamp"
 echo "stack: ready: $venv (use CONTACTPETSC_VENV=$venv bash run_scripts/test.sh)"

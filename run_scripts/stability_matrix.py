@@ -29,6 +29,8 @@ import warnings
 
 import numpy as np
 
+from contactpetsc.physics.resolution import check_resolution
+
 HERE = os.path.abspath(__file__)
 
 
@@ -37,9 +39,9 @@ BUDGET = 0.0   # [s] each adhesive problem's -<prefix>time_budget (set by --budg
 
 
 def _lib():
-    from contactpetsc import surfaces
+    from contactpetsc.geometry import surfaces
     from contactpetsc.grid import SurfaceGrid
-    from contactpetsc.physics import interactions, maugis
+    from contactpetsc.physics import closed_forms as maugis, interactions
     from contactpetsc.solvers.adhesive import AdhesiveProblem
 
     def budgeted(*args, prefix="adhesion_", **kw):
@@ -105,7 +107,7 @@ def _sphere(n, dx, radius, e_star, law_name, w, z0, prefix, **kw):
     surfaces, SurfaceGrid, interactions, _, AdhesiveProblem = _lib()
     grid = SurfaceGrid(n, n, dx, periodic=False)
     law = interactions.make_law(law_name, work_of_adhesion=w, z0=z0)
-    interactions.check_resolution(law, e_star, dx, radius=radius)
+    check_resolution(law, e_star, dx, radius=radius)
     return AdhesiveProblem(grid, surfaces.sphere(grid, radius), e_star, law, prefix=prefix, **kw)
 
 
@@ -195,7 +197,7 @@ def _w_huge(law_name="hardwall-lj"):
     lam = grid.lengths[0]
     h = surfaces.from_function(grid, lambda x, y: 2.0 * (1 - np.cos(2 * np.pi * x / lam)))
     law = interactions.make_law(law_name, work_of_adhesion=10.0, z0=1.0)
-    interactions.check_resolution(law, 1.0, 1.0, rms_slope=2 * np.pi * 2.0 / lam / np.sqrt(2))
+    check_resolution(law, 1.0, 1.0, rms_slope=2 * np.pi * 2.0 / lam / np.sqrt(2))
     pb = AdhesiveProblem(grid, h, 1.0, law, prefix="wh_")
     states = [pb.solve(approach=d, raise_on_failure=False) for d in (-0.5, 0.0)]
     out = {"w_over_Ez0": 10.0}
@@ -218,7 +220,7 @@ def _rough(rms, law_name):
         slope = float(np.sqrt(np.mean(np.gradient(hs, axis=0) ** 2 + np.gradient(hs, axis=1) ** 2)))
     w = 0.05
     law = interactions.make_law(law_name, work_of_adhesion=w, z0=1.0)
-    interactions.check_resolution(law, 1.0, 1.0, rms_slope=slope)
+    check_resolution(law, 1.0, 1.0, rms_slope=slope)
     pb = AdhesiveProblem(grid, h, 1.0, law, prefix="rr_")
     # approach: the highest summit (min h = 0) touches at 0; then into the rough layer
     approaches = [-1.0, -0.5, 0.0, 0.25] if rms == 0 else list(np.array([-1.0, 0.0, 0.5, 1.0, 2.0]) * max(rms, 1.0))
@@ -246,7 +248,7 @@ for _rms in (0.0, 1.0, 10.0, 100.0):
 
 @case("near-zero-load-signorini", "loads", "sphere, no adhesion, mean pressure 1e-9 E* (one node in contact)")
 def _near_zero_signorini():
-    from contactpetsc import surfaces
+    from contactpetsc.geometry import surfaces
     from contactpetsc.grid import SurfaceGrid
     from contactpetsc.solvers import ContactProblem
     grid = SurfaceGrid(64, 64, 1.0, periodic=False)
@@ -319,7 +321,7 @@ def _beyond_force():
 
 @case("full-contact-signorini", "full contact", "wavy periodic cell, no adhesion, mean pressure 2 p* (full contact)")
 def _full_signorini():
-    from contactpetsc import surfaces
+    from contactpetsc.geometry import surfaces
     from contactpetsc.grid import SurfaceGrid
     from contactpetsc.solvers import ContactProblem
     grid = SurfaceGrid(64, 32, 1.0, periodic=True)

@@ -16,7 +16,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), os.p
 import petsc4py; petsc4py.init(sys.argv[4:])
 import warnings; warnings.simplefilter("ignore")
 import rough_sphere as rs
-from contactpetsc import surfaces
+from contactpetsc.geometry import surfaces
 from contactpetsc.physics.interactions import make_law
 from contactpetsc.solvers.adhesive import AdhesiveProblem
 n, rms, budget = int(sys.argv[1]), float(sys.argv[2]), float(sys.argv[3])

@@ -13,12 +13,12 @@ from petsc4py import PETSc
 from contactpetsc.grid import SurfaceGrid
 from contactpetsc.paths import central_gap_path, edge_gap_path, refine_pull_off, sweep
 from contactpetsc.physics.interactions import make_law
-from contactpetsc.physics.maugis import dmt_force, maugis_pull_off_bar
+from contactpetsc.physics.closed_forms import dmt_force, maugis_pull_off_bar
 from contactpetsc.physics.traction import AdhesiveTraction
 from contactpetsc.solvers.adhesive import AdhesiveProblem
 from contactpetsc.solvers.problem import ContactProblem
 from contactpetsc.solvers.relaxation import RelaxationSolver
-from contactpetsc.surfaces import from_function, self_affine, sphere
+from contactpetsc.geometry.surfaces import from_function, self_affine, sphere
 
 R = 1000.0
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from contactpetsc import surfaces
+from contactpetsc.geometry import surfaces
 from contactpetsc.grid import SurfaceGrid
 from contactpetsc.solvers import ContactProblem, ContactSolveError
 

@@ -15,7 +15,7 @@ from contactpetsc.grid import SurfaceGrid
 from contactpetsc.physics.interactions import make_law
 from contactpetsc.solvers.adhesive import AdhesiveProblem
 from contactpetsc.solvers.problem import ContactProblem
-from contactpetsc.surfaces import sphere
+from contactpetsc.geometry.surfaces import sphere
 
 Z0, RADIUS, N = 0.3e-9, 30e-9, 48
 #: apex gaps -delta [z0]: approaching to a fifth of z0, then retracting

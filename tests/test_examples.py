@@ -61,7 +61,7 @@ def derjaguin_force(radius, w, z0, approach):
 
 @pytest.mark.serial
 def test_adhesive_api_example_serially_and_on_two_ranks(tmp_path):
-    from contactpetsc.physics.maugis import maugis_pull_off_bar
+    from contactpetsc.physics.closed_forms import maugis_pull_off_bar
     results = []
     for ranks in (1, 2):
         cwd = tmp_path / f"np{ranks}"

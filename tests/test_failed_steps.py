@@ -16,7 +16,7 @@ from contactpetsc.grid import SurfaceGrid
 from contactpetsc.physics.interactions import make_law
 from contactpetsc.solvers.adhesive import AdhesiveProblem
 from contactpetsc.solvers.problem import ContactProblem
-from contactpetsc.surfaces import sphere
+from contactpetsc.geometry.surfaces import sphere
 
 
 def backward_line_search(prefix, value="-1"):

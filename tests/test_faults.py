@@ -11,7 +11,7 @@ SCRIPT = textwrap.dedent("""
     import sys, petsc4py; petsc4py.init(sys.argv)
     from petsc4py import PETSc
     from contactpetsc.grid import SurfaceGrid
-    from contactpetsc import surfaces
+    from contactpetsc.geometry import surfaces
     from contactpetsc.solvers import ContactProblem, preconditioners
 
     def inner(self, f, out):   # a fault on rank 1 only, in the middle of a Krylov solve
@@ -45,20 +45,20 @@ def test_fault_on_one_rank_aborts_the_job(tmp_path):
 # -- the command line: faults, bad input, unused options, a killed sweep ------------------------------
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
            OMPI_MCA_rmaps_base_oversubscribe="1", OMP_NUM_THREADS="1")
-CLI = [sys.executable, "-m", "contactpetsc.cli"]
+CLI = [sys.executable, "-m", "contactpetsc"]
 
 CLI_FAULT = textwrap.dedent("""
     import sys
     from mpi4py import MPI
-    from contactpetsc import cli, runner
+    from contactpetsc.app import builder, cli
 
-    build = runner.build_heights
+    build = builder.build_heights
     def build_heights(scene, grid):   # a fault on rank 1 only, while the others go on to solve
         if MPI.COMM_WORLD.Get_rank() == 1:
             raise OSError("injected fault on rank 1")
         return build(scene, grid)
 
-    runner.build_heights = build_heights
+    builder.build_heights = build_heights
     sys.exit(cli.main(sys.argv[1:]))
 """)
 

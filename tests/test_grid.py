@@ -121,7 +121,7 @@ def test_layout_is_the_dmda_layout(coll):
 def test_check_vec_refuses_a_field_of_another_grid(coll):
     """16 x 12 and 12 x 16 grids have fields of one size (and, on 2 ranks, one local size):
     only the DMDA's sizes tell them apart."""
-    from contactpetsc import surfaces
+    from contactpetsc.geometry import surfaces
     g, other = SurfaceGrid(12, 16, 1.0), SurfaceGrid(16, 12, 1.0)
     v = other.create_vec(1.0)
     coll.raises(GridError, ["heights", "16 x 12", "(nx, ny) = (12, 16)"], g.check_vec, v, "heights")
@@ -179,7 +179,7 @@ def test_dry_run_of_a_huge_grid_allocates_nothing_and_a_run_says_why_it_cannot(t
         resource.setrlimit(resource.RLIMIT_AS, (8 * 2**30, 8 * 2**30))
 
     def run(*extra):
-        return subprocess.run([sys.executable, "-m", "contactpetsc.cli", "run", str(scene),
+        return subprocess.run([sys.executable, "-m", "contactpetsc", "run", str(scene),
                                "--output", str(tmp_path / "out"), *extra], capture_output=True,
                               text=True, env=env, timeout=300, preexec_fn=limit)
 

@@ -17,7 +17,8 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from contactpetsc import output, protocols, scenes, surfaces
+from contactpetsc.app import builder, output, scenes
+from contactpetsc.geometry import surfaces
 from contactpetsc.grid import GridError, SurfaceGrid
 
 DX, DY = 2e-9, 3e-9
@@ -65,8 +66,8 @@ def write_step(directory, nx, ny, stamp=True):
 def test_step_heights_fed_back_are_not_transposed(coll, shared_tmp, nx, ny):
     path = write_step(shared_tmp, nx, ny)
     scene = scenes.validate(file_scene(path, nx, ny))
-    grid = protocols.build_grid(scene)
-    got = grid.gather(protocols.build_heights(scene, grid))
+    grid = builder.build_grid(scene)
+    got = grid.gather(builder.build_heights(scene, grid))
     x, y = np.meshgrid(np.arange(nx) * DX, np.arange(ny) * DY, indexing="ij")
     assert coll.max(np.abs(got - pattern(x, y)).max() / pattern(x, y).max()) <= 1e-15
     # the file keeps (ny, nx): read on one rank, its rows are y
@@ -202,7 +203,7 @@ def test_dry_run_checks_the_height_file(tmp_path):
         scene = tmp_path / f"{name}.toml"
         scene.write_text(f'[geometry]\nkind = "file"\npath = "{tmp_path / name}.npy"\nnx = {nx}\n'
                          f'ny = {ny}\ndx = 1e-9\n[material]\ne_star = 1e9\n[protocol]\nvalues = [1e-10]\n')
-        run = subprocess.run([sys.executable, "-m", "contactpetsc.cli", "run", str(scene), "--dry-run"],
+        run = subprocess.run([sys.executable, "-m", "contactpetsc", "run", str(scene), "--dry-run"],
                              capture_output=True, text=True, env=env, timeout=120)
         assert run.returncode == code, run.stdout + run.stderr
         assert all(w in run.stdout + run.stderr for w in words), run.stdout + run.stderr

@@ -9,7 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from contactpetsc import scenes, surfaces, tips
+from contactpetsc.app import scenes
+from contactpetsc.geometry import surfaces, tips
 from contactpetsc.grid import GridError, SurfaceGrid
 
 

@@ -10,11 +10,11 @@ import time
 import pytest
 from petsc4py import PETSc
 
-from contactpetsc import protocols, scenes
-from contactpetsc.rundir import LOCK, RunDirectoryError
+from contactpetsc.app import runner, scenes
+from contactpetsc.app.rundir import LOCK, RunDirectoryError
 
 ENV = dict(os.environ, OMP_NUM_THREADS="1")
-CLI = [sys.executable, "-m", "contactpetsc.cli"]
+CLI = [sys.executable, "-m", "contactpetsc"]
 
 
 def scene_file(path, out, values, nx=32):
@@ -96,8 +96,8 @@ def test_a_second_run_into_a_run_directory_is_refused_on_every_rank(coll, shared
     s = scenes.validate({"geometry": {"kind": "sphere", "radius": 1e-6, "nx": 16, "dx": 1e-8},
                          "material": {"e_star": 1e9}, "protocol": {"values": [1e-9, 2e-9]},
                          "output": {"directory": str(shared_tmp / "run")}})
-    protocols.run(s, comm=PETSc.COMM_WORLD)
-    coll.raises(RunDirectoryError, ["holds another run", "curve.csv"], protocols.run, s, comm=PETSc.COMM_WORLD)
+    runner.run(s, comm=PETSc.COMM_WORLD)
+    coll.raises(RunDirectoryError, ["holds another run", "curve.csv"], runner.run, s, comm=PETSc.COMM_WORLD)
     assert not (shared_tmp / "run" / LOCK).exists()
-    states = protocols.run(s, comm=PETSc.COMM_WORLD, overwrite=True)
+    states = runner.run(s, comm=PETSc.COMM_WORLD, overwrite=True)
     assert len(states) == 2 and coll.all(all(st.converged for st in states))

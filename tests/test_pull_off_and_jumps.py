@@ -15,7 +15,7 @@ from contactpetsc.grid import SurfaceGrid
 from contactpetsc.paths import refine_pull_off, sweep
 from contactpetsc.physics.interactions import make_law
 from contactpetsc.solvers.adhesive import AdhesiveProblem
-from contactpetsc.surfaces import sphere
+from contactpetsc.geometry.surfaces import sphere
 
 
 def flat_cell(n, w, prefix):
@@ -24,7 +24,7 @@ def flat_cell(n, w, prefix):
     return AdhesiveProblem(grid, grid.create_vec(0.0), 1.0, law, prefix=prefix), law
 
 
-@pytest.mark.filterwarnings("ignore::contactpetsc.physics.interactions.UnderResolvedWarning")
+@pytest.mark.filterwarnings("ignore::contactpetsc.physics.resolution.UnderResolvedWarning")
 @pytest.mark.parametrize("w, approaches", [
     # a coarse load-unload path whose samples straddle the unstable range beyond the peak
     (0.5, [-2.05, -1.0, 0.05, 0.3, 0.05, -1.0, -2.05]),

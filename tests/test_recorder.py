@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from contactpetsc import protocols, runner, scenes
+from contactpetsc.app import builder, runner, scenes
 
 SCENES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "examples", "scenes")
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
            OMPI_MCA_rmaps_base_oversubscribe="1", OMP_NUM_THREADS="1")
-CLI = [sys.executable, "-m", "contactpetsc.cli"]
+CLI = [sys.executable, "-m", "contactpetsc"]
 
 
 def strict_json(path):
@@ -48,7 +48,7 @@ def adhesive_sphere(out, n=64, values=None):
 
 def test_summary_is_json_and_its_jumps_are_the_rows_of_jumps_csv(coll, shared_tmp):
     out = shared_tmp / "sweep"
-    protocols.run(adhesive_sphere(out), comm=PETSc.COMM_WORLD)
+    runner.run(adhesive_sphere(out), comm=PETSc.COMM_WORLD)
     s = strict_json(out / "summary.json")
     with open(out / "jumps.csv", newline="") as f:
         reader = csv.DictReader(f)
@@ -62,7 +62,7 @@ def test_summary_is_json_and_its_jumps_are_the_rows_of_jumps_csv(coll, shared_tm
     opts = PETSc.Options()
     opts.setValue("adhesion_time_budget", "1e-9")
     try:
-        states = protocols.run(adhesive_sphere(shared_tmp / "stopped"), comm=PETSc.COMM_WORLD)
+        states = runner.run(adhesive_sphere(shared_tmp / "stopped"), comm=PETSc.COMM_WORLD)
     finally:
         opts.delValue("adhesion_time_budget")
     assert len(states) == 1 and not coll.all(states[0].converged)
@@ -96,7 +96,7 @@ def test_window_edge_is_reported_against_hertz_contact_radius(coll, shared_tmp, 
     half = 0.5 * (nx - 1) * dx
     approach = (ratio * half) ** 2 / radius
     out = shared_tmp / "hertz"
-    protocols.run(hertz(out, nx, approach, radius, dx), comm=PETSc.COMM_WORLD)
+    runner.run(hertz(out, nx, approach, radius, dx), comm=PETSc.COMM_WORLD)
     reach = float(read_rows(out / "curve.csv")[0]["window_reach"])
     s = strict_json(out / "summary.json")
     log = capfd.readouterr().out
@@ -113,7 +113,7 @@ def test_periodic_cells_have_no_window_reach(coll, shared_tmp):
     s = scenes.validate({"geometry": {"kind": "self-affine", "nx": 16, "dx": 1e-8, "rms_slope": 0.1},
                          "material": {"e_star": 1e9}, "protocol": {"control": "mean_pressure", "values": [5e6]},
                          "output": {"directory": str(shared_tmp / "p"), "fields": False}})
-    protocols.run(s, comm=PETSc.COMM_WORLD)
+    runner.run(s, comm=PETSc.COMM_WORLD)
     assert np.isnan(float(read_rows(shared_tmp / "p" / "curve.csv")[0]["window_reach"]))
 
 
@@ -127,7 +127,7 @@ FILE_SIZE_LIMIT = textwrap.dedent("""
     # step file's write fails inside HDF5 as on a full disk
     signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
     resource.setrlimit(resource.RLIMIT_FSIZE, (20000, 20000))
-    from contactpetsc import cli
+    from contactpetsc.app import cli
     sys.exit(cli.main(sys.argv[1:]))
 """)
 
@@ -162,7 +162,7 @@ def test_a_failed_step_file_write_ends_with_the_error_code_and_no_stray_file(tmp
 @pytest.mark.serial
 def test_plot_of_a_damaged_curve_names_the_file_and_row(tmp_path):
     out = tmp_path / "out"
-    protocols.run(hertz(out, 16, 1e-9), comm=PETSc.COMM_SELF)
+    runner.run(hertz(out, 16, 1e-9), comm=PETSc.COMM_SELF)
     lines = (out / "curve.csv").read_text().splitlines(keepends=True)
     (out / "curve.csv").write_text(lines[0] + lines[1] + "2,loading,2e-9\n")
     proc = subprocess.run(CLI + ["plot", str(out)], env=ENV, capture_output=True, text=True, timeout=120)
@@ -177,10 +177,10 @@ def test_plot_of_a_damaged_curve_names_the_file_and_row(tmp_path):
 def test_petsc_failure_building_the_grid_is_told_in_the_users_terms(coll, monkeypatch):
     def fails(*args, **kwargs):
         raise PETSc.Error(55)
-    monkeypatch.setattr(runner, "SurfaceGrid", fails)
+    monkeypatch.setattr(builder, "SurfaceGrid", fails)
     coll.raises(RuntimeError, ["cannot build the 4096 x 4096 grid", "geometry.nx", "out of memory",
                                "PETSc error code 55", "MiB per rank"],
-                runner.build_grid, hertz("unused", 4096, 1e-9))
+                builder.build_grid, hertz("unused", 4096, 1e-9))
 
 
 @pytest.mark.serial
@@ -190,7 +190,7 @@ def test_cli_reports_a_petsc_error_by_its_meaning(tmp_path):
         import sys, petsc4py
         petsc4py.init(sys.argv)
         from petsc4py import PETSc
-        from contactpetsc import cli, steppers
+        from contactpetsc.app import cli, steppers
         def solve(self, value):
             raise PETSc.Error(76)
         steppers.ContactSteps.step = solve
@@ -216,7 +216,7 @@ def test_a_failed_parallel_step_file_write_ends_every_rank(tmp_path):
         def fail(self, key, value):
             raise OSError(28, "No space left on device")
         h5py.Dataset.__setitem__ = fail
-        from contactpetsc import cli
+        from contactpetsc.app import cli
         sys.exit(cli.main(sys.argv[1:]))
     """))
     out = tmp_path / "out"

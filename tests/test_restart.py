@@ -19,13 +19,13 @@ import h5py
 import pytest
 from petsc4py import PETSc
 
-from contactpetsc import protocols, scenes
-from contactpetsc.rundir import RunDirectoryError
+from contactpetsc.app import runner, scenes
+from contactpetsc.app.rundir import RunDirectoryError
 
 SCENES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "examples", "scenes")
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
            OMPI_MCA_rmaps_base_oversubscribe="1", OMP_NUM_THREADS="1")
-CLI = [sys.executable, "-m", "contactpetsc.cli"]
+CLI = [sys.executable, "-m", "contactpetsc"]
 needs_mpirun = pytest.mark.skipif(shutil.which("mpirun") is None, reason="needs mpirun")
 
 
@@ -193,16 +193,16 @@ def rough(out, **change):
 ])
 def test_restart_of_another_problem_is_refused_naming_the_keys(coll, shared_tmp, change, named):
     out = shared_tmp / "run"
-    protocols.run(rough(out), comm=PETSc.COMM_WORLD)
+    runner.run(rough(out), comm=PETSc.COMM_WORLD)
     before = (out / "curve.csv").read_text() if coll.rank == 0 else None
-    coll.raises(RunDirectoryError, ["cannot restart", "another problem", named], protocols.run,
+    coll.raises(RunDirectoryError, ["cannot restart", "another problem", named], runner.run,
                 rough(out, **change), comm=PETSc.COMM_WORLD, restart=True)
     if coll.rank == 0:
         assert (out / "curve.csv").read_text() == before          # nothing written
     # output keys, the name and the solver's settings may differ; more values continue the path
     more = rough(out, protocol__values=[5e6, 1e7, 2e7], output__plots=False, solver__tol=1e-9)
     more["name"] = "renamed"
-    states = protocols.run(more, comm=PETSc.COMM_WORLD, restart=True)
+    states = runner.run(more, comm=PETSc.COMM_WORLD, restart=True)
     assert len(states) == 1 and coll.all(states[0].converged)
 
 
@@ -212,16 +212,16 @@ def test_damaged_files_are_refused_or_redone_naming_the_file(coll, shared_tmp):
     solved again, to the uninterrupted run's result."""
     world = PETSc.COMM_WORLD.tompi4py()
     ref = shared_tmp / "ref"
-    full = protocols.run(rough(ref, protocol__values=[5e6, 1e7, 2e7]), comm=PETSc.COMM_WORLD)
+    full = runner.run(rough(ref, protocol__values=[5e6, 1e7, 2e7]), comm=PETSc.COMM_WORLD)
     out = shared_tmp / "run"
-    protocols.run(rough(out, protocol__values=[5e6, 1e7, 2e7]), comm=PETSc.COMM_WORLD)
+    runner.run(rough(out, protocol__values=[5e6, 1e7, 2e7]), comm=PETSc.COMM_WORLD)
     scene = rough(out, protocol__values=[5e6, 1e7, 2e7, 3e7])
     good = (out / "curve.csv").read_text() if coll.rank == 0 else None
     step1 = (out / "step_0001.h5").read_bytes() if coll.rank == 0 else None
     if coll.rank == 0:
         (out / "step_0001.h5").write_bytes(step1[: len(step1) // 2])
     world.Barrier()
-    coll.raises(RunDirectoryError, ["cannot restart", "step_0001.h5"], protocols.run, scene,
+    coll.raises(RunDirectoryError, ["cannot restart", "step_0001.h5"], runner.run, scene,
                 comm=PETSc.COMM_WORLD, restart=True)
     if coll.rank == 0:
         (out / "step_0001.h5").write_bytes(step1)
@@ -229,12 +229,12 @@ def test_damaged_files_are_refused_or_redone_naming_the_file(coll, shared_tmp):
         lines[2] = ",".join(lines[2].split(",")[:5]) + "\n"         # row 2 cut short
         (out / "curve.csv").write_text("".join(lines))
     world.Barrier()
-    coll.raises(RunDirectoryError, ["curve.csv, row 2", "columns"], protocols.run, scene,
+    coll.raises(RunDirectoryError, ["curve.csv, row 2", "columns"], runner.run, scene,
                 comm=PETSc.COMM_WORLD, restart=True)
     if coll.rank == 0:
         (out / "curve.csv").write_text(good[: len(good) - 40])     # the last row half-written
     world.Barrier()
-    states = protocols.run(rough(out, protocol__values=[5e6, 1e7, 2e7]), comm=PETSc.COMM_WORLD, restart=True)
+    states = runner.run(rough(out, protocol__values=[5e6, 1e7, 2e7]), comm=PETSc.COMM_WORLD, restart=True)
     assert len(states) == 1                                          # step 3 solved again
     assert coll.max(abs(states[0].approach - full[2].approach) / abs(full[2].approach)) <= 1e-8
     with open(out / "curve.csv") as f:
@@ -243,7 +243,7 @@ def test_damaged_files_are_refused_or_redone_naming_the_file(coll, shared_tmp):
 
 def test_step_files_carry_the_axis_order_and_restart_checks_it(coll, shared_tmp):
     out = shared_tmp / "run"
-    protocols.run(rough(out), comm=PETSc.COMM_WORLD)
+    runner.run(rough(out), comm=PETSc.COMM_WORLD)
     world = PETSc.COMM_WORLD.tompi4py()
     if coll.rank == 0:
         with h5py.File(out / "step_0002.h5", "r+") as f:
@@ -251,5 +251,5 @@ def test_step_files_carry_the_axis_order_and_restart_checks_it(coll, shared_tmp)
             assert f["pressure"].shape == (16, 16)
             f.attrs["axes"] = "x,y"
     world.Barrier()
-    coll.raises(RunDirectoryError, ["step_0002.h5", "axes 'x,y'"], protocols.run,
+    coll.raises(RunDirectoryError, ["step_0002.h5", "axes 'x,y'"], runner.run,
                 rough(out, protocol__values=[5e6, 1e7, 2e7]), comm=PETSc.COMM_WORLD, restart=True)

@@ -16,11 +16,13 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from contactpetsc import output, protocols, scenes, surfaces
+from contactpetsc.app import builder, output, runner, scenes
+from contactpetsc.geometry import surfaces
 from contactpetsc.grid import GridError, SurfaceGrid
 from contactpetsc.operators.elastic import half_space
-from contactpetsc.physics.interactions import (RESOLUTION_NODES, UnderResolvedWarning, adhesive_zone_length,
-                                               check_resolution, make_law)
+from contactpetsc.physics.interactions import make_law
+from contactpetsc.physics.resolution import (RESOLUTION_NODES, UnderResolvedWarning, adhesive_zone_length,
+                                             check_resolution)
 from contactpetsc.solvers import ContactProblem
 from contactpetsc.solvers.adhesive import AdhesiveProblem
 
@@ -133,15 +135,20 @@ def test_resolution_criterion_and_warning():
 
 
 def test_under_resolved_scene_warns():
+    """The scene's one resolution check (the builder's, with the sphere's radius)."""
+    def check(scene):
+        valid = scenes.validate(scene)
+        return builder.resolution_nodes(valid, builder.build_law(valid))
+
     scene = {"geometry": {"kind": "sphere", "radius": 20.0, "nx": 32, "dx": 1.0},
              "material": {"e_star": 1.0}, "protocol": {"values": [0.0]},
              "interaction": {"law": "hardwall-lj", "work_of_adhesion": 0.028, "z0": 0.25}}
     with pytest.warns(UnderResolvedWarning, match="spans 1.7 grid spacings"):
-        scenes.validate(scene)
+        check(scene)
     scene["geometry"]["dx"] = 0.25
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        scenes.validate(scene)
+        check(scene)
 
 
 # -- bad input: the field and the accepted range, on every rank -------------------------------------
@@ -191,7 +198,7 @@ def test_grids_beyond_32_bit_indices_fail_before_allocating(coll):
     coll.raises(GridError, ["64-bit indices", f"{n} x {n}"], SurfaceGrid, n, n, 1e-9)
     scene = scenes.validate({"geometry": {"kind": "sphere", "radius": 1e-6, "nx": n, "dx": 1e-9},
                              "material": {"e_star": 1e9}, "protocol": {"values": [1e-9]}})
-    coll.raises(GridError, "64-bit indices", protocols.build_grid, scene)
+    coll.raises(GridError, "64-bit indices", builder.build_grid, scene)
 
 
 def test_truncated_hdf5_heights_and_restart_files(coll, shared_tmp):
@@ -213,13 +220,13 @@ def test_truncated_hdf5_heights_and_restart_files(coll, shared_tmp):
                              "material": {"e_star": 1e9},
                              "protocol": {"control": "mean_pressure", "values": [5e6, 1e7]},
                              "output": {"directory": str(shared_tmp / "run")}})
-    protocols.run(scene, comm=PETSc.COMM_WORLD)
+    runner.run(scene, comm=PETSc.COMM_WORLD)
     step = shared_tmp / "run" / "step_0002.h5"
     if coll.rank == 0:
         raw = step.read_bytes()
         step.write_bytes(raw[: len(raw) // 3])
     PETSc.COMM_WORLD.tompi4py().Barrier()
-    coll.raises(RuntimeError, ["cannot restart from", "step_0002.h5"], protocols.run, scene,
+    coll.raises(RuntimeError, ["cannot restart from", "step_0002.h5"], runner.run, scene,
                 comm=PETSc.COMM_WORLD, restart=True)
 
 
@@ -236,7 +243,7 @@ def test_unwritable_output_directory_is_reported_before_the_solve(coll, monkeypa
     rank, and no solve was started."""
     solved = []
     monkeypatch.setattr(ContactProblem, "solve", lambda self, **kw: solved.append(kw))
-    coll.raises(OSError, ["output directory '/proc'", "not writable"], protocols.run, _scene("/proc"),
+    coll.raises(OSError, ["output directory '/proc'", "not writable"], runner.run, _scene("/proc"),
                 comm=PETSc.COMM_WORLD)
     assert not solved
 
@@ -248,7 +255,7 @@ def test_full_output_directory_is_reported_before_the_solve(coll, shared_tmp, mo
     solved = []
     monkeypatch.setattr(ContactProblem, "solve", lambda self, **kw: solved.append(kw))
     monkeypatch.setattr(os, "statvfs", lambda path: Full())
-    coll.raises(OSError, ["0.0 MiB free", "2 steps of 5 fields of 16 x 16"], protocols.run,
+    coll.raises(OSError, ["0.0 MiB free", "2 steps of 5 fields of 16 x 16"], runner.run,
                 _scene(str(shared_tmp / "full")), comm=PETSc.COMM_WORLD)
     assert not solved
 

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from contactpetsc import protocols, scenes
+from contactpetsc.app import runner, scenes
 
 
 def minimal(**geometry):
@@ -83,7 +83,7 @@ def _run(comm, out, values=(5e6, 1e7), restart=False):
                                             "dy": 1.5e-8, "rms_slope": 0.1, "seed": 3},
         "material": {"e_star": 1e9}, "protocol": {"control": "mean_pressure", "values": list(values)},
         "solver": {"tol": 1e-10}, "output": {"directory": out}})
-    return protocols.run(scene, comm=comm, restart=restart)
+    return runner.run(scene, comm=comm, restart=restart)
 
 
 def test_scene_run_writes_outputs_equal_on_any_rank_count(coll, shared_tmp):
@@ -93,7 +93,7 @@ def test_scene_run_writes_outputs_equal_on_any_rank_count(coll, shared_tmp):
     with open(os.path.join(world, "curve.csv")) as f:
         rows = list(csv.DictReader(f))
     assert [r["step"] for r in rows] == ["1", "2"]
-    assert set(protocols.CURVE_COLUMNS) == set(rows[0])
+    assert set(runner.CURVE_COLUMNS) == set(rows[0])
     assert all(np.isfinite(float(r[c])) for r in rows for c in ("approach_m", "force_N", "fft_pairs"))
     assert all(float(r["mean_pressure_Pa"]) == pytest.approx(v, rel=1e-9) for r, v in zip(rows, [5e6, 1e7]))
     with open(os.path.join(world, "history.csv")) as f:
@@ -200,11 +200,11 @@ def test_example_scenes_run_at_reduced_size(coll, shared_tmp, path):
     mpirun the same files, to the solver's tolerance, as the scene run on one rank."""
     scene = reduced(path, plots=True)
     out = os.path.join(shared_tmp, os.path.basename(path))
-    states = protocols.run(scene, output=out, comm=PETSc.COMM_WORLD)
+    states = runner.run(scene, output=out, comm=PETSc.COMM_WORLD)
     assert coll.all(all(st.converged for st in states))
     values = scene["protocol"]["values"]
     rows = read_curve(out)
-    assert list(rows[0]) == protocols.CURVE_COLUMNS and [int(r["step"]) for r in rows] == list(
+    assert list(rows[0]) == runner.CURVE_COLUMNS and [int(r["step"]) for r in rows] == list(
         range(1, len(values) + 1))
     # the branch of each step follows the prescribed values: loading where they rise
     assert [r["branch"] for r in rows] == ["loading"] + [
@@ -244,7 +244,7 @@ def test_example_scenes_run_at_reduced_size(coll, shared_tmp, path):
     check_plots(out)
     if coll.size > 1:
         alone = os.path.join(shared_tmp, f"self{coll.rank}")
-        protocols.run(reduced(path), output=alone, comm=PETSc.COMM_SELF)
+        runner.run(reduced(path), output=alone, comm=PETSc.COMM_SELF)
         worst = 0.0
         for a, b in zip(rows, read_curve(alone)):
             for c in ("approach_m", "force_N"):
@@ -275,7 +275,7 @@ def _run_adhesive(comm, out, values, restart=False):
         "interaction": {"law": "lj", "work_of_adhesion": 0.1, "z0": 0.3e-9},
         "protocol": {"control": "approach", "values": list(values), "refine_pull_off": False},
         "output": {"directory": out}})
-    return protocols.run(scene, comm=comm, restart=restart)
+    return runner.run(scene, comm=comm, restart=restart)
 
 
 def test_interrupted_adhesive_sweep_resumes_from_both_pressures(coll, shared_tmp):
@@ -298,7 +298,7 @@ def test_plots_draw_the_data_they_are_given():
     """load_approach: each branch's markers at its own steps, the jumps as arrows between the
     located states, the pull-off line at the pull-off force; pressure_map: the field itself on a
     diverging colour scale centred at zero."""
-    from contactpetsc import plots
+    from contactpetsc.app import plots
     approach = np.array([-3.0, -2.0, -1.0, 0.0, -1.0, -2.0, -3.0]) * 1e-10      # m
     force = np.array([-1.0, -2.0, -9.0, -6.0, -9.5, -3.0, -1.5]) * 1e-9          # N
     branch = ["loading"] * 4 + ["unloading"] * 3
@@ -341,12 +341,12 @@ def test_plots_need_matplotlib_before_the_run_starts(coll, shared_tmp, monkeypat
     scene = scenes.validate(dict(minimal(), output={"plots": True}))
     out = os.path.join(shared_tmp, "no-matplotlib")
     coll.raises(ImportError, ["output.plots needs matplotlib", "pip install matplotlib"],
-                protocols.run, scene, output=out, comm=PETSc.COMM_WORLD)
+                runner.run, scene, output=out, comm=PETSc.COMM_WORLD)
     assert not os.path.exists(out)          # refused before anything was solved or written
 
 
 # -- the command line, as a user runs it ---------------------------------------------------------
-CLI = [sys.executable, "-m", "contactpetsc.cli"]
+CLI = [sys.executable, "-m", "contactpetsc"]
 ENV = dict(os.environ, OMP_NUM_THREADS="1", OMPI_ALLOW_RUN_AS_ROOT="1",
            OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", OMPI_MCA_rmaps_base_oversubscribe="1")
 PROGRESS = re.compile(r"^\s+(\d+)\s+(\S+)\s+(\S+).*\[step (\d+)/(\d+), ([\d.]+) s, ~([\d.]+) s left\]$")
@@ -430,7 +430,7 @@ def test_atomic_tip_forces_per_atom_add_up_to_the_load(coll, shared_tmp):
     scene["protocol"]["values"] = [-0.2e-9, 0.0, 0.1e-9, -0.3e-9]
     scene["output"]["fields"] = False
     out = os.path.join(shared_tmp, "tip")
-    states = protocols.run(scene, output=out, comm=PETSc.COMM_WORLD)
+    states = runner.run(scene, output=out, comm=PETSc.COMM_WORLD)
     assert coll.all(all(st.converged for st in states))
     with open(os.path.join(out, "atom_forces.csv")) as f:
         rows = list(csv.DictReader(f))

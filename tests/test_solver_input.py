@@ -9,7 +9,7 @@ from contactpetsc.grid import SurfaceGrid
 from contactpetsc.physics.interactions import make_law
 from contactpetsc.solvers.adhesive import AdhesiveProblem
 from contactpetsc.solvers.problem import ContactProblem
-from contactpetsc.surfaces import sphere
+from contactpetsc.geometry.surfaces import sphere
 
 LJ = make_law("lj", work_of_adhesion=0.1, z0=1.0)
 

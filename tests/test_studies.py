@@ -134,7 +134,7 @@ def test_smooth_sphere_higher_tabor_jumps_and_maugis_pull_off(coll):
     jump-off last, ending at a smaller approach than the jump-on; pull-off within 8 % of
     Maugis-Dugdale (lambda = 1.16 mu), between DMT and JKR; positive hysteresis; the central-gap
     path passes through unstable states (the S-curve)."""
-    from contactpetsc.physics.maugis import maugis_pull_off_bar
+    from contactpetsc.physics.closed_forms import maugis_pull_off_bar
     ss = study("smooth_sphere")
     mu, r = 1.0, 100.0
     w = np.sqrt(mu ** 3 / r)
@@ -156,7 +156,7 @@ def test_smooth_sphere_hard_wall_law_at_higher_tabor(coll):
     """mu = 1, hard-wall law (the example's mu = 2 path costs minutes): every state converged,
     a jump-on and a later jump-off at a smaller approach, pull-off within 8 % of Maugis-Dugdale
     (lambda = 1.16 mu), between DMT and JKR; positive hysteresis."""
-    from contactpetsc.physics.maugis import maugis_pull_off_bar
+    from contactpetsc.physics.closed_forms import maugis_pull_off_bar
     ss = study("smooth_sphere")
     mu, r = 1.0, 100.0
     w = np.sqrt(mu ** 3 / r)
@@ -191,7 +191,7 @@ def test_rough_sphere_small(coll):
     """Rough sphere (mu = 1) at 32^2: the load is met, ratios in [0, 1], pull-off tensile and no
     stronger than the smooth sphere's JKR/DMT bound, hysteresis >= 0 within its sampling error
     (a closed quasi-static cycle dissipates energy, never creates it)."""
-    from contactpetsc import surfaces
+    from contactpetsc.geometry import surfaces
     rs = study("rough_sphere")
     grid, _ = rs.make_grid(32, 1.0)
     base = rs.roughness(grid)
@@ -210,7 +210,7 @@ def test_rough_sphere_small(coll):
 def test_same_tabor_parameter_same_gaps_at_the_same_approach(coll):
     """E* -> 4 E*, w -> 4 w at the same approach: the gaps are the same (the problem is
     invariant, p -> 4 p), so the ratios are too (the paper's Fig. 8 discussion)."""
-    from contactpetsc import surfaces
+    from contactpetsc.geometry import surfaces
     from contactpetsc.physics.interactions import make_law
     from contactpetsc.solvers.adhesive import AdhesiveProblem
     rs = study("rough_sphere")

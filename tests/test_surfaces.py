@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from contactpetsc import surfaces
+from contactpetsc.geometry import surfaces
 from contactpetsc.grid import GridError, SurfaceGrid
 
 COMMS = (("world", PETSc.COMM_WORLD), ("self", PETSc.COMM_SELF))

@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from contactpetsc import metrics, tips
+from contactpetsc import metrics
+from contactpetsc.geometry import tips
 from contactpetsc.grid import GridError, SurfaceGrid
-from contactpetsc.surfaces import centre
+from contactpetsc.geometry.surfaces import centre
 
 COMMS = (PETSc.COMM_WORLD, PETSc.COMM_SELF)
 

@@ -34,7 +34,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..fft import SlabRFFT, log_event
-from ..errors import collective_guard
+from ..collective import collective_guard
 from ..grid import SurfaceGrid
 from ..lifetime import destroy_at_exit
 from .love import love_displacement

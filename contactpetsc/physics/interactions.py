@@ -21,10 +21,32 @@ Laws
                  lies in the repulsive range: a typo).
 ``exponential``  hard wall, p = -(w/rho) exp(-g/rho), Phi = -w exp(-g/rho).
 ``dugdale``      Maugis-Dugdale: hard wall, p = -sigma0 for 0 < g < w/sigma0.
+
+Each law declares its parameters (``Parameter``: name, unit, accepted range, meaning) and is
+registered by name (``register_law``); the scene schema, its docs and ``make_law`` read the
+registry, so a new law is one class here (docs/formulation.md, "Interaction laws").
 """
 from __future__ import annotations
 
+import math
+from typing import NamedTuple
+
 import numpy as np
+
+#: an open interval (0, inf): (low, high, low included?, high included?)
+POSITIVE = (0.0, math.inf, False, False)
+
+
+class Parameter(NamedTuple):
+    """A law parameter as a scene gives it: ``interaction.<name>`` [unit] in ``range``."""
+    name: str
+    unit: str
+    doc: str
+    range: tuple = POSITIVE
+
+
+#: the parameter every adhesive law takes
+WORK_OF_ADHESION = Parameter("work_of_adhesion", "J/m^2", "work of adhesion w")
 
 
 class InteractionLaw:
@@ -33,6 +55,12 @@ class InteractionLaw:
     name = "base"
     hard_wall = True
     work_of_adhesion = 0.0
+    #: the constructor's keyword arguments, work_of_adhesion first (``make_law``, the scene schema)
+    parameters: tuple = ()
+    #: one line for the docs (docs/scenes.md lists the registered laws)
+    summary = ""
+    #: a singular law's gap [m] below which the traction is continued linearly (physics.traction)
+    safe_gap = None
 
     def pressure(self, gap):
         raise NotImplementedError
@@ -77,6 +105,7 @@ class NoAdhesion(InteractionLaw):
     """Signorini contact, eq. (4): hard wall, zero traction at any positive gap."""
 
     name = "none"
+    summary = "Signorini contact (eq. 4): hard wall, no adhesion"
 
     def __init__(self, work_of_adhesion: float = 0.0):
         # a work of adhesion with a law that has none would be silently ignored
@@ -91,17 +120,22 @@ class NoAdhesion(InteractionLaw):
     energy = pressure
 
 
-_UNITS = {"work_of_adhesion": "J/m^2", "z0": "m", "rho": "m", "sigma0": "Pa"}
-
-
-def _check_positive(**kw):
-    for key, value in kw.items():
+def check_parameters(law, **values) -> None:
+    """ValueError naming the parameter, its value and its accepted range (the law's ``parameters``)."""
+    for p in type(law).parameters:
+        value = values[p.name]
+        lo, hi, lo_in, hi_in = p.range
         try:
-            ok = bool(np.isfinite(value) and value > 0)
+            ok = bool(np.isfinite(value) and (value >= lo if lo_in else value > lo)
+                      and (value <= hi if hi_in else value < hi))
         except TypeError:
             ok = False
         if not ok:
-            raise ValueError(f"{key} = {value!r}: accepted range (0, inf) {_UNITS[key]} (finite and > 0)")
+            bounds = f"{'[' if lo_in else '('}{lo:g}, {hi:g}{']' if hi_in else ')'}"
+            raise ValueError(f"{p.name} = {value!r}: accepted range {bounds} {p.unit} (finite)")
+
+
+SAFE_SEPARATION = 0.5  #: z_safe / z0 for the full Lennard-Jones curve (physics.traction)
 
 
 class LennardJones(InteractionLaw):
@@ -109,14 +143,21 @@ class LennardJones(InteractionLaw):
 
     name = "lj"
     hard_wall = False
+    parameters = (WORK_OF_ADHESION, Parameter("z0", "m", "equilibrium separation"))
+    summary = "the full Lennard-Jones curve (eq. 8), no hard wall"
 
     def __init__(self, work_of_adhesion: float, z0: float):
-        _check_positive(work_of_adhesion=work_of_adhesion, z0=z0)
+        check_parameters(self, work_of_adhesion=work_of_adhesion, z0=z0)
         self.work_of_adhesion, self.z0 = float(work_of_adhesion), float(z0)
         self.p_scale = 8.0 * self.work_of_adhesion / (3.0 * self.z0)
 
     def length_scale(self) -> float:
         return self.z0
+
+    @property
+    def safe_gap(self) -> float:
+        """g at z = SAFE_SEPARATION z0 [m]: below it the singular curve is continued linearly."""
+        return (SAFE_SEPARATION - 1.0) * self.z0
 
     @property
     def peak_attraction(self) -> float:
@@ -147,6 +188,7 @@ class HardWallLennardJones(LennardJones):
 
     name = "hardwall-lj"
     hard_wall = True
+    summary = "hard wall and Lennard-Jones attraction (eq. 7)"
 
     def _g(self, gap):
         return np.maximum(np.asarray(gap, dtype=float), 0.0)
@@ -165,9 +207,11 @@ class Exponential(InteractionLaw):
     """Hard wall and exponential attraction p = -(w/rho) exp(-g/rho)."""
 
     name = "exponential"
+    parameters = (WORK_OF_ADHESION, Parameter("rho", "m", "decay length"))
+    summary = "hard wall and exponential attraction (for comparison)"
 
     def __init__(self, work_of_adhesion: float, rho: float):
-        _check_positive(work_of_adhesion=work_of_adhesion, rho=rho)
+        check_parameters(self, work_of_adhesion=work_of_adhesion, rho=rho)
         self.work_of_adhesion, self.rho = float(work_of_adhesion), float(rho)
 
     def length_scale(self) -> float:
@@ -193,9 +237,11 @@ class Dugdale(InteractionLaw):
     """Maugis-Dugdale: hard wall and constant attraction sigma0 up to the range w / sigma0."""
 
     name = "dugdale"
+    parameters = (WORK_OF_ADHESION, Parameter("sigma0", "Pa", "Dugdale stress"))
+    summary = "Maugis-Dugdale: hard wall and constant attraction (for comparison)"
 
     def __init__(self, work_of_adhesion: float, sigma0: float):
-        _check_positive(work_of_adhesion=work_of_adhesion, sigma0=sigma0)
+        check_parameters(self, work_of_adhesion=work_of_adhesion, sigma0=sigma0)
         self.work_of_adhesion, self.sigma0 = float(work_of_adhesion), float(sigma0)
         self.range = self.work_of_adhesion / self.sigma0
 
@@ -219,13 +265,37 @@ class Dugdale(InteractionLaw):
         return np.where(g < self.range, -self.work_of_adhesion + self.sigma0 * g, 0.0)
 
 
-LAWS = {"none": NoAdhesion, "hardwall-lj": HardWallLennardJones, "lj": LennardJones,
-        "exponential": Exponential, "dugdale": Dugdale}
+#: the registered laws by name (``register_law``)
+LAWS: dict = {}
+
+
+def register_law(cls):
+    """Register an ``InteractionLaw`` subclass under its ``name`` (a class decorator): ``make_law``
+    builds it and the scene schema accepts it with its ``parameters``."""
+    if cls.name in LAWS and LAWS[cls.name] is not cls:
+        raise ValueError(f"an interaction law named {cls.name!r} is registered already ({LAWS[cls.name].__name__})")
+    if cls.parameters and cls.parameters[0] != WORK_OF_ADHESION:
+        raise ValueError(f"law {cls.name!r}: its parameters must start with WORK_OF_ADHESION")
+    taken = {"law", "element_integration"} & {p.name for p in cls.parameters}
+    if taken:
+        raise ValueError(f"law {cls.name!r}: parameter name(s) {sorted(taken)} are scene keys of their own")
+    for other in LAWS.values():   # a scene key means one thing for every law that takes it
+        for p in cls.parameters:
+            clash = [q for q in other.parameters if q.name == p.name and (q.unit, q.range) != (p.unit, p.range)]
+            if clash:
+                raise ValueError(f"law {cls.name!r}: parameter {p.name!r} differs from law {other.name!r}'s "
+                                 f"({p} vs {clash[0]})")
+    LAWS[cls.name] = cls
+    return cls
+
+
+for _law in (NoAdhesion, HardWallLennardJones, LennardJones, Exponential, Dugdale):
+    register_law(_law)
 
 
 def make_law(name: str, **params) -> InteractionLaw:
-    """Build a law by name: none; hardwall-lj / lj (work_of_adhesion, z0);
-    exponential (work_of_adhesion, rho); dugdale (work_of_adhesion, sigma0)."""
+    """Build a registered law by name with its ``parameters`` as keywords, e.g.
+    ``make_law("lj", work_of_adhesion=0.1, z0=0.3e-9)``."""
     if name not in LAWS:
         raise ValueError(f"interaction law must be one of {sorted(LAWS)}, got {name!r}")
     return LAWS[name](**params)
@@ -241,57 +311,3 @@ def lj_from_atomistic(epsilon: float, r0: float) -> tuple[float, float]:
     z0 = (2/15)^(1/6) r0, w = 9 epsilon / (2 pi z0^2)."""
     z0 = (2.0 / 15.0) ** (1.0 / 6.0) * r0
     return 9.0 * epsilon / (2.0 * np.pi * z0**2), z0
-
-
-# -- grid resolution of the adhesive zone -------------------------------------------------------------
-#: the adhesive zone must span at least this many grid spacings (docs/robustness.md)
-RESOLUTION_NODES = 4.0
-
-
-class UnderResolvedWarning(UserWarning):
-    """The grid is too coarse for the adhesive zone (``check_resolution``)."""
-
-
-def adhesive_zone_length(law: InteractionLaw, e_star: float, *, radius: float | None = None,
-                         rms_slope: float | None = None) -> dict:
-    """Estimates [m] of the width of the band near a contact edge where the adhesive traction acts.
-
-    ``cohesive``  (pi/4) E* w / sigma_max^2: the cohesive-zone length at the tip of the adhesive
-                  crack (Dugdale-Barenblatt with the law's peak attraction sigma_max; for LJ
-                  0.75 E* z0^2 / w): the zone at the JKR end (large Tabor parameter).
-    ``sphere``    sqrt(2 R range): where a rigid sphere's gap is below the law's range (DMT end).
-    ``slope``     range / rms_slope: where a rough surface's gap changes by one range.
-    ``zone``      the smallest of those given: the zone is no wider than any of them.
-    """
-    if not law.adhesive:
-        return {"zone": np.inf}
-    rng = law.length_scale()
-    out = {"cohesive": np.pi / 4.0 * e_star * law.work_of_adhesion / law.peak_attraction ** 2}
-    if radius is not None:
-        out["sphere"] = np.sqrt(2.0 * radius * rng)
-    if rms_slope:
-        out["slope"] = rng / rms_slope
-    out["zone"] = min(out.values())
-    return out
-
-
-def check_resolution(law: InteractionLaw, e_star: float, dx: float, *, radius: float | None = None,
-                     rms_slope: float | None = None, warn: bool = True) -> float:
-    """Nodes per adhesive zone, l_zone / dx (``adhesive_zone_length``, dx the larger spacing).
-
-    Below ``RESOLUTION_NODES`` the adhesive traction is sampled too coarsely: forces depend on
-    where the nodes fall, and Newton may stall; an ``UnderResolvedWarning`` states the criterion.
-    The same on every rank (it depends on the parameters only).
-    """
-    zl = adhesive_zone_length(law, e_star, radius=radius, rms_slope=rms_slope)
-    nodes = zl["zone"] / dx
-    if warn and nodes < RESOLUTION_NODES:
-        import warnings
-        parts = ", ".join(f"{k} {v:.3g} m" for k, v in zl.items() if k != "zone")
-        warnings.warn(
-            f"under-resolved adhesion ({law.name}, range {law.length_scale():.3g} m): the adhesive zone "
-            f"l_zone = {zl['zone']:.3g} m (smallest of: {parts}) spans {nodes:.2g} grid spacings of "
-            f"{dx:.3g} m; the criterion is l_zone >= {RESOLUTION_NODES:g} dx (docs/robustness.md). "
-            f"Refine the grid (dx <= {zl['zone'] / RESOLUTION_NODES:.3g} m) or expect grid-dependent "
-            f"forces and slow or failed convergence", UnderResolvedWarning, stacklevel=2)
-    return nodes

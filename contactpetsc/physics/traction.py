@@ -18,8 +18,8 @@ Two discretisations of an interaction law (``interactions.py``):
 
 Hard-wall laws only act for g > 0 (eq. 7): a = p(max(g, 0)), and the
 derivative is zero where g <= 0, where the contact pressure takes over.
-The full Lennard-Jones curve (eq. 8) is singular at z = g + z0 = 0: below
-z = z_safe (0.5 z0, where the law's pressure is already 504 times the
+A singular law declares a ``safe_gap``: the full Lennard-Jones curve (eq. 8)
+is singular at z = g + z0 = 0, and below z = z_safe (0.5 z0, where the law's pressure is already 504 times the
 adhesive pressure scale 8w/(3 z0)) it is continued linearly, so that no
 Newton iterate produces NaN; a converged state that reaches that range is
 flagged by ``beyond_safe_range``.
@@ -29,9 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..grid import SurfaceGrid
-from .interactions import InteractionLaw, LennardJones
-
-SAFE_SEPARATION = 0.5  #: z_safe / z0 for the full Lennard-Jones curve
+from .interactions import InteractionLaw
 
 
 class AdhesiveTraction:
@@ -49,9 +47,8 @@ class AdhesiveTraction:
         self.law, self.grid = law, grid
         self.element_integration = bool(element_integration)
         self.hard_wall = law.hard_wall
-        self.g_safe = None
-        if not law.hard_wall and isinstance(law, LennardJones):
-            self.g_safe = (SAFE_SEPARATION - 1.0) * law.z0
+        self.g_safe = None if law.hard_wall else law.safe_gap
+        if self.g_safe is not None:
             self._p_safe = float(law.pressure(self.g_safe))
             self._d_safe = float(law.derivative(self.g_safe))
             self._e_safe = float(law.energy(self.g_safe))

@@ -51,11 +51,12 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..errors import collective_guard
+from ..collective import collective_guard
 from ..grid import SurfaceGrid
 from ..lifetime import destroy_at_exit
 from ..operators.elastic import HalfSpaceOperator, half_space
-from ..physics.interactions import RESOLUTION_NODES, InteractionLaw, UnderResolvedWarning, check_resolution
+from ..physics.interactions import InteractionLaw
+from ..physics.resolution import RESOLUTION_NODES, UnderResolvedWarning, check_resolution
 from ..physics.traction import AdhesiveTraction
 from .adhesive_jacobian import AdhesiveJacobian, minloc
 from .history import SolveHistory

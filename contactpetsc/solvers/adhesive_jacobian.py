@@ -22,7 +22,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..errors import collective_guard
+from ..collective import collective_guard
 from .reduced import InactiveSet, python_submatrix
 
 

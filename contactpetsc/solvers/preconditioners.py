@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from mpi4py import MPI
 
-from ..errors import collective_guard
+from ..collective import collective_guard
 
 
 class ReducedPreconditioner:

@@ -46,11 +46,11 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..errors import collective_guard
+from ..collective import collective_guard
 from ..grid import SurfaceGrid
 from ..lifetime import destroy_at_exit
 from ..operators.elastic import HalfSpaceOperator, half_space
-from ..surfaces import rms_height
+from ..geometry.surfaces import rms_height
 from .history import SolveHistory
 from .reduced import ContactJacobian
 from .transfer import can_halve, halved, prolong_bilinear, prolong_constant, restrict
@@ -95,7 +95,7 @@ class ContactProblem:
     ----------
     grid : SurfaceGrid
     heights : PETSc.Vec
-        Composite surface h [m] on ``grid`` (e.g. from ``contactpetsc.surfaces``).
+        Composite surface h [m] on ``grid`` (e.g. from ``contactpetsc.geometry.surfaces``).
     e_star : float
         Effective modulus E* [Pa].
     prefix : str

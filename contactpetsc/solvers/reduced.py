@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from petsc4py import PETSc
 
-from ..errors import collective_guard
+from ..collective import collective_guard
 from ..lifetime import destroy_at_exit
 
 

@@ -4,7 +4,7 @@
     mpirun -n 2 python examples/studies/atomic_tips.py
 
 The four tips of Luan & Robbins (2006) as hard-sphere profiles
-(``contactpetsc.tips``): bent commensurate, bent incommensurate, amorphous,
+(``contactpetsc.geometry.tips``): bent commensurate, bent incommensurate, amorphous,
 stepped; radius R = 100 sigma, counter-surface spacing d = 2^(1/6) sigma,
 atom radius d / 2.  LJ units (sigma = epsilon = 1): tip-substrate epsilon_ts
 = 0.5 epsilon and r0 = sigma give, by the paper's relations
@@ -78,7 +78,8 @@ def effective_work_estimate(path):
 
 def tip_study(kind, cfg, out):
     import numpy as np
-    from contactpetsc import metrics, tips
+    from contactpetsc import metrics
+    from contactpetsc.geometry import tips
     from contactpetsc.grid import SurfaceGrid
     from contactpetsc.paths import sweep
     from contactpetsc.physics.interactions import lj_from_atomistic, make_law
@@ -135,7 +136,7 @@ def resolution_study(outdir, resolutions=RESOLUTIONS, load_star=1.0, step=0.5) -
     (the default run's) at every dx.  Writes resolution.csv and fig12_resolution.png; the
     ranking at each dx, and the finest dx from which it no longer changes."""
     import numpy as np
-    from contactpetsc import tips
+    from contactpetsc.geometry import tips
     out = common.prepare(outdir)
     rows = []
     for k in resolutions:
@@ -174,7 +175,7 @@ def resolution_study(outdir, resolutions=RESOLUTIONS, load_star=1.0, step=0.5) -
 
 
 def run(size="default", outdir="atomic-tips-output") -> dict:
-    from contactpetsc import tips
+    from contactpetsc.geometry import tips
     if size == "resolution":
         return resolution_study(outdir)
     cfg = SIZES[size]

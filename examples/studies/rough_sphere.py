@@ -69,7 +69,7 @@ def make_grid(n, mu, comm=None):
 
 def roughness(grid, seed=1):
     """The one random pattern (Gaussian autocorrelation, unit rms)."""
-    from contactpetsc import surfaces
+    from contactpetsc.geometry import surfaces
     corr = common.jkr_contact_radius(R, work_for(2.0), E_STAR, LOAD) / 6
     return surfaces.gaussian_correlated(grid, rms_height=1.0, correlation_length=corr, seed=seed)
 
@@ -106,7 +106,8 @@ def load_unload(grid, heights, e_star, w, step, prefix, unload=True, refine=4):
 def run(size="default", outdir="rough-sphere-output", rms=None) -> dict:
     import numpy as np
     from petsc4py import PETSc
-    from contactpetsc import metrics, surfaces
+    from contactpetsc import metrics
+    from contactpetsc.geometry import surfaces
     from contactpetsc.physics.interactions import tabor_parameter
 
     cfg = dict(SIZES[size])
@@ -167,7 +168,8 @@ def fig8(grid, base, out, rms=2.0, mu=2.0, stiff=4.0):
     """Reference, stiffer, and stiffer with w scaled (same mu) at rms = 2 z0: same load and
     same approach; gaps and ratios at the same approach compared."""
     import numpy as np
-    from contactpetsc import metrics, surfaces
+    from contactpetsc import metrics
+    from contactpetsc.geometry import surfaces
     h = surfaces.rough_sphere(grid, R, surfaces.scale_to_rms(grid, base, rms * Z0))
     w = work_for(mu)
     cases = [("reference", E_STAR, w), ("E* x4", stiff * E_STAR, w), ("E* x4, w x4", stiff * E_STAR, stiff * w)]
@@ -218,7 +220,7 @@ def collect(dirs, outdir) -> list[dict]:
     ``--size tabor5``): their rough_sphere.csv rows and paths_*.csv, merged into --out."""
     from pathlib import Path
     from types import SimpleNamespace
-    from contactpetsc.plots import read_csv
+    from contactpetsc.app.plots import read_csv
 
     def read(path):
         cols = read_csv(path)

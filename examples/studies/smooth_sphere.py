@@ -60,7 +60,7 @@ RATIO_CASES = [
 def greenwood_case(mu, radius, law_name, n, dx, approaches, prefix, central_gaps=None, refine=6):
     """Loading and unloading (and optionally central-gap) paths of a sphere in z0 = E* = 1."""
     import numpy as np
-    from contactpetsc import surfaces
+    from contactpetsc.geometry import surfaces
     from contactpetsc.grid import SurfaceGrid
     from contactpetsc.paths import central_gap_path, edge_gap_path, refine_pull_off, sweep
     from contactpetsc.physics.interactions import make_law
@@ -94,7 +94,8 @@ def ratio_case(label, e_star, radius, w, load, n):
     """Adhesion ratios of a smooth sphere at a net load [N] (lj law): loaded from
     separation under displacement control, then load control to the target."""
     import numpy as np
-    from contactpetsc import metrics, surfaces
+    from contactpetsc import metrics
+    from contactpetsc.geometry import surfaces
     from contactpetsc.physics.interactions import make_law, tabor_parameter
     from contactpetsc.solvers.adhesive import AdhesiveProblem
 
@@ -118,7 +119,7 @@ def ratio_case(label, e_star, radius, w, load, n):
 
 def run(size="default", outdir="smooth-sphere-output") -> dict:
     import numpy as np
-    from contactpetsc.physics.maugis import dmt_force, maugis_pull_off_bar
+    from contactpetsc.physics.closed_forms import dmt_force, maugis_pull_off_bar
 
     cfg = SIZES[size]
     out = common.prepare(outdir)
@@ -207,7 +208,7 @@ def _hyst(path) -> float:
 
 def _plots(out, low, high, r_low, r_high, ratios):
     import numpy as np
-    from contactpetsc.physics.maugis import dmt_force
+    from contactpetsc.physics.closed_forms import dmt_force
     plt = common.plt()
     fig, axes = plt.subplots(1, 3, figsize=(16, 5))
     for ax, cases, r, title in ((axes[0], {"lj": low["lj"]}, r_low, "(a) mu = 0.02, full LJ"),

@@ -24,7 +24,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .errors import collective_call
+from ..collective import collective_call
 from .output import AXES, write_state, write_text_atomic
 
 CURVE_COLUMNS = ["step", "branch", "approach_m", "force_N", "mean_pressure_Pa", "contact_fraction",
@@ -191,7 +191,7 @@ class StepRecorder:
         step = row["step"]
         share = 0.0
         if not self.grid.periodic:
-            from .metrics import window_reach
+            from ..metrics import window_reach
             row["window_reach"], share = window_reach(self.grid, st.pressure, self.zone_threshold)
         if self.provenance is not None:
             write_state(self.out_dir, step, self.grid, self.heights, st, self.provenance)
@@ -250,14 +250,14 @@ class StepRecorder:
                         lambda: self._append_history(problem) if self.rank0 else None)
 
     def _append_history(self, problem) -> None:
-        from .solvers.history import SolveHistory
+        from ..solvers.history import SolveHistory
         new = problem.history.records[self.history_written:]
         self.history_written += len(new)
         path = self.path("history.csv")
         append_text(path, SolveHistory(records=new).csv_text(header=not os.path.exists(path)))
 
     def _atom_rows(self, step: int, st) -> list:
-        from .metrics import atom_forces
+        from ..metrics import atom_forces
         tip, _, owner = self.tip
         f = atom_forces(self.grid, st.pressure, owner, len(tip.atoms))
         rows = []

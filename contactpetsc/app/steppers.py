@@ -1,6 +1,6 @@
 """Steppers: how the runner's loop (``runner.run``) solves one step of a scene's path.
 
-A stepper builds its problem from the scene, solves one prescribed value at
+A stepper drives the problem the builder made (``builder.build_problem``), one prescribed value at
 a time (``step``: the state and the jumps found on the way), fills the
 columns of a step's row that are its own (``row``), prints its progress
 columns, takes up a restarted path (``resume``) and gives the path's
@@ -20,13 +20,6 @@ from petsc4py import PETSc
 NAN = float("nan")
 
 
-def _push_options(prefix: str, options: dict) -> None:
-    opts = PETSc.Options(prefix)
-    for key, value in options.items():
-        if not opts.hasName(key):  # the command line wins over the scene
-            opts.setValue(key, str(value))
-
-
 class ContactSteps:
     """Signorini contact (no adhesion); a failed step is written and the path goes on."""
     stop_on_failure = False
@@ -34,19 +27,12 @@ class ContactSteps:
     zone_threshold = 0.0          #: the contact zone: p > 0
     fields = ("pressure",)
 
-    def __init__(self, scene: dict, grid, heights):
-        from .solvers import ContactProblem
-        _push_options("contact_", scene["solver"]["options"])
+    def __init__(self, scene: dict, grid, problem, relax=None):
         g = scene["geometry"]
-        self.grid, self.control = grid, scene["protocol"]["control"]
+        self.grid, self.control, self.problem = grid, scene["protocol"]["control"], problem
         self.e_star = scene["material"]["e_star"]
         self.hertz = g["kind"] == "sphere" and not g["periodic"] and scene["interaction"]["law"] == "none"
         self.radius = g["radius"]
-        self.problem = ContactProblem(
-            grid, heights, self.e_star, tol=scene["solver"]["tol"] or 1e-10,
-            preconditioner=scene["solver"]["preconditioner"],
-            length_scale=(max(scene["protocol"]["values"]) if self.hertz and self.control == "approach"
-                          else None))
         self.header = (f"  {'step':>4} {'approach [m]':>12} {'force [N]':>11} {'contact':>8} {'error':>9} "
                        f"{'Newton':>6} {'time [s]':>8}" + (f" {'F/F_Hertz':>9} {'a/a_Hertz':>9}" if self.hertz
                                                              else ""))
@@ -66,10 +52,10 @@ class ContactSteps:
         line = (f"  {row['step']:4d} {st.approach:12.4e} {st.force:11.4e} {st.contact_fraction:8.4f} "
                 f"{st.complementarity_error:9.2e} {st.newton_iterations:6d} {st.wall_time:8.2f}")
         if self.hertz:
-            from .physics.maugis import hertz_force
-            f_h = float(hertz_force(self.e_star, self.radius, max(st.approach, 0.0)))
+            from ..physics.closed_forms import hertz_contact_radius, hertz_force
+            f_h = float(hertz_force(self.e_star, self.radius, st.approach))
             a_num = np.sqrt(st.contact_fraction * self.grid.lengths[0] * self.grid.lengths[1] / np.pi)
-            a_h = np.sqrt(self.radius * max(st.approach, 0.0))
+            a_h = float(hertz_contact_radius(self.radius, st.approach))
             line += f" {st.force / f_h:9.5f} {a_num / a_h:9.4f}" if f_h > 0 else ""
         return line
 
@@ -85,22 +71,12 @@ class AdhesiveSteps:
     stop_on_failure = True
     fields = ("contact_pressure", "adhesive_pressure")
 
-    def __init__(self, scene: dict, grid, heights):
-        from .metrics import CUTOFF
-        from .paths import Path
-        from .physics.interactions import make_law
-        from .solvers.adhesive import AdhesiveProblem
-        from .solvers.relaxation import RelaxationSolver
-        it, sol, self.proto, g = scene["interaction"], scene["solver"], scene["protocol"], scene["geometry"]
-        _push_options("adhesion_", sol["options"])
-        params = {"hardwall-lj": "z0", "lj": "z0", "exponential": "rho", "dugdale": "sigma0"}[it["law"]]
-        self.law = law = make_law(it["law"], work_of_adhesion=it["work_of_adhesion"], **{params: it[params]})
-        tol = sol["tol"] if sol["tol"] is not None else (1e-4 if sol["method"] == "relaxation" else None)
-        self.problem = AdhesiveProblem(grid, heights, scene["material"]["e_star"], law,
-                                       element_integration=it["element_integration"],
-                                       tol=tol if sol["method"] == "newton" else None,
-                                       preconditioner=sol["preconditioner"])
-        self.relax = RelaxationSolver(self.problem, tol=tol) if sol["method"] == "relaxation" else None
+    def __init__(self, scene: dict, grid, problem, relax=None):
+        from ..metrics import CUTOFF
+        from ..paths import Path
+        self.proto, g = scene["protocol"], scene["geometry"]
+        self.problem, self.relax, self.law = problem, relax, problem.law
+        law = self.law
         self.grid, self.z0, self.radius = grid, law.length_scale(), g["radius"]
         self.sphere = g["kind"] in ("sphere", "tip") and not g["periodic"]   # Greenwood's scaling with R
         self.zone_threshold = CUTOFF * law.peak_attraction   # the paper's adhesive-zone cut-off
@@ -116,7 +92,7 @@ class AdhesiveSteps:
         """The path on disk: its points and jumps (for the pull-off and the next jump), the most
         tensile stable state solved again from its file (for the pull-off refinement), then the
         last state as the warm start."""
-        from .paths import Jump
+        from ..paths import Jump
         rows = recorder.rows
         if self.path is not None:
             self.path.points = [_point(r) for r in rows]
@@ -147,7 +123,7 @@ class AdhesiveSteps:
                             f"({st.reason}): the pull-off refinement starts from the new steps only")
 
     def step(self, value: float):
-        from .paths import central_gap_path, sweep
+        from ..paths import central_gap_path, sweep
         if self.relax is not None:
             return self.relax.solve(approach=value, raise_on_failure=False), []
         got, n = [], len(self.path.jumps)
@@ -169,7 +145,7 @@ class AdhesiveSteps:
         return st, jumps
 
     def row(self, st) -> dict:
-        from .metrics import adhesion_ratios, greenwood
+        from ..metrics import adhesion_ratios, greenwood
         load_ratio, area_ratio = adhesion_ratios(self.grid, st.pressure, self.law.peak_attraction)
         a_star, w_star = (greenwood(st.approach, st.force, self.radius, self.law.work_of_adhesion, self.z0)
                           if self.sphere else (NAN, NAN))
@@ -196,7 +172,7 @@ class AdhesiveSteps:
 
     def finish(self) -> dict:
         """The pull-off force refined by golden section (``protocol.refine_pull_off``)."""
-        from .paths import refine_pull_off
+        from ..paths import refine_pull_off
         if not self.sweeping:
             return {}
         pull, refined = self.path.pull_off_force, False
@@ -212,7 +188,7 @@ class AdhesiveSteps:
 
 def _point(row: dict):
     """A ``paths.PathPoint`` of a ``curve.csv`` row (a restarted path's earlier steps)."""
-    from .paths import PathPoint
+    from ..paths import PathPoint
     flag = {"True": True, "False": False}
     num = {c: float(row[c]) for c in ("approach_m", "central_gap_m", "force_N", "adhesive_force_N",
                                       "contact_fraction", "fft_pairs", "wall_time_s",

@@ -1,4 +1,4 @@
-"""Closed-form adhesive sphere contact: Hertz, DMT, JKR and Maugis-Dugdale.
+"""Closed forms of sphere contact: Hertz, DMT, JKR and Maugis-Dugdale (docs/validation.md).
 
 Units: SI.  K = 4 E* / 3.  Maugis-Dugdale in the nondimensional form of
 Johnson & Greenwood (1997): A = a (K / (pi w R^2))^(1/3),
@@ -22,6 +22,11 @@ def hertz_force(e_star: float, radius: float, approach):
     """Hertz load (4/3) E* R^1/2 delta^3/2 [N] (zero for delta <= 0)."""
     d = np.maximum(np.asarray(approach, dtype=float), 0.0)
     return 4.0 / 3.0 * e_star * np.sqrt(radius) * d ** 1.5
+
+
+def hertz_contact_radius(radius: float, approach):
+    """Hertz contact radius a = sqrt(R delta) [m] (zero for delta <= 0)."""
+    return np.sqrt(radius * np.maximum(np.asarray(approach, dtype=float), 0.0))
 
 
 def hertz_gap_outside(radius: float, contact_radius: float, r):

@@ -28,7 +28,7 @@ import socket
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .errors import collective_call
+from ..collective import collective_call
 
 LOCK = ".contactpetsc.lock"
 SCENE = "scene.json"

@@ -1,8 +1,8 @@
 """Run a validated scene: one loop over the protocol's steps, one recorder of what they give.
 
 A path is a list of approaches or loads solved in order, each warm-started
-from the previous state.  ``run`` builds the grid and the heights, opens the
-output directory (``rundir``: locked, one run per directory, the scene stored
+from the previous state.  ``run`` has the scene built (``builder``: grid, law,
+the one resolution check, heights, problem), opens the output directory (``rundir``: locked, one run per directory, the scene stored
 for a restart to compare), and then solves step after step with the scene's
 stepper (``steppers``: Signorini contact, or adhesion with jumps and the
 pull-off force), handing each state to the ``recorder.StepRecorder``, which
@@ -13,82 +13,36 @@ from __future__ import annotations
 
 from petsc4py import PETSc
 
-from . import rundir, surfaces
-from .errors import collective_call, petsc_error_message
-from .grid import SurfaceGrid
+from . import builder, rundir
+from ..collective import collective_call
+from ..grid import SurfaceGrid
 from .output import ADHESIVE_FIELDS, FIELDS
 from .recorder import CURVE_COLUMNS, NAN, StepRecorder
 
-__all__ = ["run", "plan", "build_grid", "build_heights", "build_tip", "CURVE_COLUMNS"]
+__all__ = ["run", "plan", "CURVE_COLUMNS"]
 
 
-def build_grid(scene: dict, comm=None) -> SurfaceGrid:
-    g = scene["geometry"]
-    try:
-        return SurfaceGrid(g["nx"], g["ny"], g["dx"], g["dy"], periodic=g["periodic"], comm=comm,
-                           row_alignment=16)
-    except PETSc.Error as exc:
-        size = (comm or PETSc.COMM_WORLD).getSize()
-        raise RuntimeError(f"cannot build the {g['nx']} x {g['ny']} grid (geometry.nx, geometry.ny) on {size} "
-                           f"rank(s), about {memory_per_rank(scene, size) / 2**20:.0f} MiB per rank: "
-                           f"{petsc_error_message(exc)}; use a smaller grid or more ranks") from None
-
-
-def memory_per_rank(scene: dict, size: int) -> float:
-    """Bytes per rank a run needs, estimated: FFT buffers (~5 doubles per transform point, 4
-    points per node on an isolated window) and solver vectors (~20 doubles per node)."""
-    g = scene["geometry"]
-    n = g["nx"] * g["ny"]
-    fft_points = n * (1 if g["periodic"] else 4)
-    return (5 * fft_points + 20 * n) * 8 / size
-
-
-def build_tip(scene: dict, grid: SurfaceGrid):
-    """(tip, heights, owner) of a ``kind = tip`` scene (``tips.py``)."""
-    from . import tips
-    g = scene["geometry"]
-    tip = tips.make_tip(g["tip"], grid, g["radius"], g["atom_spacing"], atom_radius=g["atom_radius"],
-                        seed=g["seed"])
-    h, owner = tips.profile(grid, tip)
-    return tip, h, owner
-
-
-def build_heights(scene: dict, grid: SurfaceGrid) -> PETSc.Vec:
-    g = scene["geometry"]
-    if g["kind"] == "tip":
-        return build_tip(scene, grid)[1]
-    if g["kind"] == "sphere":
-        return surfaces.sphere(grid, g["radius"])
-    if g["kind"] == "file":
-        return surfaces.from_file(grid, g["path"], g["dataset"])
-    return surfaces.self_affine(grid, hurst=g["hurst"], seed=g["seed"], rms_height=g["rms_height"],
-                                rms_slope=g["rms_slope"], rolloff_wavelength=g["rolloff_wavelength"],
-                                short_cutoff_wavelength=g["short_cutoff_wavelength"])
-
-
-def plan(scene: dict, grid: SurfaceGrid, out_dir: str | None = None) -> list[str]:
+def plan(scene: dict, grid: SurfaceGrid, law=None, out_dir: str | None = None) -> list[str]:
     """What a run will do: grid, decomposition, solver chain, memory, outputs (dry run and log
-    header)."""
-    from .scenes import adhesive
+    header); ``law`` the builder's (``builder.build_law``), None without adhesion."""
     g, sol = scene["geometry"], scene["solver"]
-    if adhesive(scene):
+    if law is not None:
         it = scene["interaction"]
-        law = f"law {it['law']}, w = {it['work_of_adhesion']:g} J/m^2" + (
+        law_text = f"law {law.name}, w = {law.work_of_adhesion:g} J/m^2" + (
             ", element-integrated" if it["element_integration"] else "")
-        from .physics.interactions import LAWS
-        from .solvers.adhesive import newton_ksp_type
-        ksp = newton_ksp_type(LAWS[it["law"]].hard_wall)
+        from ..solvers.adhesive import newton_ksp_type
+        ksp = newton_ksp_type(law.hard_wall)
         chain = (f"  solver: SNES vinewtonrsls on (contact, adhesive) pressures (prefix adhesion_), "
                  f"KSP {ksp}, preconditioner {sol['preconditioner']}, Lanczos stability check"
                  if sol["method"] == "newton" else
                  "  solver: the reference paper's MLMI relaxation (prefix adhesion_relax_), E_Total tol "
                  f"{sol['tol'] or 1e-4:g} z0")
     else:
-        law = "no adhesion (Signorini)"
+        law_text = "no adhesion (Signorini)"
         chain = (f"  solver: SNES vinewtonrsls (prefix contact_), KSP cg, preconditioner "
                  f"{sol['preconditioner']}, tol {sol['tol'] or 1e-10:g}")
-    per_rank = memory_per_rank(scene, grid.mpi_comm.Get_size())
-    return [f"scene {scene['name']}: {g['kind']} surface, E* = {scene['material']['e_star']:g} Pa, {law}",
+    per_rank = builder.memory_per_rank(scene, grid.mpi_comm.Get_size())
+    return [f"scene {scene['name']}: {g['kind']} surface, E* = {scene['material']['e_star']:g} Pa, {law_text}",
             f"  {grid}",
             f"  rows per rank {[b - a for a, b in grid.y_ranges]}",
             chain,
@@ -105,10 +59,11 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
     ``restart``: keep the steps on disk (the same physics, ``rundir``) and resume after
     the last one.  ``overwrite``: remove another run's files from the directory first.
     """
-    from .scenes import adhesive
     from .steppers import AdhesiveSteps, ContactSteps
-    grid = build_grid(scene, comm)
-    for line in plan(scene, grid, output):
+    grid = builder.build_grid(scene, comm)
+    law = builder.build_law(scene)
+    builder.resolution_nodes(scene, law)   # the one resolution check, a dry run's too
+    for line in plan(scene, grid, law, output):
         PETSc.Sys.Print(line)
     if dry_run:
         return []
@@ -116,12 +71,13 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
         from .plots import require
         collective_call(grid.mpi_comm, ImportError, "{error}", require)
     # a tip's profile and atom ownership are built once, for the solve and the forces per atom
-    tip = build_tip(scene, grid) if scene["geometry"]["kind"] == "tip" else None
-    h = tip[1] if tip else build_heights(scene, grid)
+    tip = builder.build_tip(scene, grid) if scene["geometry"]["kind"] == "tip" else None
+    h = tip[1] if tip else builder.build_heights(scene, grid)
     out_dir = output or scene["output"]["directory"]
     stored = rundir.open_directory(scene, grid, out_dir, restart=restart, overwrite=overwrite)
     try:
-        stepper = (AdhesiveSteps if adhesive(scene) else ContactSteps)(scene, grid, h)
+        problem, relax = builder.build_problem(scene, grid, h, law)
+        stepper = (ContactSteps if law is None else AdhesiveSteps)(scene, grid, problem, relax)
         recorder = StepRecorder(scene, grid, h, out_dir, stepper.header, stepper.progress,
                                 tip=tip if scene["output"]["atom_forces"] else None,
                                 zone_threshold=stepper.zone_threshold,

@@ -53,11 +53,20 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+#: PETSc options that PETSc consumes at initialisation (not kept in the options database), with
+#: the number of words that follow them (docs/scenes.md, "Command line")
+CONSUMED = {"options_file": 1, "options_file_yaml": 1, "options_string_yaml": 1, "prefix_push": 1,
+            "prefix_pop": 0}
+
+
 def _without_petsc_options(words, petsc_options: dict) -> list:
     """The command-line words minus PETSc options and their values (as PETSc parsed them)."""
     out, i = [], 0
     while i < len(words):
         w = words[i]
+        if w.startswith("-") and not w.startswith("--") and w[1:] in CONSUMED:
+            i += 1 + CONSUMED[w[1:]]
+            continue
         if w.startswith("-") and not w.startswith("--") and w[1:] in petsc_options:
             value = petsc_options[w[1:]]
             i += 2 if (value and i + 1 < len(words) and words[i + 1] == str(value)) else 1
@@ -125,7 +134,7 @@ def main(argv=None) -> int:
         return 0 if all(st.converged for st in states) else 3
     except Exception as exc:  # noqa: BLE001 - reported, then the whole job ends
         if isinstance(exc, PETSc.Error):
-            from .errors import petsc_error_message
+            from ..collective import petsc_error_message
             exc = f"{petsc_error_message(exc)}; rerun with -log_trace or -info for PETSc's own account"
         sys.stderr.write(f"contactpetsc [rank {comm.Get_rank()}]: error: {exc}\n")
         sys.stderr.flush()

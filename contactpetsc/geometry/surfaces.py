@@ -15,9 +15,9 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .errors import collective_call
-from .fft import SlabRFFT
-from .grid import GridError, SurfaceGrid
+from ..collective import collective_call
+from ..fft import SlabRFFT
+from ..grid import GridError, SurfaceGrid
 
 
 class HeightDtypeWarning(UserWarning):

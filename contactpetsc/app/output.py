@@ -16,7 +16,7 @@ import os
 import h5py
 import numpy as np
 
-from .errors import collective_call
+from ..collective import collective_call
 
 FIELDS = ("pressure", "gap", "displacement", "heights", "contact")
 ADHESIVE_FIELDS = ("contact_pressure", "adhesive_pressure", "adhesive")
@@ -33,7 +33,7 @@ def versions() -> dict:
     import petsc4py
     from mpi4py import MPI
     from petsc4py import PETSc
-    from . import __version__
+    from .. import __version__
     return {
         "contactpetsc": __version__,
         "PETSc": "%d.%d.%d" % PETSc.Sys.getVersion(),

@@ -1,4 +1,8 @@
-"""Errors inside PETSc callbacks must not deadlock an MPI job.
+"""Collective error handling: a failure on one rank is loud on every rank, never a hang.
+
+``collective_call`` raises one rank's error on every rank (file I/O, input checks);
+``petsc_error_message`` names a PETSc error by its meaning.  Errors inside PETSc callbacks
+must not deadlock an MPI job either (docs/robustness.md, "Faults").
 
 A Python exception raised in a Mat, PC or SNES callback on one rank only
 leaves the other ranks waiting in the next collective (an all-reduce inside

@@ -7,12 +7,16 @@ geometry kind or interaction law would ignore, loads too small to be more than
 round-off, and a ``kind = "file"`` scene's height file (checked from its
 metadata, so a dry run checks it too).  The built-in default scene (``DEFAULT_SCENE``)
 is a scene like any other.  Sections and keys are documented in
-docs/scenes.md (generated from ``SCHEMA`` by ``schema_markdown``).
+docs/scenes.md (generated from ``SCHEMA`` by ``schema_markdown``).  The interaction
+section is derived from the law registry (``physics.interactions.LAWS``): its law choices and
+each law's parameters, required and refused, come from the laws' own declarations.
 """
 from __future__ import annotations
 
 import math
 import tomllib
+
+from ..physics.interactions import LAWS, WORK_OF_ADHESION
 
 POS = (0.0, math.inf, False, False)      # (low, high, low included?, high included?)
 NONNEG = (0.0, math.inf, True, False)
@@ -28,7 +32,7 @@ def _k(kind, default, unit, doc, rng=None, choices=None):
     return dict(kind=kind, default=default, unit=unit, doc=doc, range=rng, choices=choices)
 
 
-SCHEMA = {
+_SCHEMA = {
     "name": _k(str, "scene", "", "label used in outputs"),
     "geometry": {
         "kind": _k(str, "sphere", "", "composite surface", choices=("sphere", "self-affine", "file", "tip")),
@@ -58,15 +62,11 @@ SCHEMA = {
     "material": {
         "e_star": _k(float, None, "Pa", "effective modulus E* (required)", POS),
     },
-    "interaction": {
-        "law": _k(str, "none", "", "interaction law (docs/formulation.md): Signorini, the reference "
-                  "paper's eq. 7 and eq. 8, or for comparison exponential and Maugis-Dugdale",
-                  choices=("none", "hardwall-lj", "lj", "exponential", "dugdale")),
-        "work_of_adhesion": _k(float, 0.0, "J/m^2", "w; 0 means no adhesion (and is the only value for "
-                               "law none)", NONNEG),
-        "z0": _k(float, None, "m", "equilibrium separation (hardwall-lj, lj)", POS),
-        "rho": _k(float, None, "m", "decay length (exponential)", POS),
-        "sigma0": _k(float, None, "Pa", "Dugdale stress (dugdale)", POS),
+    "interaction": {   # law choices and law parameters: filled in from the registry (schema())
+        "law": _k(str, "none", "", "interaction law (docs/formulation.md; the registered laws are listed "
+                  "below these tables)", choices=()),
+        "work_of_adhesion": _k(float, 0.0, WORK_OF_ADHESION.unit, "w; 0 means no adhesion (and is the only "
+                               "value for law none)", NONNEG),
         "element_integration": _k(bool, False, "", "the paper's element-integrated adhesion (Fig. 3) "
                                   "instead of nodal sampling"),
     },
@@ -104,6 +104,36 @@ SCHEMA = {
                           "(nodal pressure over its footprint) at every step (kind = tip)"),
     },
 }
+
+def law_keys(law: str) -> tuple:
+    """The ``interaction`` keys a registered law takes besides work_of_adhesion."""
+    return tuple(p.name for p in LAWS[law].parameters if p.name != WORK_OF_ADHESION.name)
+
+
+def _law_section() -> dict:
+    """The interaction section with the registered laws: their names as the law's choices and
+    each parameter as a key (its doc naming the laws that take it)."""
+    static = _SCHEMA["interaction"]
+    section = {"law": dict(static["law"], choices=tuple(LAWS)), "work_of_adhesion": static["work_of_adhesion"]}
+    for name, cls in LAWS.items():
+        for p in cls.parameters[1:]:
+            if p.name not in section:
+                users = [n for n in LAWS if p.name in law_keys(n)]
+                section[p.name] = _k(float, None, p.unit, f"{p.doc} ({', '.join(users)})", p.range)
+    section["element_integration"] = static["element_integration"]
+    return section
+
+
+def schema() -> dict:
+    """The scene schema with the laws registered now (``SCHEMA`` is this, read on access)."""
+    return dict(_SCHEMA, interaction=_law_section())
+
+
+def __getattr__(name):
+    if name == "SCHEMA":
+        return schema()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 DEFAULT_SCENE = {
     "name": "hertz-sphere",
@@ -146,11 +176,11 @@ def validate(scene: dict) -> dict:
     metadata; no rank talks to another: every rank reaches the same verdict on a shared file)."""
     if not isinstance(scene, dict):
         raise SceneError("a scene is a table of sections")
-    out = {}
+    out, spec_all = {}, schema()
     for key in scene:
-        if key not in SCHEMA:
-            raise SceneError(f"unknown key {key!r}; accepted: {', '.join(SCHEMA)}")
-    for key, spec in SCHEMA.items():
+        if key not in spec_all:
+            raise SceneError(f"unknown key {key!r}; accepted: {', '.join(spec_all)}")
+    for key, spec in spec_all.items():
         if "kind" in spec and isinstance(spec["kind"], type):  # a top-level key
             out[key] = _check_value(key, spec, scene.get(key, spec["default"]))
             continue
@@ -179,8 +209,6 @@ def validate(scene: dict) -> dict:
         raise SceneError("output.atom_forces needs geometry.kind = tip (forces per atom of a tip)")
     _check_interaction(out, _given(scene, "interaction"))
     _check_protocol(out)
-    if adhesive(out):
-        _check_adhesive_resolution(out)
     if g["kind"] == "file":
         _check_height_file(g)
     return out
@@ -190,7 +218,7 @@ def _given(scene: dict, section: str) -> set:
     """Keys of ``section`` set to something other than their default (a validated scene
     validates again)."""
     return {k for k, v in scene.get(section, {}).items()
-            if v is not None and v != SCHEMA[section][k]["default"]}
+            if v is not None and v != schema()[section][k]["default"]}
 
 
 #: the geometry keys each kind uses (besides kind, nx, ny, dx, dy, periodic)
@@ -199,8 +227,6 @@ KIND_KEYS = {"sphere": ("radius",),
              "self-affine": ("hurst", "rms_height", "rms_slope", "rolloff_wavelength",
                              "short_cutoff_wavelength", "seed"),
              "file": ("path", "dataset")}
-#: the parameter each interaction law takes besides work_of_adhesion
-LAW_PARAMETER = {"hardwall-lj": "z0", "lj": "z0", "exponential": "rho", "dugdale": "sigma0"}
 
 
 def _check_geometry(g: dict, given: set) -> None:
@@ -239,14 +265,14 @@ def _check_geometry(g: dict, given: set) -> None:
 
 def _check_interaction(out: dict, given: set) -> None:
     it, law = out["interaction"], out["interaction"]["law"]
-    if law == "none":
-        if it["work_of_adhesion"] > 0:
-            raise SceneError(f"interaction.work_of_adhesion = {it['work_of_adhesion']!r} with "
-                             f"interaction.law = 'none': set a law ({', '.join(LAW_PARAMETER)}) for "
-                             f"adhesion, or work_of_adhesion = 0")
-    for key in sorted(given & set(LAW_PARAMETER.values())):
-        if LAW_PARAMETER.get(law) != key:
-            users = [name for name, k in LAW_PARAMETER.items() if k == key]
+    adhesive_laws = [n for n, cls in LAWS.items() if cls.parameters]
+    if not LAWS[law].parameters and it["work_of_adhesion"] > 0:
+        raise SceneError(f"interaction.work_of_adhesion = {it['work_of_adhesion']!r} with "
+                         f"interaction.law = {law!r}: set a law ({', '.join(adhesive_laws)}) for "
+                         f"adhesion, or work_of_adhesion = 0")
+    for key in sorted(given - {"law", "work_of_adhesion", "element_integration"}):
+        if key not in law_keys(law):
+            users = [n for n in LAWS if key in law_keys(n)]
             raise SceneError(f"interaction.{key} is not used by interaction.law = {law!r} (only by "
                              f"law = {', '.join(users)})")
     if not adhesive(out):
@@ -260,15 +286,16 @@ def _check_interaction(out: dict, given: set) -> None:
             raise SceneError("protocol.control = 'central_gap' needs adhesion (interaction.law and "
                              "interaction.work_of_adhesion > 0)")
         return
-    needed = LAW_PARAMETER[law]
-    if it[needed] is None:
-        raise SceneError(f"interaction.{needed} is required for interaction.law = {law}")
+    for needed in law_keys(law):
+        if it[needed] is None:
+            raise SceneError(f"interaction.{needed} is required for interaction.law = {law}")
     if out["protocol"]["control"] in ("mean_pressure", "force"):
         raise SceneError(f"protocol.control = {out['protocol']['control']!r} with adhesion: load "
                          f"control is unstable on parts of adhesive paths; use approach or central_gap")
-    if out["solver"]["method"] == "relaxation" and law == "lj":
-        raise SceneError("solver.method = 'relaxation' needs a hard-wall law (hardwall-lj, "
-                         "exponential, dugdale); the full LJ curve (lj) is solved by newton")
+    if out["solver"]["method"] == "relaxation" and not LAWS[law].hard_wall:
+        hard = [n for n in adhesive_laws if LAWS[n].hard_wall]
+        raise SceneError(f"solver.method = 'relaxation' needs a hard-wall law ({', '.join(hard)}); "
+                         f"law {law!r} has no hard wall and is solved by newton")
 
 
 def _check_protocol(out: dict) -> None:
@@ -299,7 +326,7 @@ def _check_protocol(out: dict) -> None:
 def _check_height_file(g: dict) -> None:
     """The height file of a ``kind = file`` scene, from its metadata: the run (and a dry run)
     must not start on a file that cannot be read into the grid."""
-    from .surfaces import inspect_height_file
+    from ..geometry.surfaces import inspect_height_file
     try:
         inspect_height_file(g["path"], g["dataset"], (g["nx"], g["ny"]), (g["dx"], g["dy"]))
     except (OSError, ValueError, KeyError) as exc:
@@ -307,22 +334,10 @@ def _check_height_file(g: dict) -> None:
         raise SceneError(f"geometry.path = {g['path']!r}: {cause}") from None
 
 
-def _check_adhesive_resolution(scene: dict) -> None:
-    """UnderResolvedWarning when the grid is too coarse for the adhesive zone (the criterion is
-    ``interactions.check_resolution``'s); the same on every rank."""
-    from .physics.interactions import check_resolution, make_law
-    it, g = scene["interaction"], scene["geometry"]
-    param = LAW_PARAMETER[it["law"]]
-    law = make_law(it["law"], work_of_adhesion=it["work_of_adhesion"], **{param: it[param]})
-    check_resolution(law, scene["material"]["e_star"], max(g["dx"], g["dy"]),
-                     radius=g["radius"] if g["kind"] in ("sphere", "tip") else None,
-                     rms_slope=g["rms_slope"] if g["kind"] == "self-affine" else None)
-
-
 def adhesive(scene: dict) -> bool:
     """Whether a validated scene has adhesion (a law other than none and w > 0)."""
     it = scene["interaction"]
-    return it["law"] != "none" and it["work_of_adhesion"] > 0
+    return bool(LAWS[it["law"]].parameters) and it["work_of_adhesion"] > 0
 
 
 def load(path: str) -> dict:
@@ -338,9 +353,9 @@ def load(path: str) -> dict:
 
 
 def schema_markdown() -> str:
-    """The schema as Markdown tables (docs/scenes.md)."""
+    """The schema as Markdown tables, then the registered laws (docs/scenes.md)."""
     lines = []
-    for key, spec in SCHEMA.items():
+    for key, spec in schema().items():
         items = [(key, spec)] if isinstance(spec.get("kind"), type) else \
             [(f"{key}.{sub}", s) for sub, s in spec.items()]
         lines += [f"### `{key}`", "", "| key | type | unit | default | accepted | meaning |",
@@ -349,4 +364,9 @@ def schema_markdown() -> str:
             acc = ", ".join(s["choices"]) if s["choices"] else (range_text(s["range"]) if s["range"] else "")
             lines.append(f"| `{name}` | {s['kind'].__name__} | {s['unit']} | {s['default']!r} | {acc} | {s['doc']} |")
         lines.append("")
+    lines += ["### Interaction laws", "", "| law | parameters | meaning |", "|---|---|---|"]
+    for name, cls in LAWS.items():
+        params = ", ".join(f"`{p.name}` [{p.unit}]" for p in cls.parameters)
+        lines.append(f"| `{name}` | {params} | {cls.summary} |")
+    lines.append("")
     return "\n".join(lines)

@@ -47,7 +47,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .grid import GridError, SurfaceGrid
+from ..grid import GridError, SurfaceGrid
 from .surfaces import centre
 
 KINDS = ("bent-commensurate", "bent-incommensurate", "amorphous", "stepped")
@@ -100,8 +100,8 @@ def make_tip(kind: str, grid: SurfaceGrid, radius: float, spacing: float, *,
              layers: int | None = None, seed: int = 0) -> Tip:
     """One of the four tips (``KINDS``) of radius R [m], counter-surface spacing d [m],
     with atoms over the grid's window in a shell ``layers`` (001) layer spacings deep:
-    default 3 for the crystals, 8 for the amorphous tip (measured: 3 leave ~2 % of the
-    nodes uncovered, 8 none).  Collective over the grid's communicator (its memory check)."""
+    default 3 for the crystals, 8 for the amorphous tip (its disorder leaves nodes uncovered
+    by a shallower shell).  Collective over the grid's communicator (its memory check)."""
     if kind not in KINDS:
         raise ValueError(f"tip kind must be one of {KINDS}, got {kind!r}")
     for name, v in (("radius", radius), ("spacing", spacing)):

@@ -1,0 +1,128 @@
+"""The scene builder: one place that turns a validated scene into grid, heights, law and problem.
+
+The scene is translated once: the law is built from the registry (``physics.interactions``)
+with the parameters its class declares, the adhesive zone is checked against the grid once,
+with the one criterion of ``physics.resolution`` (docs/robustness.md, "The resolution
+criterion"), and the problem is built with the scene's PETSc options under its prefix.
+A dry run builds the grid (a DMDA, no vectors) and the law only.
+"""
+from __future__ import annotations
+
+import warnings
+
+from petsc4py import PETSc
+
+from ..collective import petsc_error_message
+from ..grid import SurfaceGrid
+from ..physics.interactions import InteractionLaw, make_law
+from ..physics.resolution import UnderResolvedWarning, check_resolution
+from .scenes import adhesive, law_keys
+
+#: the options prefixes of the scene's problems (docs/formulation.md)
+CONTACT_PREFIX, ADHESION_PREFIX = "contact_", "adhesion_"
+
+
+def build_grid(scene: dict, comm=None) -> SurfaceGrid:
+    """The scene's grid; a PETSc failure (memory) is told in the scene's keys."""
+    g = scene["geometry"]
+    try:
+        return SurfaceGrid(g["nx"], g["ny"], g["dx"], g["dy"], periodic=g["periodic"], comm=comm,
+                           row_alignment=16)
+    except PETSc.Error as exc:
+        size = (comm or PETSc.COMM_WORLD).getSize()
+        raise RuntimeError(f"cannot build the {g['nx']} x {g['ny']} grid (geometry.nx, geometry.ny) on {size} "
+                           f"rank(s), about {memory_per_rank(scene, size) / 2**20:.0f} MiB per rank: "
+                           f"{petsc_error_message(exc)}; use a smaller grid or more ranks") from None
+
+
+def memory_per_rank(scene: dict, size: int) -> float:
+    """Bytes per rank a run needs, estimated: FFT buffers (~5 doubles per transform point, 4
+    points per node on an isolated window) and solver vectors (~20 doubles per node)."""
+    g = scene["geometry"]
+    n = g["nx"] * g["ny"]
+    fft_points = n * (1 if g["periodic"] else 4)
+    return (5 * fft_points + 20 * n) * 8 / size
+
+
+def build_tip(scene: dict, grid: SurfaceGrid):
+    """(tip, heights, owner) of a ``kind = tip`` scene (``geometry.tips``)."""
+    from ..geometry import tips
+    g = scene["geometry"]
+    tip = tips.make_tip(g["tip"], grid, g["radius"], g["atom_spacing"], atom_radius=g["atom_radius"],
+                        seed=g["seed"])
+    h, owner = tips.profile(grid, tip)
+    return tip, h, owner
+
+
+def build_heights(scene: dict, grid: SurfaceGrid) -> PETSc.Vec:
+    """The composite surface h [m] of the scene's geometry."""
+    from ..geometry import surfaces
+    g = scene["geometry"]
+    if g["kind"] == "tip":
+        return build_tip(scene, grid)[1]
+    if g["kind"] == "sphere":
+        return surfaces.sphere(grid, g["radius"])
+    if g["kind"] == "file":
+        return surfaces.from_file(grid, g["path"], g["dataset"])
+    return surfaces.self_affine(grid, hurst=g["hurst"], seed=g["seed"], rms_height=g["rms_height"],
+                                rms_slope=g["rms_slope"], rolloff_wavelength=g["rolloff_wavelength"],
+                                short_cutoff_wavelength=g["short_cutoff_wavelength"])
+
+
+def build_law(scene: dict) -> InteractionLaw | None:
+    """The scene's interaction law with the parameters its class declares; None without adhesion."""
+    if not adhesive(scene):
+        return None
+    it = scene["interaction"]
+    return make_law(it["law"], work_of_adhesion=it["work_of_adhesion"],
+                    **{key: it[key] for key in law_keys(it["law"])})
+
+
+def resolution_nodes(scene: dict, law: InteractionLaw | None) -> float | None:
+    """Nodes per adhesive zone (``physics.resolution.check_resolution``: a sphere or tip with its
+    radius, a self-affine surface with its rms slope); an ``UnderResolvedWarning`` below the
+    criterion, the same on every rank.  None without adhesion."""
+    if law is None:
+        return None
+    g = scene["geometry"]
+    return check_resolution(law, scene["material"]["e_star"], max(g["dx"], g["dy"]),
+                            radius=g["radius"] if g["kind"] in ("sphere", "tip") else None,
+                            rms_slope=g["rms_slope"] if g["kind"] == "self-affine" else None)
+
+
+def push_options(prefix: str, options: dict) -> None:
+    """The scene's ``solver.options`` under ``prefix``; the command line wins over the scene."""
+    opts = PETSc.Options(prefix)
+    for key, value in options.items():
+        if not opts.hasName(key):
+            opts.setValue(key, str(value))
+
+
+def build_problem(scene: dict, grid: SurfaceGrid, heights: PETSc.Vec, law: InteractionLaw | None):
+    """(problem, relaxation solver or None) of the scene: ``ContactProblem`` without adhesion,
+    ``AdhesiveProblem`` with it (and the paper's relaxation on it for ``solver.method =
+    relaxation``).  The resolution is checked by ``resolution_nodes``, not again here."""
+    sol = scene["solver"]
+    if law is None:
+        from ..solvers import ContactProblem
+        push_options(CONTACT_PREFIX, sol["options"])
+        g, control = scene["geometry"], scene["protocol"]["control"]
+        # a Hertz sphere in displacement control: errors relative to the largest approach
+        hertz = (g["kind"] == "sphere" and not g["periodic"] and scene["interaction"]["law"] == "none"
+                 and control == "approach")
+        problem = ContactProblem(grid, heights, scene["material"]["e_star"], tol=sol["tol"] or 1e-10,
+                                 preconditioner=sol["preconditioner"], prefix=CONTACT_PREFIX,
+                                 length_scale=max(scene["protocol"]["values"]) if hertz else None)
+        return problem, None
+    from ..solvers.adhesive import AdhesiveProblem
+    from ..solvers.relaxation import RelaxationSolver
+    push_options(ADHESION_PREFIX, sol["options"])
+    relax = sol["method"] == "relaxation"
+    tol = sol["tol"] if sol["tol"] is not None else (1e-4 if relax else None)
+    with warnings.catch_warnings():   # the scene's criterion was checked (resolution_nodes)
+        warnings.simplefilter("ignore", UnderResolvedWarning)
+        problem = AdhesiveProblem(grid, heights, scene["material"]["e_star"], law,
+                                  element_integration=scene["interaction"]["element_integration"],
+                                  tol=None if relax else tol, preconditioner=sol["preconditioner"],
+                                  prefix=ADHESION_PREFIX)
+    return problem, (RelaxationSolver(problem, tol=tol) if relax else None)

@@ -1,0 +1,64 @@
+"""Grid resolution of the adhesive zone: the one criterion a scene or a solver checks.
+
+The adhesive traction acts in a band near each contact edge; a grid that samples that band
+with too few nodes gives forces that depend on where the nodes fall (docs/robustness.md,
+"The resolution criterion").
+"""
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from .interactions import InteractionLaw
+
+#: the adhesive zone must span at least this many grid spacings (docs/robustness.md)
+RESOLUTION_NODES = 4.0
+
+
+class UnderResolvedWarning(UserWarning):
+    """The grid is too coarse for the adhesive zone (``check_resolution``)."""
+
+
+def adhesive_zone_length(law: InteractionLaw, e_star: float, *, radius: float | None = None,
+                         rms_slope: float | None = None) -> dict:
+    """Estimates [m] of the width of the band near a contact edge where the adhesive traction acts.
+
+    ``cohesive``  (pi/4) E* w / sigma_max^2: the cohesive-zone length at the tip of the adhesive
+                  crack (Dugdale-Barenblatt with the law's peak attraction sigma_max; for LJ
+                  0.75 E* z0^2 / w): the zone at the JKR end (large Tabor parameter).
+    ``sphere``    sqrt(2 R range): where a rigid sphere's gap is below the law's range (DMT end).
+    ``slope``     range / rms_slope: where a rough surface's gap changes by one range.
+    ``zone``      the smallest of those given: the zone is no wider than any of them.
+    """
+    if not law.adhesive:
+        return {"zone": np.inf}
+    rng = law.length_scale()
+    out = {"cohesive": np.pi / 4.0 * e_star * law.work_of_adhesion / law.peak_attraction ** 2}
+    if radius is not None:
+        out["sphere"] = np.sqrt(2.0 * radius * rng)
+    if rms_slope:
+        out["slope"] = rng / rms_slope
+    out["zone"] = min(out.values())
+    return out
+
+
+def check_resolution(law: InteractionLaw, e_star: float, dx: float, *, radius: float | None = None,
+                     rms_slope: float | None = None, warn: bool = True) -> float:
+    """Nodes per adhesive zone, l_zone / dx (``adhesive_zone_length``, dx the larger spacing).
+
+    Below ``RESOLUTION_NODES`` the adhesive traction is sampled too coarsely: forces depend on
+    where the nodes fall, and Newton may stall; an ``UnderResolvedWarning`` states the criterion.
+    The same on every rank (it depends on the parameters only).
+    """
+    zl = adhesive_zone_length(law, e_star, radius=radius, rms_slope=rms_slope)
+    nodes = zl["zone"] / dx
+    if warn and nodes < RESOLUTION_NODES:
+        parts = ", ".join(f"{k} {v:.3g} m" for k, v in zl.items() if k != "zone")
+        warnings.warn(
+            f"under-resolved adhesion ({law.name}, range {law.length_scale():.3g} m): the adhesive zone "
+            f"l_zone = {zl['zone']:.3g} m (smallest of: {parts}) spans {nodes:.2g} grid spacings of "
+            f"{dx:.3g} m; the criterion is l_zone >= {RESOLUTION_NODES:g} dx (docs/robustness.md). "
+            f"Refine the grid (dx <= {zl['zone'] / RESOLUTION_NODES:.3g} m) or expect grid-dependent "
+            f"forces and slow or failed convergence", UnderResolvedWarning, stacklevel=2)
+    return nodes
