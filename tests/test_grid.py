@@ -146,7 +146,7 @@ def test_a_grid_too_big_for_memory_is_refused_in_its_terms(coll, monkeypatch):
     monkeypatch.setattr(grid_module, "available_memory", lambda comm: 2.0 ** 20)
     coll.raises(GridError, ["512 x 512 grid (geometry.nx x geometry.ny)", "GiB per rank",
                             "0.00 GiB can be allocated"], g.create_vec)
-    from contactpetsc import surfaces, tips      # the builders that allocate before any Vec
+    from contactpetsc.geometry import surfaces, tips     # the builders that allocate before any Vec
     coll.raises(GridError, "geometry.nx x geometry.ny", surfaces.self_affine, g, hurst=0.8, seed=0,
                 rms_height=1.0)
     coll.raises(GridError, "geometry.nx x geometry.ny", tips.make_tip, "amorphous", g, 1e4, 1.0)
