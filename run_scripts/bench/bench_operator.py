@@ -17,7 +17,7 @@ Usage
 Everything (1 and 2 ranks, the combined table, the speed-up lines, then the
 JSON lines)::
 
-    python run_scripts/bench_operator.py [--ranks 1 2] [--sizes 256 512 ...]
+    python run_scripts/bench/bench_operator.py [--ranks 1 2] [--sizes 256 512 ...]
         [--kinds periodic isolated] [--repeats K] [--markdown] [PETSc options]
 
 Run without an MPI launcher, the script is a *launcher*: it runs itself as a
@@ -25,7 +25,7 @@ worker under ``mpirun -n R`` for each R in --ranks (setting the OpenMPI
 run-as-root variables when run as root, and OMP_NUM_THREADS=1) and combines
 the workers' results.  One worker alone::
 
-    mpirun -n R python run_scripts/bench_operator.py [--sizes ...] [--kinds ...]
+    mpirun -n R python run_scripts/bench/bench_operator.py [--sizes ...] [--kinds ...]
         [--repeats K] [-log_view] [-elastic_fft_planner measure]
 
 (``--worker`` forces worker mode in a single process without mpirun.)  Options

@@ -21,9 +21,9 @@ Outcomes:
   FAILED-LOUD   valid input that should give an answer ended with a non-zero exit instead
   SLOW          the per-step cost grows along a run (bookkeeping)
 
-    python run_scripts/adversarial_sweep.py --list
-    python run_scripts/adversarial_sweep.py --only flat --timeout 60 --markdown sweep.md
-    python run_scripts/adversarial_sweep.py --jobs 2 --markdown sweep.md    # all, ~6 min on 2 cores
+    python run_scripts/checks/adversarial_sweep.py --list
+    python run_scripts/checks/adversarial_sweep.py --only flat --timeout 60 --markdown sweep.md
+    python run_scripts/checks/adversarial_sweep.py --jobs 2 --markdown sweep.md    # all, ~6 min on 2 cores
 
 One JSON line per case on stdout, then the counts; the exit status is 0 only when every case
 is OK.  Cases under mpirun (2 ranks) run one at a time.
@@ -50,7 +50,7 @@ from typing import Callable
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 PYTHON = sys.executable
 MPI_ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
            "OMPI_MCA_rmaps_base_oversubscribe": "1", "OMP_NUM_THREADS": "1"}
