@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Benchmark of one elastic operator apply against a raw pyfftw FFT pair (issue 2).
+"""Benchmark of one elastic operator apply against a raw pyfftw FFT pair.
 
 For each n in --sizes and each kind in --kinds this times one apply v = K p of
 
@@ -61,7 +61,7 @@ Method
   pair measured inside the R-rank run, interleaved with the applies it is
   compared with; the launcher also shows the pair measured in the 1-rank run
   for comparison.
-* Speed-up: the issue's t_apply(1 rank) / t_apply(R ranks) compares two
+* Speed-up: t_apply(1 rank) / t_apply(R ranks) compares two
   separate mpirun runs, minutes apart, so it also contains any drift of the
   machine's speed in between.  On R > 1 ranks the worker therefore also times
   the same operator built on rank 0 alone (COMM_SELF), interleaved with the

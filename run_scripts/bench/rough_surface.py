@@ -2,7 +2,7 @@
 examples/scenes/bench_rough.toml, built by the runner's own geometry code.
 
 Every size is the same surface sampled finer: the cell, the roll-off and the seed stay, the cut-off
-stays at the same number of grid spacings (docs/performance.md, "The benchmark surface").
+stays at the same number of grid spacings.
 """
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """FFT pairs of every benchmark and check script at its smallest real setting, one table.
 
 FFT pairs count the work of a solve independently of the machine, so a refactoring that keeps
-the solvers' arithmetic must keep these counts (docs/performance.md, "FFT pairs").  Each case runs
+the solvers' arithmetic must keep these counts.  Each case runs
 its script in a process of its own, at small sizes, without the peers, and collects the pairs the
 script reports (its JSON lines, its step lines, or the curve.csv of its run directory).
 

@@ -1,4 +1,4 @@
-"""Stability matrix (issue 8): extreme, stiff and ill-posed cases; each converges or says why not.
+"""Stability matrix: extreme, stiff and ill-posed cases; each converges or says why not.
 
 Every case runs in its own process (``--case NAME``) under a wall-time bound
 (``--timeout``, default 90 s): a case that hangs or crashes is reported as

@@ -1,5 +1,7 @@
 """Tabor 5 rough sphere (the paper's case, examples/studies/rough_sphere.py) at n^2: loading in
-approach steps of 1 z0 from -5 z0, every solve's outcome and reason printed (a reproducer).
+approach steps of 1 z0 from -5 z0, every solve's outcome and reason printed: a study of the grid
+the paper's case needs (docs/studies.md).  The failure it shows on a grid too coarse, a loud one
+from which the path goes on, is a test: tests/test_under_resolved_jump_in.py.
 
     python run_scripts/checks/tabor5_steps.py N RMS_Z0 BUDGET_S [PETSc options]
     python run_scripts/checks/tabor5_steps.py 384 0 420      # fails at -4 z0, the jump-in (docs/studies.md)

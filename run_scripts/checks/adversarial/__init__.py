@@ -23,7 +23,7 @@ Outcomes:
 
     python run_scripts/checks/adversarial_sweep.py --list
     python run_scripts/checks/adversarial_sweep.py --only flat --timeout 60 --markdown sweep.md
-    python run_scripts/checks/adversarial_sweep.py --jobs 2 --markdown sweep.md    # all, ~6 min on 2 cores
+    python run_scripts/checks/adversarial_sweep.py --jobs 2 --markdown sweep.md    # all cases
 
 One JSON line per case on stdout, then the counts; the exit status is 0 only when every case
 is OK.  Cases under mpirun (2 ranks) run one at a time.

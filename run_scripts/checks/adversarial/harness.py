@@ -43,7 +43,7 @@ OK, WRONG, LOST, CRASH, HANG, UNCLEAR, LOUD, SLOW = ("OK", "SILENT-WRONG", "LOST
 @dataclasses.dataclass
 class Case:
     name: str
-    issue_class: str              # "1".."13" or "msg" (issue 19's numbering)
+    issue_class: str              # "1".."13" or "msg": the class of defect the case probes
     description: str
     expected: str
     run: Callable[[Path], tuple[str, str]]   # work dir -> (classification, detail)
@@ -98,7 +98,7 @@ def z0s(*multiples) -> list[float]:
 
 
 def adhesive_sphere(w=0.05, law="lj", nx=32, e_star=1e10, values=None, out="out", **interaction):
-    """A 30 nm sphere on a 32^2 window, dx = z0 = 0.3 nm (issue 19's weak-adhesion geometry)."""
+    """A 30 nm sphere on a 32^2 window, dx = z0 = 0.3 nm (the weak-adhesion geometry)."""
     it = {"law": law, "work_of_adhesion": w}
     if law in ("lj", "hardwall-lj"):
         it["z0"] = Z0
@@ -330,7 +330,7 @@ def summary_line(results: list[dict]) -> str:
 
 
 def markdown(results: list[dict]) -> str:
-    """The table: case, issue class, what it does, expected, what happened, classification."""
+    """The table: case, class, what it does, expected, what happened, classification."""
     def cell(s):
         return str(s).replace("|", "\\|").replace("\n", " ")
     lines = [summary_line(results), "",
