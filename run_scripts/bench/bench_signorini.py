@@ -60,7 +60,6 @@ from mpi4py import MPI  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
 from contactpetsc import surfaces  # noqa: E402
-from contactpetsc.grid import SurfaceGrid  # noqa: E402
 from contactpetsc.operators.elastic import half_space  # noqa: E402
 from contactpetsc.solvers import ContactProblem  # noqa: E402
 
