@@ -2,7 +2,7 @@
 reason; bad input is reported on every rank, naming the field and the accepted range; outputs
 survive failures.
 
-The stiff and extreme cases are the most telling rows of ``run_scripts/stability_matrix.py``,
+The stiff and extreme cases are the most telling rows of ``run_scripts/checks/stability_matrix.py``,
 run in-process on every rank (the matrix itself runs each case in a process of its own).
 Truths: Maugis-Dugdale / DMT pull-off, Hertz as w -> 0, the Derjaguin force of a detached
 sphere, Westergaard's full contact of a wavy surface, the law itself on a flat cell.
@@ -27,7 +27,7 @@ from contactpetsc.solvers import ContactProblem
 from contactpetsc.solvers.adhesive import AdhesiveProblem
 
 _spec = importlib.util.spec_from_file_location(
-    "stability_matrix", os.path.join(os.path.dirname(__file__), "..", "run_scripts", "stability_matrix.py"))
+    "stability_matrix", os.path.join(os.path.dirname(__file__), "..", "run_scripts", "checks", "stability_matrix.py"))
 matrix = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(matrix)
 

@@ -13,7 +13,7 @@ nodes that takes grow as mu^2 (p_peak dx / (E* z0) < ~1 with a window of a
 few contact radii); mu = 5 needs ~6x finer grids than mu = 2 for the same
 snap number K_ii max da/dg (0.80 at mu = 2, 64^2): ``--size tabor5``, 512^2,
 rms 0, 1, 2, 4 and 10 z0, best run as one job per rms value (``--rms``) merged by
-``--collect`` (measured with run_scripts/tabor5_steps.py: at rms 0 every
+``--collect`` (measured with run_scripts/checks/tabor5_steps.py: at rms 0 every
 loading step converges, the jump-in included, 20-25 s a step after it, 13 z0
 of approach to the load; 384^2 fails at the jump-in; docs/studies.md).  The
 roughness: Gaussian autocorrelation, correlation length a_JKR / 6.

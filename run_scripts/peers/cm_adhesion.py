@@ -124,8 +124,8 @@ Mapping to ContactMechanics/Adhesion (ContactMechanics 1.8.3, Adhesion 0.93)
   post-processing below.  OPENBLAS_NUM_THREADS / OMP_NUM_THREADS /
   MKL_NUM_THREADS default to 1 (set before numpy is imported; an explicit
   environment value wins; reported as ``blas_threads``): L-BFGS-B's many
-  small BLAS calls were ~70x slower with 2 OpenBLAS threads on a loaded
-  2-core machine.  The FFTs (muGrid FFTEngine, PocketFFT backend) are
+  small BLAS calls are much slower with several OpenBLAS threads on a
+  loaded machine.  The FFTs (muGrid FFTEngine, PocketFFT backend) are
   serial.
 
 Reported quantities (our units and signs)
@@ -165,8 +165,7 @@ import warnings
 
 # Single-threaded BLAS unless the caller says otherwise (must precede the numpy
 # import).  scipy's L-BFGS-B does many small BLAS calls; with a multi-threaded
-# OpenBLAS on a loaded 2-core machine these were measured ~70x slower
-# (28 s instead of 0.4 s for the same 159-iteration solve).
+# OpenBLAS on a loaded machine they are much slower than single-threaded.
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 

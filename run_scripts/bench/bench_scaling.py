@@ -1,9 +1,8 @@
 #!/usr/bin/env python3
-"""Benchmark (issue 7): grid scaling and MPI scaling of the non-adhesive rough solve.
+"""Benchmark: grid scaling and MPI scaling of the non-adhesive rough solve.
 
-The surface of ``bench_signorini.py``: periodic unit cell (L = 1 m),
-self-affine, Hurst 0.8, rms slope 0.1, roll-off at L/4, short cut-off at 4
-grid spacings, seed 1, E* = 1, mean pressure 0.005 E*, solved by
+The benchmark surface of ``examples/scenes/bench_rough.toml`` (built by
+``rough_surface.py``), E* = 1, mean pressure 0.005 E*, solved by
 ``ContactProblem.solve(mean_pressure=...)`` (SNES VI Newton, nested
 iteration, load control) to a complementarity error of --tol of the rms
 height.  One JSON line per (n, solver) case with
@@ -25,10 +24,10 @@ height.  One JSON line per (n, solver) case with
 
 Usage (one process per size keeps the memory figures clean)::
 
-    .venv/bin/python run_scripts/bench_scaling.py --sizes 256 512 1024 2048
-    mpirun -n 2 .venv/bin/python run_scripts/bench_scaling.py --sizes 1024 2048
-    .venv/bin/python run_scripts/bench_scaling.py --sizes 4096 -log_view
-    .venv/bin/python run_scripts/bench_scaling.py --sizes 8192 --solvers spectral --check-error
+    .venv/bin/python run_scripts/bench/bench_scaling.py --sizes 256 512 1024 2048
+    mpirun -n 2 .venv/bin/python run_scripts/bench/bench_scaling.py --sizes 1024 2048
+    .venv/bin/python run_scripts/bench/bench_scaling.py --sizes 4096 -log_view
+    .venv/bin/python run_scripts/bench/bench_scaling.py --sizes 8192 --solvers spectral --check-error
 
 ``--separate`` runs every size in a fresh process of the same launcher
 (serial only).  Timed runs belong behind ``flock /tmp/contactpetsc-bench.lock``.
@@ -47,7 +46,6 @@ ap.add_argument("--sizes", type=int, nargs="+", default=[256, 512, 1024, 2048])
 ap.add_argument("--solvers", nargs="+", default=["spectral"],
                 help="preconditioners (-contact_preconditioner values): spectral, mlmi, none")
 ap.add_argument("--tol", type=float, default=1e-8)
-ap.add_argument("--seed", type=int, default=1)
 ap.add_argument("--mean-pressure", type=float, default=0.005)
 ap.add_argument("--separate", action="store_true",
                 help="run each size in its own process (serial runs: clean memory figures)")
@@ -72,11 +70,11 @@ import numpy as np  # noqa: E402
 from mpi4py import MPI  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
-from contactpetsc.geometry import surfaces  # noqa: E402
-from contactpetsc.grid import SurfaceGrid  # noqa: E402
 from contactpetsc.solvers import ContactProblem  # noqa: E402
 
-E_STAR, L = 1.0, 1.0
+from rough_surface import rough_scene, rough_surface  # noqa: E402
+
+E_STAR, L = rough_scene(64)["material"]["e_star"], 1.0
 comm = PETSc.COMM_WORLD.tompi4py()
 rank, size = comm.Get_rank(), comm.Get_size()
 
@@ -112,9 +110,7 @@ for n in args.sizes:
         PETSc.garbage_cleanup(PETSc.COMM_WORLD)
         base = status_kb("VmRSS")
         reset_peak()
-        g = SurfaceGrid(n, n, L / n, row_alignment=64)
-        h = surfaces.self_affine(g, hurst=0.8, seed=args.seed, rms_slope=0.1,
-                                 rolloff_wavelength=L / 4, short_cutoff_wavelength=4 * L / n)
+        g, h, _ = rough_surface(n, row_alignment=64)
         peak_surface = status_kb("VmHWM")
         reset_peak()
         t0 = time.perf_counter()

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Benchmark (issue 4, item 6): adhesive contact, error against run time, ours and the peer.
+"""Benchmark: adhesive contact, error against run time, ours and the peer.
 
 Cases
 -----
@@ -8,8 +8,8 @@ Cases
   (delta = z0, in contact) from the undeformed bodies by Newton (SNES VI)
   and by the reference paper's relaxation.  Their per-iteration histories give
   the error-vs-time curves (``--plot``).
-* ``rough``: the surface of the non-adhesive benchmark (periodic unit cell,
-  self-affine, Hurst 0.8, rms slope 0.1, roll-off L/4, cut-off 4 dx, seed 1),
+* ``rough``: the benchmark surface of ``examples/scenes/bench_rough.toml``
+  (``rough_surface.py``; periodic unit cell, self-affine),
   the full LJ curve with z0 = dx and w = 0.05 E* dx, three approaches giving
   about 2 %, 10 % and 25 % contact area (p > 0, i.e. z < z0; interpolated on a
   loading sweep of our solver, untimed),
@@ -26,7 +26,7 @@ the same case (ours at tolerance 1e-11), in z0; the solvers' own measures
 are kept in ``own_error``.  One JSON line per case (n, solver, approach,
 time, fft_pairs, error, converged, ...).
 
-    .venv/bin/python run_scripts/bench_adhesion.py [--cases sphere rough] [--sizes 256 512 1024]
+    .venv/bin/python run_scripts/bench/bench_adhesion.py [--cases sphere rough] [--sizes 256 512 1024]
         [--w 0.05] [--z0 1.0] [--potential vdw82] [--no-peer] [--plot docs/figures] [--tol 1e-8 1e-5]
 """
 import argparse
@@ -74,6 +74,8 @@ from contactpetsc.solvers.adhesive import AdhesiveProblem  # noqa: E402
 from contactpetsc.solvers.relaxation import RelaxationSolver  # noqa: E402
 from contactpetsc.solvers.transfer import can_halve, halved, restrict  # noqa: E402
 from contactpetsc.geometry.surfaces import self_affine, sphere  # noqa: E402
+
+from rough_surface import rough_surface  # noqa: E402
 
 rank = PETSc.COMM_WORLD.getRank()
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -162,7 +164,7 @@ def calibrate(grid, h, law, areas, steps=40):
 
 
 def run_peer(heights_path, dx, w, z0, approaches, outdir):
-    cmd = [args.peer_python, os.path.join(HERE, "peers", "cm_adhesion.py"), "--surface", heights_path,
+    cmd = [args.peer_python, os.path.join(HERE, os.pardir, "peers", "cm_adhesion.py"), "--surface", heights_path,
            "--dx", repr(dx), "--e-star", "1.0", "--w", repr(w), "--z0", repr(z0),
            "--potential", args.potential, "--offsets", ",".join(repr(a) for a in approaches),
            "--maxiter", str(args.peer_maxiter), "--save-fields", outdir]
@@ -176,10 +178,8 @@ def run_peer(heights_path, dx, w, z0, approaches, outdir):
 def rough_cases():
     comm = PETSc.COMM_WORLD.tompi4py()
     for n in args.sizes:
-        dx = 1.0 / n
-        grid = SurfaceGrid(n, n, dx, periodic=True)
-        h = self_affine(grid, hurst=0.8, seed=1, rms_slope=0.1, rolloff_wavelength=0.25,
-                        short_cutoff_wavelength=4 * dx)
+        grid, h, _ = rough_surface(n)
+        dx = grid.dx
         for w_rel in args.w:
             for z0_rel in args.z0:
                 z0, w = z0_rel * dx, w_rel * dx
@@ -250,7 +250,7 @@ def plot(directory):
         ax.set_title({"cold": "from rest to delta = z0", "path step": "next path step, delta = 1.25 z0"}[stage])
         ax.legend()
     axes[0].set_ylabel("self-consistency error max K_ii |a - a(g)| / z0")
-    fig.suptitle("Sphere R = 1000 z0, hard-wall LJ, n = 128 (run_scripts/bench_adhesion.py)")
+    fig.suptitle("Sphere R = 1000 z0, hard-wall LJ, n = 128 (run_scripts/bench/bench_adhesion.py)")
     fig.tight_layout()
     fig.savefig(os.path.join(directory, "adhesion_error_vs_time_sphere.png"), dpi=120)
 

@@ -1,4 +1,4 @@
-"""Stability matrix (issue 8): extreme, stiff and ill-posed cases; each converges or says why not.
+"""Stability matrix: extreme, stiff and ill-posed cases; each converges or says why not.
 
 Every case runs in its own process (``--case NAME``) under a wall-time bound
 (``--timeout``, default 90 s): a case that hangs or crashes is reported as
@@ -7,9 +7,9 @@ outcome, the error measures, the force against an independent truth where
 one exists, the resolution warnings raised); the parent collects them and
 writes a markdown table (``--markdown FILE``).
 
-    .venv/bin/python run_scripts/stability_matrix.py --markdown /tmp/matrix.md
-    .venv/bin/python run_scripts/stability_matrix.py --only tabor        # a subset
-    .venv/bin/python run_scripts/stability_matrix.py --case tabor-1-lj   # one case, in-process
+    .venv/bin/python run_scripts/checks/stability_matrix.py --markdown /tmp/matrix.md
+    .venv/bin/python run_scripts/checks/stability_matrix.py --only tabor        # a subset
+    .venv/bin/python run_scripts/checks/stability_matrix.py --case tabor-1-lj   # one case, in-process
 
 Units: Greenwood's (E* = z0 = 1) unless the case says SI.  Truths: the
 Maugis-Dugdale pull-off at lambda = 1.16 mu (DMT -2 pi R w at small mu),

@@ -1,12 +1,11 @@
 #!/usr/bin/env python3
-"""Error against run time per scene (issue 7, item 1): every solver of ours and the peers, one run.
+"""Error against run time per scene: every solver of ours and the peers, one run.
 
 Scenes
 ------
 * ``rough``: non-adhesive rough contact, the benchmark surface of
-  ``bench_signorini.py`` (periodic unit cell, self-affine, Hurst 0.8, rms
-  slope 0.1, roll-off L/4, cut-off 4 dx, seed 1, E* = 1), load control at a
-  mean pressure of 0.005 E*; n = --n.
+  ``examples/scenes/bench_rough.toml`` (``rough_surface.py``, E* = 1), load
+  control at a mean pressure of 0.005 E*; n = --n.
 * ``adhesive``: the same surface with the full Lennard-Jones law ``lj``,
   z0 = dx, w = 0.05 E* dx (the rough case of ``bench_adhesion.py``), at one
   approach delta, displacement control from rest.  delta is the height
@@ -54,10 +53,10 @@ Solvers
 
 Usage::
 
-    .venv/bin/python run_scripts/error_vs_time.py [--scenes rough adhesive sphere] [--n 256]
+    .venv/bin/python run_scripts/bench/error_vs_time.py [--scenes rough adhesive sphere] [--n 256]
         [--pcs mlmi spectral none] [--no-peer] [--plot docs/figures] [--json out.jsonl]
         [PETSc options, e.g. -sphere_ref_fallback relaxation]
-    .venv/bin/python run_scripts/error_vs_time.py --replot out.jsonl --plot docs/figures
+    .venv/bin/python run_scripts/bench/error_vs_time.py --replot out.jsonl --plot docs/figures
 
 Options prefixes: ``<scene>_ref_`` (the reference), ``<scene>_<pc>_`` (Newton),
 ``rough_<pc>_``, ``rel<tol>_`` (relaxation).
@@ -119,6 +118,8 @@ from contactpetsc.physics.interactions import make_law  # noqa: E402
 from contactpetsc.solvers import ContactProblem  # noqa: E402
 from contactpetsc.solvers.adhesive import AdhesiveProblem  # noqa: E402
 from contactpetsc.solvers.relaxation import RelaxationSolver  # noqa: E402
+
+from rough_surface import rough_surface as bench_surface  # noqa: E402
 
 comm = PETSc.COMM_WORLD.tompi4py()
 rank = comm.Get_rank()
@@ -232,11 +233,7 @@ def peer_sequence(scene, name, grid, h, gap_ref, err, run_one):
 
 # -- scenes ----------------------------------------------------------------------------------------
 def rough_surface(n):
-    dx = 1.0 / n
-    grid = SurfaceGrid(n, n, dx, periodic=True, row_alignment=64)
-    h = surfaces.self_affine(grid, hurst=0.8, seed=1, rms_slope=0.1, rolloff_wavelength=0.25,
-                             short_cutoff_wavelength=4 * dx)
-    return grid, h
+    return bench_surface(n, row_alignment=64)[:2]
 
 
 def scene_rough():
@@ -259,7 +256,7 @@ def scene_rough():
 
     def tamaas(cap, hpath, tmp):
         out = os.path.join(tmp, f"t{cap}.npz")
-        cmd = [args.tamaas_python, os.path.join(HERE, "peers", "tamaas_signorini.py"), hpath,
+        cmd = [args.tamaas_python, os.path.join(HERE, os.pardir, "peers", "tamaas_signorini.py"), hpath,
                "--length", "1.0", "--estar", "1.0", "--mean-pressure", str(P), "--tol", "1e-15",
                "--max-iter", str(cap), "--no-check", "--out", out]
         cp = subprocess.run(cmd, capture_output=True, text=True)
@@ -309,7 +306,7 @@ def scene_adhesive():
 
     def cm(cap, hpath, tmp):
         out = os.path.join(tmp, f"c{cap}")
-        cmd = [args.cm_python, os.path.join(HERE, "peers", "cm_adhesion.py"), "--surface", hpath,
+        cmd = [args.cm_python, os.path.join(HERE, os.pardir, "peers", "cm_adhesion.py"), "--surface", hpath,
                "--dx", repr(dx), "--e-star", "1.0", "--w", repr(w), "--z0", repr(z0),
                "--potential", "vdw82", f"--offsets={delta!r}", "--gtol", "1e-14",
                "--maxiter", str(cap), "--save-fields", out]

@@ -6,7 +6,7 @@ overhead: the time from one solve's start to the next's minus the solve itself (
 curve.csv, history.csv, summary.json, the progress line).  Prints the median overhead over the
 first and the last ``--window`` steps and their ratio (1 when the overhead is flat).
 
-    python run_scripts/bench_long_path.py [--steps 10000] [--window 500] [--output DIR]
+    python run_scripts/bench/bench_long_path.py [--steps 10000] [--window 500] [--output DIR]
 """
 from __future__ import annotations
 

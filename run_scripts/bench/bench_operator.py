@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Benchmark of one elastic operator apply against a raw pyfftw FFT pair (issue 2).
+"""Benchmark of one elastic operator apply against a raw pyfftw FFT pair.
 
 For each n in --sizes and each kind in --kinds this times one apply v = K p of
 
@@ -17,7 +17,7 @@ Usage
 Everything (1 and 2 ranks, the combined table, the speed-up lines, then the
 JSON lines)::
 
-    python run_scripts/bench_operator.py [--ranks 1 2] [--sizes 256 512 ...]
+    python run_scripts/bench/bench_operator.py [--ranks 1 2] [--sizes 256 512 ...]
         [--kinds periodic isolated] [--repeats K] [--markdown] [PETSc options]
 
 Run without an MPI launcher, the script is a *launcher*: it runs itself as a
@@ -25,7 +25,7 @@ worker under ``mpirun -n R`` for each R in --ranks (setting the OpenMPI
 run-as-root variables when run as root, and OMP_NUM_THREADS=1) and combines
 the workers' results.  One worker alone::
 
-    mpirun -n R python run_scripts/bench_operator.py [--sizes ...] [--kinds ...]
+    mpirun -n R python run_scripts/bench/bench_operator.py [--sizes ...] [--kinds ...]
         [--repeats K] [-log_view] [-elastic_fft_planner measure]
 
 (``--worker`` forces worker mode in a single process without mpirun.)  Options
@@ -61,7 +61,7 @@ Method
   pair measured inside the R-rank run, interleaved with the applies it is
   compared with; the launcher also shows the pair measured in the 1-rank run
   for comparison.
-* Speed-up: the issue's t_apply(1 rank) / t_apply(R ranks) compares two
+* Speed-up: t_apply(1 rank) / t_apply(R ranks) compares two
   separate mpirun runs, minutes apart, so it also contains any drift of the
   machine's speed in between.  On R > 1 ranks the worker therefore also times
   the same operator built on rank 0 alone (COMM_SELF), interleaved with the

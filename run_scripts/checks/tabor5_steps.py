@@ -1,10 +1,12 @@
 """Tabor 5 rough sphere (the paper's case, examples/studies/rough_sphere.py) at n^2: loading in
-approach steps of 1 z0 from -5 z0, every solve's outcome and reason printed (a reproducer).
+approach steps of 1 z0 from -5 z0, every solve's outcome and reason printed: a study of the grid
+the paper's case needs (docs/studies.md).  The failure it shows on a grid too coarse, a loud one
+from which the path goes on, is a test: tests/test_under_resolved_jump_in.py.
 
-    python run_scripts/tabor5_steps.py N RMS_Z0 BUDGET_S [PETSc options]
-    python run_scripts/tabor5_steps.py 384 0 420      # fails at -4 z0, the jump-in (docs/studies.md)
-    python run_scripts/tabor5_steps.py 512 0 1500     # loads through the jump-in to 0.05 mN
-    python run_scripts/tabor5_steps.py 512 1 1500 -mu5_max_it 400   # rms = z0: jump-in at -3 z0
+    python run_scripts/checks/tabor5_steps.py N RMS_Z0 BUDGET_S [PETSc options]
+    python run_scripts/checks/tabor5_steps.py 384 0 420      # fails at -4 z0, the jump-in (docs/studies.md)
+    python run_scripts/checks/tabor5_steps.py 512 0 1500     # loads through the jump-in to 0.05 mN
+    python run_scripts/checks/tabor5_steps.py 512 1 1500 -mu5_max_it 400   # rms = z0: jump-in at -3 z0
 """
 import os
 import sys
@@ -12,7 +14,7 @@ import time
 
 import numpy as np
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir, "examples", "studies"))
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir, os.pardir, "examples", "studies"))
 import petsc4py; petsc4py.init(sys.argv[4:])
 import warnings; warnings.simplefilter("ignore")
 import rough_sphere as rs

@@ -7,7 +7,7 @@ one process, then in P processes at once, and prints the throughput ratio
 share no data and exchange no messages, so this bounds the speed-up any P-rank solve
 can reach here: above it the cores do not deliver, below it the code is to blame.
 
-    .venv/bin/python run_scripts/bench_cores.py [--n 2048] [--pairs 40] [--procs 2] [--repeats 3]
+    .venv/bin/python run_scripts/bench/bench_cores.py [--n 2048] [--pairs 40] [--procs 2] [--repeats 3]
 
 One JSON line: n, pairs, single [s] (median), concurrent [s] (median of the slowest
 process), throughput ratio, load average before the run.

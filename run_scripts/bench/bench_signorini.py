@@ -1,10 +1,9 @@
 #!/usr/bin/env python3
-"""Benchmark (issue 3, item 6): rough periodic Signorini contact, ours against Tamaas' PKR.
+"""Benchmark: rough periodic Signorini contact, ours against Tamaas' PKR.
 
-The benchmark surface: periodic unit cell (L = 1 m), self-affine, Hurst 0.8,
-rms slope 0.1, roll-off at L/4, short cut-off at 4 grid spacings, Gaussian
-random phases (``contactpetsc.geometry.surfaces.self_affine``, seed --seed), E* = 1,
-mean pressure 0.005 E*.  For each n in --sizes:
+The benchmark surface of ``examples/scenes/bench_rough.toml`` (periodic unit
+cell, self-affine, built by ``rough_surface.py``), E* = 1, mean pressure
+0.005 E*.  For each n in --sizes:
 
 * ours: ``ContactProblem.solve(mean_pressure=...)`` with each preconditioner
   in --solvers (``none`` = ``-pc_type none``, only up to --none-max-n),
@@ -18,10 +17,10 @@ mean pressure 0.005 E*.  For each n in --sizes:
 
 Usage::
 
-    .venv/bin/python run_scripts/bench_signorini.py [--sizes 256 512 1024 2048]
+    .venv/bin/python run_scripts/bench/bench_signorini.py [--sizes 256 512 1024 2048]
         [--solvers spectral mlmi none] [--none-max-n 1024] [--no-peer] [--tol 1e-8]
         [PETSc options]
-    mpirun -n 2 .venv/bin/python run_scripts/bench_signorini.py ...   (ours on 2 ranks;
+    mpirun -n 2 .venv/bin/python run_scripts/bench/bench_signorini.py ...   (ours on 2 ranks;
         the peer runs serially on rank 0)
 
 Times: ours = wall time of ``solve`` (includes the coarse-grid set-up of the
@@ -47,7 +46,6 @@ ap.add_argument("--solvers", nargs="+", default=["spectral", "mlmi", "none"],
 ap.add_argument("--none-max-n", type=int, default=1024,
                 help="skip the unpreconditioned solver (none) above this n (it is slow)")
 ap.add_argument("--tol", type=float, default=1e-8)
-ap.add_argument("--seed", type=int, default=1)
 ap.add_argument("--mean-pressure", type=float, default=0.005)
 ap.add_argument("--no-peer", action="store_true")
 ap.add_argument("--peer-python", default=os.environ.get(
@@ -62,15 +60,16 @@ from mpi4py import MPI  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
 from contactpetsc.geometry import surfaces  # noqa: E402
-from contactpetsc.grid import SurfaceGrid  # noqa: E402
 from contactpetsc.operators.elastic import half_space  # noqa: E402
 from contactpetsc.solvers import ContactProblem  # noqa: E402
 
-E_STAR, L = 1.0, 1.0
+from rough_surface import rough_scene, rough_surface  # noqa: E402
+
+E_STAR, L = rough_scene(64)["material"]["e_star"], 1.0
 comm = PETSc.COMM_WORLD.tompi4py()
 rank = comm.Get_rank()
 HERE = os.path.dirname(os.path.abspath(__file__))
-PEER = os.path.join(HERE, "peers", "tamaas_signorini.py")
+PEER = os.path.join(HERE, os.pardir, "peers", "tamaas_signorini.py")
 
 
 def our_measure(op, p_rows, h_rows, delta, scale):
@@ -82,10 +81,7 @@ def our_measure(op, p_rows, h_rows, delta, scale):
 results = []
 tmpdir = comm.bcast(tempfile.mkdtemp(prefix="bench-signorini-") if rank == 0 else None)
 for n in args.sizes:
-    dx = L / n
-    g = SurfaceGrid(n, n, dx, row_alignment=64)
-    h = surfaces.self_affine(g, hurst=0.8, seed=args.seed, rms_slope=0.1,
-                             rolloff_wavelength=L / 4, short_cutoff_wavelength=4 * dx)
+    g, h, _ = rough_surface(n, row_alignment=64)
     rms = surfaces.rms_height(g, h)
     op = None
     for solver in args.solvers:

@@ -6,7 +6,7 @@ unloading branch, refined by golden section; the table compares it with
 Maugis-Dugdale at lambda = 1.16 mu and the JKR (-1.5) and DMT (-2) limits,
 all as P / (pi w R).  Greenwood's units: E* = z0 = 1.
 
-    mpirun -n 2 .venv/bin/python run_scripts/pull_off_table.py [--law lj] [--n 192] [--markdown]
+    mpirun -n 2 .venv/bin/python run_scripts/checks/pull_off_table.py [--law lj] [--n 192] [--markdown]
 
 Prints one JSON line per mu (and a markdown table with --markdown).
 """

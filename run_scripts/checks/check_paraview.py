@@ -1,6 +1,6 @@
 """Check that ParaView reads contactpetsc's field files as written.  Not a test: CI has no ParaView.
 
-    pvpython run_scripts/check_paraview.py [DIR ...]        (pvbatch works too)
+    pvpython run_scripts/checks/check_paraview.py [DIR ...]        (pvbatch works too)
 
 For every ``step_NNNN.xdmf`` in each output directory DIR, both of ParaView's
 XDMF readers (``XDMFReader``, which File > Open offers first, and
@@ -32,7 +32,7 @@ from paraview.simple import XDMFReader, Xdmf3ReaderS
 from vtkmodules.util.numpy_support import vtk_to_numpy
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-VENV = os.environ.get("CONTACTPETSC_VENV", os.path.join(HERE, "..", ".venv"))
+VENV = os.environ.get("CONTACTPETSC_VENV", os.path.join(HERE, "..", "..", ".venv"))
 
 ROUGH = """name = "paraview-rough"
 [geometry]

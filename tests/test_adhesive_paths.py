@@ -1,0 +1,123 @@
+"""Adhesive paths and stability: jumps, hysteresis, the S-curve, stiffness, load control.
+
+Independent truths: the force slope (finite differences of the path), the loading and unloading
+branches meeting, the stability margin's bound.  Units: z0 = 1, E* = 1 (Greenwood's).
+"""
+import numpy as np
+from petsc4py import PETSc
+
+from contactpetsc.paths import central_gap_path, edge_gap_path, refine_pull_off, sweep
+
+from adhesive_setup import work_for, sphere_problem
+
+
+def test_stiffness_is_the_force_slope_and_can_be_left_out(coll):
+    """The tangent stiffness is dW/d delta: central differences of the force over two further
+    solves agree.  With -<prefix>stiffness false it is NaN, the tangent is solved only for
+    the predictor, and the states are the same."""
+    pb = sphere_problem(1.0, law="lj", n=64, dx=1.0, prefix="stiff_")
+    h = 1e-3
+    st = pb.solve(approach=0.5)
+    lo, hi = pb.solve(approach=0.5 - h), pb.solve(approach=0.5 + h)
+    # the tangent is solved to rtol 1e-2 (a predictor and a jump test need no more)
+    assert coll.max(abs((hi.force - lo.force) / (2 * h) / st.stiffness - 1)) < 1e-2
+    PETSc.Options().setValue("lazy_stiffness", False)
+    try:
+        lazy = sphere_problem(1.0, law="lj", n=64, dx=1.0, prefix="lazy_", element_integration=False)
+        for d in (0.5, 0.5 - h, 0.5 + h):
+            st2 = lazy.solve(approach=d)
+            assert np.isnan(st2.stiffness)
+        assert coll.max(abs(st2.force / hi.force - 1)) < 1e-8
+    finally:
+        PETSc.Options().delValue("lazy_stiffness")
+
+
+def test_loading_unloading_hysteresis_and_jumps(coll):
+    """mu = 1, full LJ: jump-on while loading, jump-off while unloading at a smaller
+    approach (hysteresis), pull-off between the JKR and DMT limits."""
+    r = 100.0   # the window (96 z0) holds the LJ tail: gap 11.5 z0 at its edge
+    pb = sphere_problem(1.0, law="lj", n=96, dx=1.0, radius=r)
+    w = work_for(1.0, r)
+    path = sweep(pb, np.concatenate([np.arange(-2.5, 0.01, 0.25), np.arange(-0.25, -2.51, -0.25)]))
+    kinds = [j.kind for j in path.jumps]
+    assert kinds == ["jump-on", "jump-off"]
+    on, off = path.jumps
+    assert off.approach_before < on.approach_before
+    assert on.force_after < on.force_before < 0      # snaps into tension
+    assert off.force_after > off.force_before         # released
+    bar = refine_pull_off(pb, path, xtol=0.01) / (np.pi * r * w)
+    assert -2.0 < bar < -1.5
+    # every point kept on the path is a stable, converged state
+    assert all(p.converged and p.stable for p in path.points)
+
+
+def test_central_gap_traces_the_unstable_branch(coll):
+    """Greenwood's device: prescribing the central gap passes through states that are unstable
+    under displacement control, where the approach turns back (the S-curve)."""
+    pb = sphere_problem(1.0, law="lj", n=96, dx=1.0)
+    path = central_gap_path(pb, np.arange(2.0, 0.19, -0.1))
+    assert all(p.converged for p in path.points)
+    stable = [p.stable for p in path.points]
+    assert stable[0] and False in stable
+    approach = path.column("approach")
+    k = stable.index(False)
+    # the approach has a maximum on the unstable stretch: the fold of the S-curve
+    assert approach[k - 1] > approach[0] and np.max(approach) > approach[-1]
+
+
+def test_edge_gap_path_closes_the_s_curve_on_the_adhered_branch(coll):
+    """Past the apex touching, prescribed gaps at nodes further out carry the S-curve
+    through the rest of the unstable branch and its fold (the jump-off) onto the adhered
+    branch: the last state equals the state that displacement-controlled unloading from
+    compression reaches at the same approach (an independent path to it)."""
+    pb = sphere_problem(2.0, law="lj", n=64, dx=1.5, element_integration=True, prefix="edge_")
+    path = central_gap_path(pb, np.round(np.arange(2.0, 0.04, -0.1), 10))
+    fold = [min(path.column("approach"))]
+
+    def back_on_adhered_branch(pt):
+        fold[0] = min(fold[0], pt.approach)
+        return bool(pt.stable) and pt.approach > fold[0] + 1.0
+
+    k0 = len(path.points)
+    edge_gap_path(pb, 0.1, 0.05, stop=back_on_adhered_branch, path=path)
+    edge = path.points[k0:]
+    assert all(p.converged for p in edge) and edge[-1].stable
+    stable = [p.stable for p in edge]
+    assert stable[0] is False                      # it continues the unstable branch
+    approach = np.array([p.approach for p in edge])
+    k = int(np.argmin(approach))
+    assert approach[k] < approach[0] - 0.1 and approach[k] < approach[-1] - 1.0   # the fold
+    end = edge[-1]
+    ref = sphere_problem(2.0, law="lj", n=64, dx=1.5, element_integration=True, prefix="edge_ref_")
+    down = np.arange(2.0, end.approach, -0.5)
+    unload = sweep(ref, np.concatenate([np.arange(-3.0, 2.01, 0.5), down, [end.approach]]), refine=0)
+    assert coll.max(abs(unload.points[-1].force / end.force - 1)) < 1e-6
+
+
+def test_truncated_stability_check_says_so(coll):
+    """A Lanczos run cut short is reported as unsettled, and its margin is an upper bound:
+    Ritz values only grow towards lambda_max(A S)."""
+    pb = sphere_problem(1.0, law="lj", n=64, dx=1.0)
+    pb.snes()
+    pb.stability_steps = 3
+    st = pb.solve(approach=0.5)
+    assert st.converged and st.stability_converged is False
+    pb.stability_steps = 60
+    full = pb._stability()
+    assert pb.stability_converged is True
+    assert full <= st.stability_margin + 1e-12
+
+
+def test_load_control_where_stable(coll):
+    """A prescribed tensile force on the stable branch is met; beyond the pull-off force
+    load control reports why it cannot be met."""
+    pb = sphere_problem(0.5, law="lj", n=64, dx=1.0, radius=100.0)
+    w = work_for(0.5, 100.0)
+    path = sweep(pb, np.arange(-2.0, 1.01, 0.25))
+    target = -1.0 * np.pi * 100.0 * w           # tensile, above the pull-off force (~ -1.78)
+    st = pb.solve_force(target)
+    assert st.converged and st.stable and abs(st.force - target) < 1e-6 * abs(target)
+    pull = path.pull_off_force
+    beyond = pb.solve_force(1.5 * pull, raise_on_failure=False)
+    assert not beyond.converged
+    assert "LOAD_CONTROL_UNSTABLE" in beyond.reason

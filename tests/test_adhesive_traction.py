@@ -1,0 +1,93 @@
+"""Adhesive traction: its derivative and the element integration of the reference paper (Fig. 3).
+
+Independent truths: finite differences of the traction, the law itself on a uniform gap, the
+Derjaguin force on a rigid paraboloid (2 pi R Phi(g0)).  Units: z0 = 1, E* = 1 (Greenwood's).
+"""
+import numpy as np
+import pytest
+
+from contactpetsc.grid import SurfaceGrid
+from contactpetsc.physics.interactions import make_law
+from contactpetsc.physics.traction import AdhesiveTraction
+from contactpetsc.solvers.adhesive import AdhesiveProblem
+from contactpetsc.geometry.surfaces import from_function
+
+
+@pytest.mark.parametrize("periodic", [True, False])
+@pytest.mark.parametrize("element", [False, True])
+@pytest.mark.parametrize("law", ["lj", "hardwall-lj"])
+def test_traction_derivative_matches_finite_differences(coll, periodic, element, law):
+    grid = SurfaceGrid(24, 19, 0.7, periodic=periodic)
+    tr = AdhesiveTraction(make_law(law, work_of_adhesion=0.3, z0=1.0), grid, element)
+    x, y = grid.coordinates()
+    g = (0.4 + 0.8 * np.sin(0.5 * x) * np.cos(0.3 * y) + 0.3 * np.cos(0.9 * x)).T.copy()
+    dg = (np.cos(0.7 * x + 0.2) * np.sin(0.4 * y)).T.copy()
+    tr.linearise(g)
+    lin = tr.apply_derivative(dg, np.empty_like(g))
+    eps = 1e-6
+    fd = (tr.pressure(g + eps * dg) - tr.pressure(g - eps * dg)) / (2 * eps)
+    assert coll.max(np.abs(lin - fd)) < 1e-6 * coll.max(np.abs(fd))
+
+
+def test_element_integration_is_exact_for_uniform_gaps(coll):
+    grid = SurfaceGrid(8, 6, 1.0)
+    law = make_law("lj", work_of_adhesion=0.3, z0=1.0)
+    g = np.full((grid.ny_local, grid.nx), 0.37)
+    a = AdhesiveTraction(law, grid, True).pressure(g)
+    assert coll.max(np.abs(a - law.pressure(0.37))) < 1e-12
+
+
+def rigid_tip_forces(coll, element, radius, dx, gap0, shifts, n=64):
+    """Total traction [N] on a rigid paraboloid at apex gap ``gap0`` for sub-node apex shifts."""
+    law = make_law("lj", work_of_adhesion=0.01, z0=1.0)
+    grid = SurfaceGrid(n, n, dx, periodic=False)
+    tr = AdhesiveTraction(law, grid, element)
+    out = []
+    for s in shifts:
+        x0, y0 = (n // 2 + 0.5 * s) * dx, (n // 2 + 0.37 * s) * dx
+        h = from_function(grid, lambda x, y: ((x - x0) ** 2 + (y - y0) ** 2) / (2 * radius) + gap0)
+        g = grid.rows(h, readonly=True).copy()
+        out.append(grid.mpi_comm.allreduce(float(tr.pressure(g).sum())) * dx * dx)
+    return np.array(out) / (2 * np.pi * radius * law.energy(gap0))   # Derjaguin: 2 pi R Phi(g0)
+
+
+def test_element_integration_removes_node_position_dependence(coll):
+    """An under-resolved tip (adhesive zone ~ one element): element integration cuts the
+    scatter of the total adhesive force over apex positions by > 4x (reference paper, Fig. 3)."""
+    shifts = np.linspace(0.0, 1.0, 6)
+    nodal = rigid_tip_forces(coll, False, radius=8.0, dx=4.0, gap0=0.0, shifts=shifts)
+    element = rigid_tip_forces(coll, True, radius=8.0, dx=4.0, gap0=0.0, shifts=shifts)
+    assert np.ptp(nodal) > 4 * np.ptp(element)
+    # resolved (and the window wide enough for the z^-2 tail): the Derjaguin force
+    for element in (False, True):
+        resolved = rigid_tip_forces(coll, element, radius=20.0, dx=0.5, gap0=0.2, shifts=[0.0, 0.5], n=128)
+        assert np.max(np.abs(resolved - 1.0)) < 5e-3
+
+
+def test_element_integration_on_a_deformable_sphere(coll):
+    """The same under-resolved sphere (R = 20 z0, dx = 4 z0, mu = 0.13, lj) as an elastic body held
+    at an apex gap of z0/2: over sub-node apex positions the total force scatters less with
+    element integration (measured 0.09 % against 0.30 % of the force), and both stay near the
+    rigid sphere's Derjaguin force 2 pi R Phi(z0/2), which the body's deformation towards the
+    plane exceeds by a few per cent (measured: nodal +6.8 %, element integration -2.4 %: its
+    linear gap between nodes lies above a curved surface, a bias of order (dx / R)^2 that
+    sampling at the nodes does not have; docs/validation.md)."""
+    law = make_law("lj", work_of_adhesion=0.01, z0=1.0)
+    n, dx, radius = 64, 4.0, 20.0
+    forces = {}
+    for element in (False, True):
+        out = []
+        for s in np.linspace(0.0, 1.0, 6):
+            grid = SurfaceGrid(n, n, dx, periodic=False)
+            x0, y0 = (n // 2 + 0.5 * s) * dx, (n // 2 + 0.37 * s) * dx
+            h = from_function(grid, lambda x, y: ((x - x0) ** 2 + (y - y0) ** 2) / (2 * radius))
+            pb = AdhesiveProblem(grid, h, 1.0, law, element_integration=element, prefix=f"eid{int(element)}_",
+                                 stability_check=False)
+            st = pb.solve(approach=-0.5)
+            out.append(st.force)
+        forces[element] = np.array(out)
+    scatter = {k: np.ptp(f) / abs(f.mean()) for k, f in forces.items()}
+    assert coll.max(scatter[True]) < 0.5 * scatter[False], scatter
+    derjaguin = 2 * np.pi * radius * law.energy(0.5)
+    for f in forces.values():
+        assert coll.max(np.abs(f / derjaguin - 1).max()) < 0.1, (f, derjaguin)
