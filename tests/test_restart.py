@@ -232,6 +232,14 @@ def test_damaged_files_are_refused_or_redone_naming_the_file(coll, shared_tmp):
     coll.raises(RunDirectoryError, ["curve.csv, row 2", "columns"], runner.run, scene,
                 comm=PETSc.COMM_WORLD, restart=True)
     if coll.rank == 0:
+        words = good.splitlines(keepends=True)[2].split(",")
+        words[3] = "abc"                                              # row 2's force damaged
+        lines[2] = ",".join(words)
+        (out / "curve.csv").write_text("".join(lines))
+    world.Barrier()
+    coll.raises(RunDirectoryError, ["curve.csv, row 2", "damaged value"], runner.run, scene,
+                comm=PETSc.COMM_WORLD, restart=True)
+    if coll.rank == 0:
         (out / "curve.csv").write_text(good[: len(good) - 40])     # the last row half-written
     world.Barrier()
     states = runner.run(rough(out, protocol__values=[5e6, 1e7, 2e7]), comm=PETSc.COMM_WORLD, restart=True)

@@ -15,6 +15,7 @@ import os
 
 import h5py
 import numpy as np
+from mpi4py import MPI
 
 from ..collective import collective_call
 
@@ -92,6 +93,28 @@ def _write_h5(path: str, comm, fill) -> None:
         os.fsync(f.fileno())
 
 
+def _room(directory: str) -> float:
+    """Bytes one file in ``directory`` may still take: the free space, or less where the
+    process's file-size limit (RLIMIT_FSIZE) is smaller."""
+    import resource
+    st = os.statvfs(directory)
+    room = float(st.f_bavail * st.f_frsize)
+    limit = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+    return room if limit == resource.RLIM_INFINITY else min(room, float(limit))
+
+
+def _check_room(directory: str, final: str, comm, need: float) -> None:
+    """Refuse, on every rank, a step file that does not fit before any rank starts writing it:
+    a collective MPI-IO write that fails on one rank only leaves the others waiting."""
+    room = comm.allreduce(collective_call(comm, OSError, f"cannot write {final}: {{error}}",
+                                          _room, directory), op=MPI.MIN)
+    if room < need:
+        raise OSError(f"cannot write {final}: it needs about {need / 2**20:.2f} MiB, the output "
+                      f"directory has room for {room / 2**20:.2f} MiB (free space or the file size "
+                      f"limit); the steps written so far are kept: free some space and continue "
+                      f"with --restart")
+
+
 def write_state(directory: str, step: int, grid, heights, state, attrs: dict) -> str:
     """Write step ``step`` of ``state`` (a ContactState) to ``directory/step_NNNN.h5`` (+ ``.xdmf``).
 
@@ -135,6 +158,9 @@ def write_state(directory: str, step: int, grid, heights, state, attrs: dict) ->
             else:
                 dset[grid.ys:grid.ye, :] = rows[field]
 
+    # the datasets, plus the attributes (the scene and versions) and HDF5's own structure
+    _check_room(directory, final, comm, 8.0 * grid.nx * grid.ny * len(fields) + 2**16
+                + sum(len(str(v)) for v in attrs.values()))
     try:
         _write_h5(tmp, comm, fill)
         error = None

@@ -134,19 +134,21 @@ class StepRecorder:
 
     def _read_back(self, fields):
         notes = []
-        rows = _read_rows(self.path("curve.csv"), ("step", "approach_m", "force_N", "converged"), notes)
+        rows = _read_rows(self.path("curve.csv"), ("step", "approach_m", "force_N", "converged"), notes,
+                          numeric=("step", "approach_m", "force_N"))
         for k, r in enumerate(rows, 1):
             if r["step"] != str(k):
                 raise ValueError(f"{self.path('curve.csv')}, row {k}: step {r['step']!r}, expected {k}")
         done = len(rows)
         # rows of the steps on disk (files of an older version have no step column: all kept)
         jumps = [dict(j, step=j.get("step", "nan"))
-                 for j in _read_rows(self.path("jumps.csv"), JUMP_COLUMNS[1:], notes)
+                 for j in _read_rows(self.path("jumps.csv"), JUMP_COLUMNS[1:], notes, JUMP_COLUMNS[2:])
                  if float(j.get("step", 0)) <= done]
         atoms = None
         if os.path.exists(self.path("atom_forces.csv")):
             atoms = [[a.get(c, "nan") for c in ATOM_COLUMNS]
-                     for a in _read_rows(self.path("atom_forces.csv"), ATOM_COLUMNS[1:], notes)
+                     for a in _read_rows(self.path("atom_forces.csv"), ATOM_COLUMNS[1:], notes,
+                                              ATOM_COLUMNS[1:])
                      if float(a.get("step", 0)) <= done]
         for r in rows:
             for c in CURVE_COLUMNS:
@@ -306,9 +308,10 @@ def check_step_file(path: str, grid, fields: tuple) -> None:
         raise ValueError(f"{path} is truncated ({os.path.getsize(path)} bytes, its datasets need {need})")
 
 
-def _read_rows(path: str, required, notes: list) -> list[dict]:
+def _read_rows(path: str, required, notes: list, numeric=()) -> list[dict]:
     """The rows of a CSV file as dicts; a partial last line is dropped (noted), a short or
-    damaged earlier row refused, naming the file and the row."""
+    damaged earlier row (a ``numeric`` column that is not a number) refused, naming the
+    file and the row."""
     if not os.path.exists(path):
         return []
     with open(path, newline="") as f:
@@ -324,7 +327,7 @@ def _read_rows(path: str, required, notes: list) -> list[dict]:
     for n, line in enumerate(lines[1:], 1):
         words = next(csv.reader([line]), [])
         bad = (len(words) != len(header) or not line.endswith("\n")
-               or ("step" in header and not _numeric(words[header.index("step")])))
+               or any(not _numeric(words[header.index(c)]) for c in numeric))
         if bad and n == len(lines) - 1:
             notes.append(f"{path}: dropped its partial last row {n} (written when the run was interrupted); "
                          "that step is solved again")

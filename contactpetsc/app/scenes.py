@@ -299,9 +299,10 @@ def _check_interaction(out: dict, given: set) -> None:
 
 
 def _check_protocol(out: dict) -> None:
-    """Values must be finite numbers, loads positive, and no value so small that it is round-off:
-    non-zero values below LOAD_RESOLUTION E* (mean pressure), E* nx dx ny dy (force) or min(dx, dy)
-    (approach, central gap) would be solved to a relative error that means nothing."""
+    """Values must be finite numbers, loads positive, and no load so small that it is round-off:
+    loads below LOAD_RESOLUTION E* (mean pressure) or E* nx dx ny dy (force) would be solved to a
+    relative error that means nothing.  Approaches and gaps are displacements: one of round-off
+    size (an arange through zero) is solved as zero."""
     control, values = out["protocol"]["control"], out["protocol"]["values"]
     if not values or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
                              and math.isfinite(v) for v in values):
@@ -313,14 +314,12 @@ def _check_protocol(out: dict) -> None:
         "mean_pressure": (e_star, "Pa", "1e-12 material.e_star"),
         "force": (e_star * g["nx"] * g["dx"] * g["ny"] * g["dy"], "N",
                   "1e-12 material.e_star times the window area nx dx ny dy"),
-    }.get(control, (min(g["dx"], g["dy"]), "m", "1e-12 min(geometry.dx, geometry.dy)"))
+    }.get(control, (0.0, "m", ""))   # an approach or gap of round-off size is just zero
     smallest *= LOAD_RESOLUTION
     tiny = [v for v in values if v != 0 and abs(v) < smallest]
     if tiny:
-        accepted = f"[{smallest:.3g}, inf) {unit}" if control in ("mean_pressure", "force") else \
-            f"0 or |value| >= {smallest:.3g} {unit}"
         raise SceneError(f"protocol.values: {tiny[0]!r} {unit} is below {what} (round-off, not a "
-                         f"{control.replace('_', ' ')}); accepted: {accepted}")
+                         f"{control.replace('_', ' ')}); accepted: [{smallest:.3g}, inf) {unit}")
 
 
 def _check_height_file(g: dict) -> None:
