@@ -44,6 +44,24 @@ def rigid_force(h: np.ndarray, delta: float, dx: float, dy: float, law: str, w: 
     return float(np.sum(law_pressure(law, h - delta, w, **kw)) * dx * dy)
 
 
+def rigid_force_bounds(h: np.ndarray, delta: float, dx: float, dy: float, law: str, w: float,
+                       **kw) -> tuple[float, float]:
+    """(lo, hi) [N]: ``rigid_force``, widened for the Dugdale law by the nodes whose rigid gap
+    sits on its cut-off w / sigma0 (to 1e-6 z0): any deformation, however small, puts such a
+    node on either side of the discontinuity."""
+    f = rigid_force(h, delta, dx, dy, law, w, **kw)
+    if law != "dugdale":
+        return f, f
+    on_edge = np.count_nonzero(np.abs(h - delta - w / kw["sigma0"]) <= 1e-6 * Z0)
+    return f - kw["sigma0"] * on_edge * dx * dy, f
+
+
+def peak_approach(law: str, z0: float = Z0, **kw) -> float:
+    """The approach [m] at which a flat cell's tension peaks (gap 3^(1/6) z0 - z0 for the LJ
+    laws, contact for the exponential one)."""
+    return -(3 ** (1 / 6) - 1) * z0 if law in ("lj", "hardwall-lj") else 0.0
+
+
 # --------------------------------------------------------------------------------------------
 # class 4: PETSc's random vector must never be written
 def random_signature(p: np.ndarray) -> bool:
