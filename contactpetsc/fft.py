@@ -28,18 +28,8 @@ from __future__ import annotations
 import numpy as np
 import pyfftw
 from mpi4py import MPI
-from petsc4py import PETSc
 
-_events: dict[str, PETSc.Log.Event] = {}
-
-
-def log_event(name: str) -> PETSc.Log.Event:
-    """A PETSc log event, created on first use (so -log_view lists it)."""
-    ev = _events.get(name)
-    if ev is None:
-        ev = _events[name] = PETSc.Log.Event(name)
-    return ev
-
+from .log_events import log_event
 
 def split_range(n: int, parts: int) -> list[tuple[int, int]]:
     """Split range(n) into ``parts`` contiguous blocks, the first n % parts one longer (PETSc's rule)."""

@@ -33,7 +33,8 @@ import pyfftw
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..fft import SlabRFFT, log_event
+from ..fft import SlabRFFT
+from ..log_events import log_event
 from ..errors import collective_guard
 from ..grid import SurfaceGrid
 from ..lifetime import destroy_at_exit

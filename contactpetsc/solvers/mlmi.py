@@ -45,7 +45,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..fft import log_event
+from ..log_events import log_event
 from ..operators.elastic import half_space
 from .preconditioners import ReducedPreconditioner, lowest_mode_stiffness
 from .transfer import can_halve, halved, prolong_constant, restrict
