@@ -152,7 +152,7 @@ def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0
                 # bisection has found its end already: the jump's force_before)
                 path._edges.append((last[0], pt.approach, last[1]))
             else:
-                _free(last[1])
+                last[1].destroy()
             last = None
         if good:
             last = (i, problem.snapshot())
@@ -169,12 +169,12 @@ def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0
                 best = path._best
                 if best is None or st.force < path.points[best[0]].force:
                     if best is not None:
-                        _free(best[1])
+                        best[1].destroy()
                     path._best = (i, problem.snapshot())
             if on_state is not None:
                 on_state(k, st, pt)
     if last is not None:
-        _free(last[1])
+        last[1].destroy()
     return path
 
 
@@ -216,7 +216,7 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps):
             else:
                 problem.restore(snap)   # the last converged state, with its tangent
                 h *= 0.5
-        _free(snap)
+        snap.destroy()
         if final:
             break
     if not st.converged and st.approach != target:
@@ -284,7 +284,7 @@ def refine_pull_off(problem, path: Path, xtol: float, max_solves: int = 40,
     found.append((pts[k].force, "end" not in sides))
     found += [(f, True) for j in path.jumps for f in (j.force_before, j.force_after)]
     problem.restore(end)
-    _free(end)
+    end.destroy()
     force, reached = min(found, key=lambda f: (f[0], not f[1]))
     path.refined_pull_off = force if reached else float("nan")
     return path.refined_pull_off
@@ -313,10 +313,10 @@ def _continue(problem, snap, start, towards, xtol, max_solves, jump_tol):
         if _good(st) and abs(st.force - predicted) <= max(jump_tol * scale, abs(predicted - cur[1])):
             cur = (d, st.force, st.stiffness)
             states.append((d, st.force, problem.snapshot()))
-            _free(here)
+            here.destroy()
         else:
             problem.restore(here)
-            _free(here)
+            here.destroy()
             if abs(h) <= xtol:
                 ended = True
                 break
@@ -328,7 +328,7 @@ def _continue(problem, snap, start, towards, xtol, max_solves, jump_tol):
         force = min(force, _golden(problem, states[m][2], states[m - 1][0], states[m + 1][0], xtol, max_solves))
     for state in states:
         if state[2] is not None:
-            _free(state[2])
+            state[2].destroy()
     return force, reached, nearest
 
 
@@ -365,12 +365,6 @@ def _golden(problem, snap, lo, hi, xtol, max_solves) -> float:
     return best
 
 
-def _free(snap) -> None:
-    snap[0].destroy()
-    if snap[2] is not None:
-        snap[2][1].destroy()
-
-
 def _locate_jump(problem, snap, prev, after, refine) -> Jump | None:
     """Bisect [prev approach, after.approach] with Newton from the old branch only; None when
     the branch is continuous there: the force gap across the final bracket is no larger than
@@ -390,13 +384,13 @@ def _locate_jump(problem, snap, prev, after, refine) -> Jump | None:
         on_old = (st.converged and st.stable is not False
                   and abs(st.force - w_lo) < 0.5 * abs(w_hi - w_lo))
         if on_old:
-            _free(snap)
+            snap.destroy()
             snap = problem.snapshot()
             d_lo, w_lo, k_lo = mid, st.force, st.stiffness
         else:
             d_hi = mid
     problem.restore(new_branch)
-    _free(new_branch)
+    new_branch.destroy()
     k_hi = after.stiffness
     if refine and abs(d_hi - after.approach) > 0:
         # the force just after the jump, on the new branch, at the bisected approach
@@ -405,7 +399,7 @@ def _locate_jump(problem, snap, prev, after, refine) -> Jump | None:
         problem.solve(approach=after.approach, raise_on_failure=False)
     else:
         w_after = w_hi
-    _free(snap)
+    snap.destroy()
     width, gap = abs(d_hi - d_lo), abs(w_after - w_lo)
     slope = max(abs(k_lo), abs(k_hi))
     smooth = 2.0 * slope * width if np.isfinite(slope) else 4.0 * gap0 * width / max(width0, np.finfo(float).tiny)
