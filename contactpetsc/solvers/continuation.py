@@ -242,3 +242,15 @@ class Continuation:
     def solve_count(self) -> int:
         """Solves so far (SNES runs and relaxations)."""
         return self._n_solves
+
+    def _destroy_solvers(self) -> None:
+        """Destroy the SNES, the PTC SNES, the tangent and the coarse level's solvers: their
+        callbacks hold the problem, a cycle that Python's collector cannot see."""
+        if self._coarse:
+            self._coarse._destroy_solvers()
+        self._drop_tangent()
+        for name in ("_snes", "_ptc"):
+            obj = getattr(self, name, None)
+            if obj is not None:
+                obj.destroy()
+            setattr(self, name, None)

@@ -50,7 +50,7 @@ class RelaxationSolver:
         if not problem.hard_wall:
             raise ValueError(f"the relaxation solver needs a hard-wall law (hardwall-lj, exponential, "
                              f"dugdale); law {problem.law.name!r} is solved by Newton (solver = 'newton')")
-        self.pb = problem
+        self.pb = self.problem = problem
         with problem.inserted_options():
             self._read_options(tol, contact_tol, max_cycles)
         self.solver_name = "relaxation-mlmi"

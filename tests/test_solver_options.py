@@ -1,0 +1,101 @@
+"""PETSc-native options of the problems: ``petsc_options`` reach the solver under the prefix and
+nothing is left in the global options database after a build or a solve (the database itself is
+the truth); the factory picks the stack by law and method; options the convergence test would
+ignore are refused; snapshots free themselves."""
+import numpy as np
+import pytest
+from petsc4py import PETSc
+
+from contactpetsc.grid import SurfaceGrid
+from contactpetsc.physics.interactions import make_law
+from contactpetsc.solvers.adhesive import AdhesiveProblem
+from contactpetsc.solvers.factory import describe_solver, make_problem
+from contactpetsc.solvers.problem import ContactProblem
+from contactpetsc.solvers.relaxation import RelaxationSolver
+from contactpetsc.surfaces import sphere
+
+LJ = make_law("lj", work_of_adhesion=0.05, z0=0.5)
+HARD = make_law("hardwall-lj", work_of_adhesion=0.05, z0=0.5)
+
+
+def _left(prefix):
+    return sorted(k for k in PETSc.Options().getAll() if k.startswith(prefix))
+
+
+def test_contact_options_applied_then_removed(coll):
+    grid = SurfaceGrid(32, 32, 1.0, periodic=False)
+    h = sphere(grid, 100.0)
+    prefix = "popt_contact_"
+    with ContactProblem(grid, h, 1.0, prefix=prefix,
+                        petsc_options={"tol": 1e-9, "ksp_type": "gmres", "-snes_max_it": 40}) as pb:
+        st = pb.solve(approach=1.0)
+        assert st.converged and st.complementarity_error <= 1e-9
+        assert pb.tol == 1e-9
+        assert pb.solver.getKSP().getType() == "gmres"
+        assert pb.solver.getTolerances()[3] == 40
+        assert pb.x.getSize() == grid.nx * grid.ny and pb.J.getSize()[0] == grid.nx * grid.ny
+        assert _left(prefix) == []
+
+
+def test_command_line_option_wins_and_stays(coll):
+    grid = SurfaceGrid(16, 16, 1.0, periodic=False)
+    h = sphere(grid, 100.0)
+    prefix = "popt_cmd_"
+    PETSc.Options().setValue(prefix + "ksp_type", "gmres")
+    try:
+        pb = ContactProblem(grid, h, 1.0, prefix=prefix, petsc_options={"ksp_type": "bcgs"})
+        pb.solve(approach=0.5)
+        assert pb.solver.getKSP().getType() == "gmres"
+        assert _left(prefix) == [prefix + "ksp_type"]
+        pb.destroy()
+    finally:
+        PETSc.Options().delValue(prefix + "ksp_type")
+
+
+@pytest.mark.parametrize("law", [LJ, HARD], ids=["lj", "hardwall-lj"])
+def test_adhesive_options_applied_then_removed(coll, law):
+    grid = SurfaceGrid(32, 32, 0.25, periodic=False)
+    h = sphere(grid, 20.0)
+    prefix = f"popt_{law.name.replace('-', '_')}_"
+    pb = AdhesiveProblem(grid, h, 1.0, law, prefix=prefix, petsc_options={"tol": 1e-7, "stall_steps": 5})
+    st = pb.solve(approach=0.2)
+    assert st.converged and pb.tol == 1e-7 and pb.stall_steps == 5
+    with pb.snapshot() as snap:
+        assert snap.x.getSize() == pb.x.getSize() and snap.approach == pytest.approx(0.2)
+    assert snap.x is None                         # freed by the context manager
+    assert _left(prefix) == []
+    pb.destroy()
+
+
+def test_snes_norm_tolerances_are_refused(coll):
+    grid = SurfaceGrid(16, 16, 1.0, periodic=False)
+    h = sphere(grid, 100.0)
+    pb = ContactProblem(grid, h, 1.0, prefix="popt_rtol_", petsc_options={"snes_rtol": 1e-3})
+    coll.raises(ValueError, ["-popt_rtol_snes_rtol", "-popt_rtol_tol"], pb.solve, approach=0.5)
+    assert _left("popt_rtol_") == []
+
+
+def test_factory_picks_the_stack(coll):
+    grid = SurfaceGrid(16, 16, 0.25, periodic=False)
+    h = sphere(grid, 20.0)
+    assert type(make_problem(grid, h, 1.0)) is ContactProblem
+    assert type(make_problem(grid, h, 1.0, make_law("none"))) is ContactProblem
+    ad = make_problem(grid, h, 1.0, LJ, prefix="popt_f_", tol=1e-6)
+    assert type(ad) is AdhesiveProblem and ad.prefix == "popt_f_"
+    relax = make_problem(grid, h, 1.0, HARD, method="relaxation", tol=1e-3)
+    assert isinstance(relax, RelaxationSolver) and relax.tol == 1e-3 and relax.problem.prefix == "adhesion_"
+    with pytest.raises(ValueError, match="hard-wall"):
+        make_problem(grid, h, 1.0, LJ, method="relaxation")
+    with pytest.raises(ValueError, match="method"):
+        make_problem(grid, h, 1.0, LJ, method="guess")
+
+
+def test_describe_solver_reports_types_and_prefixes(coll):
+    lines = describe_solver(None, petsc_options={"ksp_type": "gmres"}, prefix="popt_d_")
+    text = "\n".join(lines)
+    assert "vinewtonrsls" in text and "-popt_d_" in text and "KSP gmres" in text
+    assert "contactpetsc.solvers.SpectralPC" in text
+    text = "\n".join(describe_solver(LJ))
+    assert "KSP bcgs" in text and "line search basic" in text and "-adhesion_ptc_" in text
+    assert "KSP gmres" in "\n".join(describe_solver(HARD))
+    assert _left("popt_d_") == [] and not any(k.startswith("adhesion_") for k in PETSc.Options().getAll())
