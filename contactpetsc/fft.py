@@ -31,6 +31,7 @@ from mpi4py import MPI
 
 from .log_events import log_event
 
+
 def split_range(n: int, parts: int) -> list[tuple[int, int]]:
     """Split range(n) into ``parts`` contiguous blocks, the first n % parts one longer (PETSc's rule)."""
     base, extra = divmod(n, parts)

@@ -99,3 +99,30 @@ def test_describe_solver_reports_types_and_prefixes(coll):
     assert "KSP bcgs" in text and "line search basic" in text and "-adhesion_ptc_" in text
     assert "KSP gmres" in "\n".join(describe_solver(HARD))
     assert _left("popt_d_") == [] and not any(k.startswith("adhesion_") for k in PETSc.Options().getAll())
+
+
+def test_option_tables_in_the_docs_are_generated():
+    """docs/formulation.md's option tables are the registry's (``solvers.options``)."""
+    import os
+    from contactpetsc.solvers.options import options_markdown
+    with open(os.path.join(os.path.dirname(__file__), "..", "docs", "formulation.md")) as f:
+        text = f.read()
+    for table in ("contact", "adhesion"):
+        assert options_markdown(table) in text, f"regenerate the {table} table from options_markdown()"
+
+
+def test_help_lists_the_package_options(coll, capfd):
+    grid = SurfaceGrid(16, 16, 0.25, periodic=False)
+    h = sphere(grid, 20.0)
+    opts = PETSc.Options()
+    opts.setValue("help", None)
+    try:
+        ContactProblem(grid, h, 1.0, prefix="popt_help_c_").snes()
+        AdhesiveProblem(grid, h, 1.0, LJ, prefix="popt_help_a_").snes()
+    finally:
+        opts.delValue("help")
+    out = capfd.readouterr().out
+    if coll.comm.Get_rank() == 0:
+        for name in ("-popt_help_c_tol", "-popt_help_c_load_tol", "-popt_help_a_stall_steps",
+                     "-popt_help_a_fallback", "-popt_help_a_time_budget"):
+            assert name in out

@@ -19,7 +19,7 @@ search (``bt``) on the VI residual norm for hard-wall laws -- a trust region
 would also do, but the line search keeps the full Newton step whenever it
 reduces the residual, which is what warm-started steps need -- and full
 steps (``basic``) for the full LJ curve, whose residual norm is dominated by
-the stiff repulsive rows (measured better).  When Newton fails, a
+the stiff repulsive rows.  When Newton fails, a
 relaxation path takes over (``solve``); when it stalls (no smaller error in
 ``-<prefix>stall_steps`` steps: full steps cycling where a few nodes of one
 contact edge sit at their own fold), pseudo-transient continuation goes on
@@ -56,6 +56,7 @@ from .base import AdhesiveSolveError, VIProblem, check_tolerance, reason_name, w
 from .continuation import Continuation
 from .history import SolveHistory
 from .load_control import solve_force
+from .options import code_default, print_help
 from .pc_registry import ADHESIVE_PC, ADHESIVE_PRECONDITIONERS
 from .states import AdhesiveState
 from .tangent import TangentAndState
@@ -100,6 +101,8 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         PETSc options under ``prefix`` while the problem builds and solves (``VIProblem``).
     """
 
+    option_table = "adhesion"
+
     def __init__(self, grid: SurfaceGrid, heights: PETSc.Vec, e_star: float, law: InteractionLaw, *,
                  element_integration: bool | None = None, prefix: str = "adhesion_",
                  operator: HalfSpaceOperator | None = None, tol: float | None = None,
@@ -115,7 +118,8 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self.pressure_scale = float(law.peak_attraction)   #: P [Pa], the pressure error's unit
         with self.inserted_options():
             self.element_integration = PETSc.Options(prefix).getBool(
-                "element_integration", bool(element_integration) if element_integration is not None else False)
+                "element_integration", bool(element_integration) if element_integration is not None
+                else code_default("adhesion", "element_integration"))
         self.traction = AdhesiveTraction(law, grid, self.element_integration)
         self.zone_nodes = check_resolution(law, self.e_star, max(grid.dx, grid.dy))
         # K_ii max da/dg: above one a single node is unstable on its own (its adhesive
@@ -204,23 +208,21 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
     def _build(self):
         if self._snes is not None:
             return self._snes
-        d = self._defaults
+        print_help("adhesion", self.prefix, self.grid.comm)
         opts = PETSc.Options(self.prefix)
-        self.tol = check_tolerance(opts.getReal("tol", 1e-8 if d["tol"] is None else d["tol"]),
+        self.tol = check_tolerance(opts.getReal("tol", self._default("tol")),
                                    f"tol (-{self.prefix}tol)")
-        self.max_it = opts.getInt("max_it", 100)
-        self.stability_check = opts.getBool(
-            "stability_check", True if d["stability_check"] is None else d["stability_check"])
-        self.stability_steps = opts.getInt("stability_steps", 30)
-        self.ptc_shift0 = opts.getReal("ptc_shift", 1.0)
+        self.max_it = opts.getInt("max_it", code_default("adhesion", "max_it"))
+        self.stability_check = opts.getBool("stability_check", self._default("stability_check"))
+        self.stability_steps = opts.getInt("stability_steps", code_default("adhesion", "stability_steps"))
+        self.ptc_shift0 = opts.getReal("ptc_shift", code_default("adhesion", "ptc_shift"))
         # Newton without a new smallest error for this many steps has stalled: full steps
-        # can cycle for good where one asperity's edge sits at its own fold (rough benchmark
-        # at 1024^2: ten nodes of one edge swung between snapped and free for 35 steps, the
-        # rest converged); PTC then goes on from the best iterate (0: never)
-        self.stall_steps = opts.getInt("stall_steps", 8)
-        # bounded: where PTC has not settled in 300 steps it wanders (measured on
-        # under-resolved strong adhesion, snap number 4.4: no progress in 800 steps)
-        self.ptc_max_it = opts.getInt("ptc_max_it", 300)
+        # can cycle for good where a few nodes of one edge sit at their own fold; PTC then
+        # goes on from the best iterate (0: never; docs/formulation.md, "Globalisation")
+        self.stall_steps = opts.getInt("stall_steps", code_default("adhesion", "stall_steps"))
+        # bounded: where PTC has not settled in a few hundred steps it wanders
+        # (under-resolved strong adhesion; docs/robustness.md)
+        self.ptc_max_it = opts.getInt("ptc_max_it", code_default("adhesion", "ptc_max_it"))
         # the relaxation paths tried in turn where Newton fails or ends on an unstable state.
         # Hard-wall laws: the paper's relaxation first, then PTC -- from rest at mu = 2 the
         # relaxation reaches the state where PTC ran its 300 steps (Tabor-2 benchmark sphere),
@@ -233,37 +235,36 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         if "relaxation" in self.fallback_chain and not self.hard_wall:
             raise ValueError(f"-{self.prefix}fallback relaxation needs a hard-wall law (the paper's relaxation "
                              f"stores contact pressures apart), got {self.law.name!r}")
-        self.fallback_tol = opts.getReal("fallback_tol", 1e-3)
+        self.fallback_tol = opts.getReal("fallback_tol", code_default("adhesion", "fallback_tol"))
         # a wall-time budget [s] for all of this problem's solves, counted from the first
         # (0: none): past it the running solve stops at its next iteration and every later
         # one at once, with the reason WALL_TIME_BUDGET -- a batch job ends cleanly with its
         # finished steps written, and an unresolvable case ends in bounded time
-        self.time_budget = opts.getReal("time_budget", 0.0)
+        self.time_budget = opts.getReal("time_budget", code_default("adhesion", "time_budget"))
         if not self.time_budget >= 0.0:
             raise ValueError(f"-{self.prefix}time_budget must be >= 0 s (0: no budget), got {self.time_budget!r}")
-        self.fallback_max_cycles = opts.getInt("fallback_max_cycles", 5000)
-        self.use_predictor = opts.getBool("predictor", True)
+        self.fallback_max_cycles = opts.getInt("fallback_max_cycles", code_default("adhesion", "fallback_max_cycles"))
+        self.use_predictor = opts.getBool("predictor", code_default("adhesion", "predictor"))
         # every displacement-controlled state's tangent stiffness (one Krylov solve; sweeps
         # test jumps with it, load control steps with it).  Off: NaN, and the tangent is
         # solved only where the next step's predictor needs it (no coarse-grid predictor)
-        self.compute_stiffness = opts.getBool("stiffness", True)
+        self.compute_stiffness = opts.getBool("stiffness", code_default("adhesion", "stiffness"))
         # off by default: at hard-wall, high-Tabor jump-ins the relaxation fallback can need
-        # thousands of cycles (measured: mu = 2 sphere, 36.6 s from rest against 6.9 s from
-        # the Signorini state); sweeps that start from separation get the same state anyway
-        self.load_from_rest = opts.getBool("load_from_rest", False)
-        self.initial_step = opts.getReal("initial_step", 0.25)
-        form = opts.getString("repulsive_rows", "gap").lower()
+        # thousands of cycles from rest; sweeps that start from separation get the same state
+        self.load_from_rest = opts.getBool("load_from_rest", code_default("adhesion", "load_from_rest"))
+        self.initial_step = opts.getReal("initial_step", code_default("adhesion", "initial_step"))
+        form = opts.getString("repulsive_rows", code_default("adhesion", "repulsive_rows")).lower()
         if form not in ("gap", "pressure"):
             raise ValueError(f"-{self.prefix}repulsive_rows must be gap or pressure, got {form!r}")
         # the gap form needs the law's inverse: the nodal rule of the full LJ curve
         self.gap_form = form == "gap" and self.traction.invertible
         self.step_limit = opts.getReal("step_limit", 0.5 if self.traction.invertible else 0.0)
         # nested iteration on the first solve: the same problem on 2x coarser grids first
-        self.fmg = opts.getBool("fmg", True)
-        self.fmg_min_size = opts.getInt("fmg_min_size", 32)
-        self.fmg_tol = opts.getReal("fmg_tol", 1e-3)
-        self.fmg_steps = opts.getBool("fmg_steps", True)
-        choice = opts.getString("preconditioner", d["preconditioner"] or "spectral").lower()
+        self.fmg = opts.getBool("fmg", code_default("adhesion", "fmg"))
+        self.fmg_min_size = opts.getInt("fmg_min_size", code_default("adhesion", "fmg_min_size"))
+        self.fmg_tol = opts.getReal("fmg_tol", code_default("adhesion", "fmg_tol"))
+        self.fmg_steps = opts.getBool("fmg_steps", code_default("adhesion", "fmg_steps"))
+        choice = opts.getString("preconditioner", self._default("preconditioner")).lower()
         if choice not in ADHESIVE_PRECONDITIONERS:
             raise ValueError(f"-{self.prefix}preconditioner must be spectral, mlmi or none, got {choice!r}")
         self.preconditioner = choice
@@ -285,8 +286,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self._J = J
         # line search: backtracking for hard-wall laws (contact-set changes need damping);
         # full steps for the full LJ curve, whose residual norm is dominated by the stiff
-        # repulsive rows and stalls bt (measured on the rough benchmark at 256^2: bt 33-58
-        # Newton steps or a fallback, basic 25-56 steps and none)
+        # repulsive rows and stalls bt (docs/performance.md, "Rough adhesion")
         self._snes = self._make_snes(self.prefix, "bt" if self.hard_wall else "basic", self.max_it,
                                      1000 if self.hard_wall else 30)
         # pseudo-transient continuation takes full (shifted) steps: the residual norm
@@ -311,7 +311,8 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         ksp.setType(newton_ksp_type(self.hard_wall))
         # with the full LJ curve an inexact step is cheaper than an exact one far from the
         # solution (docs/performance.md, "Rough adhesion")
-        ksp.setTolerances(rtol=PETSc.Options(self.prefix).getReal("newton_ksp_rtol", 1e-2), max_it=ksp_max_it)
+        rtol = PETSc.Options(self.prefix).getReal("newton_ksp_rtol", code_default("adhesion", "newton_ksp_rtol"))
+        ksp.setTolerances(rtol=rtol, max_it=ksp_max_it)
         pc = ksp.getPC()
         if self.preconditioner == "none":
             pc.setType("none")

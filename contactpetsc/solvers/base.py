@@ -13,6 +13,7 @@ from petsc4py import PETSc
 
 from ..grid import SurfaceGrid
 from ..operators.elastic import HalfSpaceOperator, half_space
+from .options import code_default
 
 #: accepted range (0, MAX_TOL] of error tolerances (complementarity, self-consistency, pressure
 #: and relative load errors): a larger one accepts states that are not solutions at all
@@ -111,6 +112,14 @@ class VIProblem:
         self.kappa = self.op.self_influence
 
     # -- options ------------------------------------------------------------------------
+    #: the table of ``options.TABLES`` this problem's own options are registered in
+    option_table = "contact"
+
+    def _default(self, key: str):
+        """The code default of ``-<prefix><key>``: the constructor's keyword, else the registry's."""
+        given = self._defaults.get(key)
+        return code_default(self.option_table, key) if given is None else given
+
     @contextmanager
     def inserted_options(self):
         """``petsc_options`` under the prefix for the duration (nested uses insert once);

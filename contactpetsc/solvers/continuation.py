@@ -42,9 +42,8 @@ class Continuation:
             return self._coarse or None
         self._coarse = False
         g = self.grid
-        # levels coarser than the adhesive range are kept: on the rough benchmark at 512^2
-        # (z0 = dx) the levels with dx = 8 and 16 z0 need pseudo-transient continuation,
-        # yet without them the 4 z0 level did too and the fine path step took 8x longer
+        # levels coarser than the adhesive range are kept: without them the first level
+        # that resolves it needs continuation too (docs/performance.md, "Nested iteration")
         if not self.fmg or not can_halve(g) or min(g.nx, g.ny) // 2 < self.fmg_min_size:
             return None
         gc = halved(g)
@@ -93,9 +92,8 @@ class Continuation:
         if st.converged:
             old.aypx(-1.0, coarse._x)
             xb, dc = self.blocks(self._x), coarse.blocks(old, readonly=True)
-            # the increment is smoother than the state: bilinear (the rough benchmark at
-            # 1024^2, 25 % contact: 893 FFT pairs against 985 piecewise constant, one
-            # Newton step fewer on the fine grid at 512^2)
+            # the increment is smoother than the state: bilinear (fewer FFT pairs than
+            # piecewise constant; docs/performance.md, "Nested iteration")
             for k in range(self.n_blocks):
                 xb[k] += prolong_bilinear(dc[k], coarse.grid)
             if self.hard_wall:

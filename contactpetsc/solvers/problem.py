@@ -53,6 +53,7 @@ from .base import (ContactSolveError, VIProblem, check_tolerance, convergence_ve
                    weighted_pairs, with_options)
 from .contact_load import MIN_LOAD, ContactLoadControl
 from .history import SolveHistory
+from .options import code_default, print_help
 from .pc_registry import PRECONDITIONERS, preconditioner_name
 from .reduced import ContactJacobian
 from .states import ContactState
@@ -128,12 +129,12 @@ class ContactProblem(ContactLoadControl, VIProblem):
         if self._snes is not None:
             return self._snes
         g = self.grid
-        d = self._defaults
+        print_help("contact", self.prefix, self.grid.comm)
         # checked before any PETSc object exists: a refusal leaves nothing half-built
         opts = PETSc.Options(self.prefix)
-        self.tol = check_tolerance(opts.getReal("tol", 1e-10 if d["tol"] is None else d["tol"]),
+        self.tol = check_tolerance(opts.getReal("tol", self._default("tol")),
                                    f"tol (-{self.prefix}tol)")
-        self.load_tol = check_tolerance(opts.getReal("load_tol", 1e-10 if d["load_tol"] is None else d["load_tol"]),
+        self.load_tol = check_tolerance(opts.getReal("load_tol", self._default("load_tol")),
                                         f"load_tol (-{self.prefix}load_tol)")
         self._jac = ContactJacobian(self.op, self.prefix)
         n_local, n = g.nx * g.ny_local, g.nx * g.ny
@@ -142,7 +143,8 @@ class ContactProblem(ContactLoadControl, VIProblem):
         J.setUp()
         self._x, self._f = g.create_vec(0.0), g.create_vec(0.0)
         self._x_best = g.create_vec(0.0)   # the iterate of smallest error of the running solve
-        snes = self.make_vi_snes(self.prefix, (g.create_vec(0.0), g.create_vec(PETSc.INFINITY)), 100)
+        snes = self.make_vi_snes(self.prefix, (g.create_vec(0.0), g.create_vec(PETSc.INFINITY)),
+                                 code_default("contact", "snes_max_it"))
         # backtracking: full steps (basic) diverged on the finest grid of the largest contact
         # benchmark, bt converges there (docs/performance.md, "Contact benchmark")
         self.set_default("snes_linesearch_type", "bt")
@@ -152,9 +154,10 @@ class ContactProblem(ContactLoadControl, VIProblem):
         # inexact Newton: the semismooth Newton method converges linearly with
         # rate ~ rtol once the contact set has settled, so a loose Krylov
         # tolerance costs at most a Newton step or two and saves many Krylov steps
-        ksp.setTolerances(rtol=opts.getReal("newton_ksp_rtol", 1e-1), max_it=500)
+        ksp.setTolerances(rtol=opts.getReal("newton_ksp_rtol", code_default("contact", "newton_ksp_rtol")),
+                          max_it=code_default("contact", "ksp_max_it"))
         pc = ksp.getPC()
-        choice = opts.getString("preconditioner", d["preconditioner"] or "spectral").lower()
+        choice = opts.getString("preconditioner", self._default("preconditioner")).lower()
         if choice not in PRECONDITIONERS:
             raise ValueError(f"-{self.prefix}preconditioner must be one of "
                              f"{sorted(PRECONDITIONERS)}, got {choice!r}")
@@ -164,19 +167,18 @@ class ContactProblem(ContactLoadControl, VIProblem):
             pc.setType("python")
             pc.setPythonType(PRECONDITIONERS[choice])
         self.preconditioner = choice
-        self.max_outer = opts.getInt("load_max_it", 50)
-        # load control: inexact inner solves (see _solve_load); 1e-3 rather than 1e-4
-        # saves 8-13 % of the FFT pairs on the benchmark (256^2-2048^2)
-        self.inner_tol0 = opts.getReal("load_inner_tol", 1e-3)
-        self.inner_eta = opts.getReal("load_inner_eta", 0.1)
+        self.max_outer = opts.getInt("load_max_it", code_default("contact", "load_max_it"))
+        # load control: inexact inner solves (see _solve_load; docs/performance.md)
+        self.inner_tol0 = opts.getReal("load_inner_tol", code_default("contact", "load_inner_tol"))
+        self.inner_eta = opts.getReal("load_inner_eta", code_default("contact", "load_inner_eta"))
         # nested iteration (full multigrid): first solve on a 2x coarser grid
-        self.fmg = opts.getBool("fmg", True if d["fmg"] is None else d["fmg"])
-        self.fmg_min_size = opts.getInt("fmg_min_size", 32)
-        self.fmg_tol = opts.getReal("fmg_tol", 1e-4)
-        self.fmg_prolong = opts.getString("fmg_prolong", "constant").lower()
+        self.fmg = opts.getBool("fmg", self._default("fmg"))
+        self.fmg_min_size = opts.getInt("fmg_min_size", code_default("contact", "fmg_min_size"))
+        self.fmg_tol = opts.getReal("fmg_tol", code_default("contact", "fmg_tol"))
+        self.fmg_prolong = opts.getString("fmg_prolong", code_default("contact", "fmg_prolong")).lower()
         if self.fmg_prolong not in ("bilinear", "constant"):
             raise ValueError(f"-{self.prefix}fmg_prolong must be bilinear or constant, got {self.fmg_prolong!r}")
-        self.slope_warm = opts.getBool("slope_warm_start", True)
+        self.slope_warm = opts.getBool("slope_warm_start", code_default("contact", "slope_warm_start"))
         snes.setFromOptions()
         # -<prefix>pc_type ... may have replaced our choice: record what is in use
         python_type = pc.getPythonType() if pc.getType() == "python" else None
@@ -196,8 +198,8 @@ class ContactProblem(ContactLoadControl, VIProblem):
             # nested iteration share the levels' grids and operators
             if self._levels is None:
                 from .mlmi import build_levels
-                self._levels = build_levels(self.op, opts.getInt("mlmi_levels", 8),
-                                            opts.getInt("mlmi_min_size", 8))
+                self._levels = build_levels(self.op, opts.getInt("mlmi_levels", code_default("contact", "mlmi_levels")),
+                                            opts.getInt("mlmi_min_size", code_default("contact", "mlmi_min_size")))
             self._jac.cache["mlmi_levels"] = self._levels
         self._snes = snes
         return snes

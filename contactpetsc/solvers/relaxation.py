@@ -35,6 +35,7 @@ from petsc4py import PETSc
 from .adhesive_jacobian import _SetView
 from .base import AdhesiveSolveError, check_tolerance
 from .mlmi import MLMIPC
+from .options import code_default
 
 
 class RelaxationSolver:
@@ -59,13 +60,17 @@ class RelaxationSolver:
     def _read_options(self, tol, contact_tol, max_cycles) -> None:
         problem = self.pb
         opts = PETSc.Options(problem.prefix + "relax_")
+
+        def default(key, given):
+            return code_default("adhesion", "relax_" + key) if given is None else given
+
         pre = problem.prefix + "relax_"
-        self.tol = check_tolerance(opts.getReal("tol", 1e-4 if tol is None else tol), f"tol (-{pre}tol)")
-        self.contact_tol = check_tolerance(opts.getReal("contact_tol", 1e-4 if contact_tol is None else contact_tol),
+        self.tol = check_tolerance(opts.getReal("tol", default("tol", tol)), f"tol (-{pre}tol)")
+        self.contact_tol = check_tolerance(opts.getReal("contact_tol", default("contact_tol", contact_tol)),
                                            f"contact_tol (-{pre}contact_tol)")
-        self.max_cycles = opts.getInt("max_cycles", 20000 if max_cycles is None else max_cycles)
-        self.max_inner = opts.getInt("max_inner", 200)
-        self.omega_max = opts.getReal("omega_max", 1.0)
+        self.max_cycles = opts.getInt("max_cycles", default("max_cycles", max_cycles))
+        self.max_inner = opts.getInt("max_inner", default("max_inner", None))
+        self.omega_max = opts.getReal("omega_max", default("omega_max", None))
 
     # -- the multilevel contact relaxation ------------------------------------------------
     def _cycle(self, mask: np.ndarray, r: np.ndarray) -> np.ndarray:
