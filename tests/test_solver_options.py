@@ -126,3 +126,33 @@ def test_help_lists_the_package_options(coll, capfd):
         for name in ("-popt_help_c_tol", "-popt_help_c_load_tol", "-popt_help_a_stall_steps",
                      "-popt_help_a_fallback", "-popt_help_a_time_budget"):
             assert name in out
+
+
+@pytest.mark.parametrize("choice", ["spectral", "mlmi"])
+def test_views_name_the_python_contexts(coll, shared_tmp, choice):
+    """-snes_view of a solved problem shows the Mat and PC contexts (kernel, set, levels)."""
+    grid = SurfaceGrid(32, 32, 1.0, periodic=False)
+    h = sphere(grid, 100.0)
+    pb = ContactProblem(grid, h, 1.0, prefix=f"popt_view_{choice}_", preconditioner=choice)
+    pb.solve(approach=1.0)
+    path = str(shared_tmp / f"view_{choice}.txt")
+    viewer = PETSc.Viewer().createASCII(path, comm=grid.comm)
+    pb.solver.view(viewer)
+    pb.J.view(viewer)
+    viewer.destroy()
+    coll.comm.Barrier()
+    with open(path) as f:
+        text = f.read()
+    assert "ContactJacobian" in text and "K_ii" in text and "inactive nodes" in text
+    assert ("SpectralPC" in text) if choice == "spectral" else ("levels" in text and "MLMIPC" in text)
+    pb.destroy()
+    lj = AdhesiveProblem(SurfaceGrid(32, 32, 0.25, periodic=False), sphere(SurfaceGrid(32, 32, 0.25, periodic=False),
+                                                                         20.0), 1.0, LJ, prefix="popt_view_lj_")
+    lj.solve(approach=0.2)
+    path = str(shared_tmp / "view_lj.txt")
+    viewer = PETSc.Viewer().createASCII(path, comm=lj.grid.comm)
+    lj.solver.view(viewer)
+    viewer.destroy()
+    coll.comm.Barrier()
+    with open(path) as f:
+        assert "AdhesivePC" in f.read()

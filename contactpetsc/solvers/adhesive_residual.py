@@ -118,7 +118,7 @@ class AdhesiveCallbacks:
         """FFT pairs so far in fine-grid units: the operator's, plus those of the coarse
         levels of any MLMI cycle (preconditioner or relaxation), weighted by their size."""
         ops = {id(self.op): self.op}
-        levels = self._jac.cache.get("mlmi_levels", ()) if self._snes is not None else ()
+        levels = (self._jac.pc_data.mlmi_levels or ()) if self._snes is not None else ()
         for lev in levels:
             ops[id(lev.op)] = lev.op
         n0 = self.grid.nx * self.grid.ny

@@ -200,7 +200,7 @@ class ContactProblem(ContactLoadControl, VIProblem):
                 from .mlmi import build_levels
                 self._levels = build_levels(self.op, opts.getInt("mlmi_levels", code_default("contact", "mlmi_levels")),
                                             opts.getInt("mlmi_min_size", code_default("contact", "mlmi_min_size")))
-            self._jac.cache["mlmi_levels"] = self._levels
+            self._jac.pc_data.mlmi_levels = self._levels
         self._snes = snes
         return snes
 

@@ -15,12 +15,37 @@ from ..errors import collective_guard
 from ..lifetime import destroy_at_exit
 
 
+class PreconditionerData:
+    """Data of one problem that its preconditioners share (Newton, tangent, stability and
+    PTC solves each have their own PC object): built once, by the first PC that needs it."""
+
+    def __init__(self):
+        self.spectral_pairs = None       #: the spectral PC's kernel in the operator's pair layout
+        self.mlmi_levels = None          #: the MLMI hierarchy (grids and operators)
+        self.mlmi_mean_stiffness = None  #: stiffness of the lowest mode [Pa/m]
+        self.reduced_buffers = None      #: (mask, full_in, full_out) of the reduced Jacobians
+
+
+def view_context(viewer, lines) -> None:
+    """Print ``lines`` on an ASCII viewer (indented like PETSc's own objects); others ignore them."""
+    if viewer is None or viewer.getType() != "ascii":
+        return
+    for line in lines:
+        viewer.printfASCII(f"  {line}\n")
+
+
 class ContactJacobian:
     """Python-context Mat on the grid's Vecs: J p = K p."""
 
     def __init__(self, op, prefix: str):
         self.op, self.prefix = op, prefix
-        self.cache = {}  # per-problem data of the preconditioners (kernels, coarse levels)
+        self.pc_data = PreconditionerData()
+
+    def view(self, mat, viewer=None):
+        g = self.op.grid
+        view_context(viewer, [f"contactpetsc ContactJacobian: J = K on a {g.nx} x {g.ny} "
+                              f"{'periodic' if g.periodic else 'isolated'} grid, E* = {self.op.e_star:g} Pa",
+                              f"  kernel self-influence K_ii = {self.op.self_influence:g} m/Pa"])
 
     @collective_guard
     def mult(self, mat, x, y):
@@ -83,11 +108,11 @@ class ReducedJacobian:
         self.set = InactiveSet(index_set, g.nx * g.ys, g.nx * g.ny_local)
         self.n_local = self.set.n_local
         # SNES VI asks for a new sub-matrix at every Newton step: the grid-sized work
-        # arrays live in the parent's cache (one reduced Mat is in use at a time)
-        buffers = parent.cache.get("reduced_buffers")
+        # arrays are the parent's (one reduced Mat is in use at a time)
+        buffers = parent.pc_data.reduced_buffers
         if buffers is None:
             shape = (g.ny_local, g.nx)
-            buffers = parent.cache["reduced_buffers"] = (np.empty(shape, bool), np.empty(shape), np.empty(shape))
+            buffers = parent.pc_data.reduced_buffers = (np.empty(shape, bool), np.empty(shape), np.empty(shape))
         self.mask, self.full_in, self.full_out = buffers
         self.mask.fill(False)
         self.mask.reshape(-1)[self.set.idx] = True
@@ -101,6 +126,11 @@ class ReducedJacobian:
         if g.periodic and n_set == g.nx * g.ny:
             from .preconditioners import lowest_mode_stiffness
             self.mean_compliance = 1.0 / lowest_mode_stiffness(self.op)
+
+    def view(self, mat, viewer=None):
+        n = self.grid.mpi_comm.allreduce(self.n_local)
+        view_context(viewer, [f"contactpetsc ReducedJacobian: K_II on {n} inactive nodes of "
+                              f"{self.grid.nx * self.grid.ny}"])
 
     def to_full(self, x: PETSc.Vec, out: np.ndarray) -> np.ndarray:
         """Scatter a reduced Vec into a full (ny_loc, nx) array (entries outside I untouched)."""

@@ -77,7 +77,7 @@ class RelaxationSolver:
         """One MLMI V-cycle on the set ``mask`` applied to the gap residual r (pressure units)."""
         if self._mlmi is None:
             self._mlmi = MLMIPC()
-        # the levels live in the problem's Jacobian cache: shared with an MLMI-preconditioned
+        # the levels live in the problem's preconditioner data: shared with an MLMI-preconditioned
         # Newton, and counted by the problem's FFT-pair tally
         self._mlmi.prepare(_SetView(self.pb.jacobian_context, mask))
         out = np.empty_like(r)

@@ -26,6 +26,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..lifetime import destroy_at_exit
+from .pc_registry import PRECONDITIONERS
 
 
 class _Compliance:
@@ -52,7 +53,7 @@ class _Compliance:
             ksp.setType("cg")
             ksp.setTolerances(rtol=1e-8, max_it=500)
             ksp.getPC().setType("python")
-            ksp.getPC().setPythonType("contactpetsc.solvers.preconditioners.SpectralPC")
+            ksp.getPC().setPythonType(PRECONDITIONERS["spectral"])
             ksp.setOperators(self.A, self.A)
             ksp.setFromOptions()
             self.b, self.y = self.A.createVecs()
