@@ -35,8 +35,8 @@ class AdhesiveJacobian:
         self.grid = problem.grid
         self.prefix = problem.prefix
         self.pc_data = PreconditionerData()   # shared by the preconditioners of every solve
-        g = self.grid
-        shape = (g.ny_local, g.nx)
+        grid = self.grid
+        shape = (grid.ny_local, grid.nx)
         self.w = np.zeros(shape)
         self.aw = np.zeros(shape)
 

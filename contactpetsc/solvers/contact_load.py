@@ -22,15 +22,15 @@ class ContactLoadControl:
         Solves K_II z = 1 with its own KSP (options prefix ``<prefix>slope_``),
         preconditioned like the Newton steps.
         """
-        g = self.grid
-        inactive = (g.rows(self._x, readonly=True) > 0) | (g.rows(self._f, readonly=True) <= 0)
+        grid = self.grid
+        inactive = (grid.rows(self._x, readonly=True) > 0) | (grid.rows(self._f, readonly=True) <= 0)
         cached = self._slope_cache
         if cached is not None:
             same = cached[0].shape == inactive.shape and np.array_equal(cached[0], inactive)
-            if g.mpi_comm.allreduce(bool(same), op=MPI.LAND):
+            if grid.mpi_comm.allreduce(bool(same), op=MPI.LAND):
                 return cached[1], cached[2]   # same set, same K_II: same z
-        local = (np.flatnonzero(inactive) + g.nx * g.ys).astype(PETSc.IntType)
-        index_set = PETSc.IS().createGeneral(local, comm=g.comm)
+        local = (np.flatnonzero(inactive) + grid.nx * grid.ys).astype(PETSc.IntType)
+        index_set = PETSc.IS().createGeneral(local, comm=grid.comm)
         J = self._snes.getJacobian()[0]
         A = J.createSubMatrix(index_set, index_set)
         ctx = A.getPythonContext()
@@ -42,17 +42,17 @@ class ContactLoadControl:
         guess = self._z_guess if self.slope_warm else None
         if guess is not None:
             # the last z (or the coarse grid's): the set changes little between outer steps
-            ctx.from_full(g.rows(guess, readonly=True), z)
+            ctx.from_full(grid.rows(guess, readonly=True), z)
         else:
             z.set(0.0)
         ksp.setInitialGuessNonzero(guess is not None)
         ksp.solve(b, z)
         self._linear += ksp.getIterationNumber()
         if self._dp is None:
-            self._dp = g.create_vec()
+            self._dp = grid.create_vec()
         dp = self._dp   # overwritten in place: the warm start z was read above
         dp.set(0.0)
-        ctx.to_full(z, g.rows(dp))
+        ctx.to_full(z, grid.rows(dp))
         # petsc4py defers freeing parallel objects to PETSc's garbage until exit:
         # destroy the per-solve temporaries explicitly (collective, all ranks here)
         for obj in (b, z, A, index_set):
@@ -79,12 +79,12 @@ class ContactLoadControl:
         zero): a step beyond ``bound`` tries full contact once, with the
         initial pressure's mean set to the target.
         """
-        g = self.grid
-        n = g.nx * g.ny
+        grid = self.grid
+        n = grid.nx * grid.ny
         lo = lo0 = float(self.heights.min()[1])  # delta <= min h: no contact, no load
         lo_exact = hi_exact = True
         hi = np.inf                         # smallest evaluated approach with a load above the target
-        bound = self.heights.sum() / n if g.periodic else np.inf
+        bound = self.heights.sum() / n if grid.periodic else np.inf
         tried_full = False
         delta = self._approach if self._approach is not None else lo
         p = self._pressure.copy()
@@ -134,14 +134,14 @@ class ContactLoadControl:
             upper = min(hi, bound)
             if lo < new < upper:
                 p.axpy(new - delta, dp)  # Newton predictor on the current contact set
-                rows = g.rows(p)
+                rows = grid.rows(p)
                 np.maximum(rows, 0.0, out=rows)
             elif new >= bound and hi > bound and not tried_full:
                 tried_full = True  # full contact: delta = mean h, mean p from the guess
                 new = bound
                 p.axpy(new - delta, dp)
                 p.shift(target - p.sum() / n)
-                rows = g.rows(p)
+                rows = grid.rows(p)
                 np.maximum(rows, 0.0, out=rows)
             elif np.isfinite(upper):
                 new = 0.5 * (lo + upper)

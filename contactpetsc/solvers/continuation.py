@@ -41,14 +41,14 @@ class Continuation:
         if self._coarse is not None:
             return self._coarse or None
         self._coarse = False
-        g = self.grid
+        grid = self.grid
         # levels coarser than the adhesive range are kept: without them the first level
         # that resolves it needs continuation too (docs/performance.md, "Nested iteration")
-        if not self.fmg or not can_halve(g) or min(g.nx, g.ny) // 2 < self.fmg_min_size:
+        if not self.fmg or not can_halve(grid) or min(grid.nx, grid.ny) // 2 < self.fmg_min_size:
             return None
-        gc = halved(g)
+        gc = halved(grid)
         hc = gc.create_vec()
-        gc.rows(hc)[...] = restrict(g.rows(self.heights, readonly=True))
+        gc.rows(hc)[...] = restrict(grid.rows(self.heights, readonly=True))
         # FFTW_MEASURE planning would cost more than the coarse solves themselves
         op = half_space(gc, self.e_star, prefix=self.prefix, planner="estimate")
         with warnings.catch_warnings():
@@ -114,14 +114,14 @@ class Continuation:
         """First state at ``approach``: the coarse grid's solution (nested iteration), or
         the non-adhesive (Signorini) solution where the bodies overlap, the undeformed
         bodies otherwise, with a = a(g) of that state."""
-        g = self.grid
+        grid = self.grid
         xb = self.blocks(self._x)
         if self._nested_guess(approach):
             return
         xb[...] = 0.0
-        gap = g.rows(self.heights, readonly=True) - approach
-        if g.mpi_comm.allreduce(float(gap.min()), op=MPI.MIN) < 0:
-            cp = ContactProblem(g, self.heights, self.e_star, operator=self.op,
+        gap = grid.rows(self.heights, readonly=True) - approach
+        if grid.mpi_comm.allreduce(float(gap.min()), op=MPI.MIN) < 0:
+            cp = ContactProblem(grid, self.heights, self.e_star, operator=self.op,
                                 prefix=self.prefix + "initial_", tol=1e-6, length_scale=self.z0)
             try:
                 st = cp.solve(approach=approach)
@@ -130,8 +130,8 @@ class Continuation:
                 # start from the undeformed bodies; Newton says whether a state exists
                 st = None
             if st is not None:
-                gap = g.rows(st.gap, readonly=True).copy()
-                xb[0 if self.hard_wall else -1] = g.rows(st.pressure, readonly=True)
+                gap = grid.rows(st.gap, readonly=True).copy()
+                xb[0 if self.hard_wall else -1] = grid.rows(st.pressure, readonly=True)
         xb[-1] += self.traction.pressure(np.maximum(gap, 0.0) if self.hard_wall else gap)
 
     def warm_start(self, contact_pressure: PETSc.Vec | None, adhesive_pressure: PETSc.Vec,

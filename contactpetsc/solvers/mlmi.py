@@ -89,11 +89,11 @@ class Level:
         then every sweep is a contraction in the energy norm and the cycle is
         positive definite on any set.
         """
-        g = self.grid
+        grid = self.grid
         key = (power_its, bound)
         same = (self.mask is not None and getattr(self, "_key", None) == key
                 and np.array_equal(self.mask > 0, mask))
-        if g.mpi_comm.allreduce(bool(same), op=MPI.LAND):
+        if grid.mpi_comm.allreduce(bool(same), op=MPI.LAND):
             return  # same set: same scaling and the same (guaranteed) damping bound
         self._key = key
         self.mask = mask.astype(float)
@@ -101,9 +101,9 @@ class Level:
         lam = self.k0 - 0.25 * (self.kx * sx + self.ky * sy)   # (chi D chi K chi)_ii
         with np.errstate(divide="ignore", invalid="ignore"):
             self.scale = np.where(self.mask > 0, np.sqrt(self.omega / np.where(lam > 0, lam, 1.0)), 0.0)
-        comm = g.mpi_comm
-        i = np.arange(g.nx)[None, :]
-        j = np.arange(g.ys, g.ye)[:, None]
+        comm = grid.mpi_comm
+        i = np.arange(grid.nx)[None, :]
+        j = np.arange(grid.ys, grid.ye)[:, None]
         v = np.where((i + j) % 2 == 0, 1.0, 0.0) * self.mask
         norm = np.sqrt(comm.allreduce(float(np.vdot(v, v))))
         rho = 0.0
@@ -123,10 +123,10 @@ class Level:
 
     def neighbour_sums(self, r: np.ndarray, sx: np.ndarray, sy: np.ndarray):
         """(sum over the 2 x-neighbours, sum over the 2 y-neighbours) of r; halo rows from adjacent ranks."""
-        g = self.grid
-        g.halo_rows(r, self.halo_lo, self.halo_hi, edge="zero")
+        grid = self.grid
+        grid.halo_rows(r, self.halo_lo, self.halo_hi, edge="zero")
         sx[...] = 0.0
-        if g.periodic:
+        if grid.periodic:
             sx += np.roll(r, 1, axis=1)
             sx += np.roll(r, -1, axis=1)
         else:

@@ -2,8 +2,8 @@
 
 Both approximate K_II^-1 on the inactive set I by an operator M acting on
 full grid arrays that vanish outside I.  Select with
-``-<prefix>pc_type python -<prefix>pc_python_type contactpetsc.solvers.preconditioners.SpectralPC``
-(or ``contactpetsc.solvers.mlmi.MLMIPC``), or with the problem's shortcut
+``-<prefix>pc_type python -<prefix>pc_python_type contactpetsc.solvers.SpectralPC``
+(or ``contactpetsc.solvers.MLMIPC``; ``pc_registry.py``), or with the problem's shortcut
 ``-<prefix>preconditioner spectral|mlmi|none``.
 """
 from __future__ import annotations

@@ -128,7 +128,7 @@ class ContactProblem(ContactLoadControl, VIProblem):
         """The SNES, built once with code defaults, then ``setFromOptions``."""
         if self._snes is not None:
             return self._snes
-        g = self.grid
+        grid = self.grid
         print_help("contact", self.prefix, self.grid.comm)
         # checked before any PETSc object exists: a refusal leaves nothing half-built
         opts = PETSc.Options(self.prefix)
@@ -137,13 +137,13 @@ class ContactProblem(ContactLoadControl, VIProblem):
         self.load_tol = check_tolerance(opts.getReal("load_tol", self._default("load_tol")),
                                         f"load_tol (-{self.prefix}load_tol)")
         self._jac = ContactJacobian(self.op, self.prefix)
-        n_local, n = g.nx * g.ny_local, g.nx * g.ny
+        n_local, n = grid.nx * grid.ny_local, grid.nx * grid.ny
         self._J = J = destroy_at_exit(PETSc.Mat().createPython(((n_local, n), (n_local, n)), self._jac,
-                                                               comm=g.comm))
+                                                               comm=grid.comm))
         J.setUp()
-        self._x, self._f = g.create_vec(0.0), g.create_vec(0.0)
-        self._x_best = g.create_vec(0.0)   # the iterate of smallest error of the running solve
-        snes = self.make_vi_snes(self.prefix, (g.create_vec(0.0), g.create_vec(PETSc.INFINITY)),
+        self._x, self._f = grid.create_vec(0.0), grid.create_vec(0.0)
+        self._x_best = grid.create_vec(0.0)   # the iterate of smallest error of the running solve
+        snes = self.make_vi_snes(self.prefix, (grid.create_vec(0.0), grid.create_vec(PETSc.INFINITY)),
                                  code_default("contact", "snes_max_it"))
         # backtracking: full steps (basic) diverged on the finest grid of the largest contact
         # benchmark, bt converges there (docs/performance.md, "Contact benchmark")
@@ -184,7 +184,7 @@ class ContactProblem(ContactLoadControl, VIProblem):
         python_type = pc.getPythonType() if pc.getType() == "python" else None
         self.preconditioner = preconditioner_name(python_type, pc.getType())
         self._inner_tol = self.tol
-        slope = self._slope_ksp = destroy_at_exit(PETSc.KSP().create(comm=g.comm))
+        slope = self._slope_ksp = destroy_at_exit(PETSc.KSP().create(comm=grid.comm))
         slope.setOptionsPrefix(self.prefix + "slope_")
         slope.setType("cg")
         # the slope only sets the next approach (outer Newton): a loose solve is enough
@@ -215,18 +215,18 @@ class ContactProblem(ContactLoadControl, VIProblem):
     def _measures(self, x, f):
         """(complementarity error relative to the length scale and to ``_gap_scale``,
         mean pressure, contact fraction)."""
-        g = self.grid
-        comm = g.mpi_comm
-        p = g.rows(x, readonly=True)
+        grid = self.grid
+        comm = grid.mpi_comm
+        p = grid.rows(x, readonly=True)
         if self._work is None:
             self._work = np.empty_like(p)   # one buffer for every evaluation: no per-iteration allocation
         nat = np.multiply(p, self.kappa, out=self._work)
-        np.minimum(nat, g.rows(f, readonly=True), out=nat)
+        np.minimum(nat, grid.rows(f, readonly=True), out=nat)
         # max |min(K_ii p, g)| without an |.| temporary: the larger of max and -min
         local = max(float(nat.max()), -float(nat.min()))
         err = comm.allreduce(local, op=MPI.MAX)
         sums = comm.allreduce(np.array([p.sum(), np.count_nonzero(p)], float))
-        n = g.nx * g.ny
+        n = grid.nx * grid.ny
         return err / self.length_scale, err / self._gap_scale(), sums[0] / n, sums[1] / n
 
     def _gap_scale(self) -> float:
@@ -332,19 +332,19 @@ class ContactProblem(ContactLoadControl, VIProblem):
         if self._coarse is not None:
             return self._coarse or None
         self._coarse = False
-        g = self.grid
-        if (not self.fmg or not can_halve(g) or max(g.nx, g.ny) // 2 < self.fmg_min_size
-                or min(g.nx, g.ny) // 2 < 2):
+        grid = self.grid
+        if (not self.fmg or not can_halve(grid) or max(grid.nx, grid.ny) // 2 < self.fmg_min_size
+                or min(grid.nx, grid.ny) // 2 < 2):
             return None
         levels = self._levels
         if levels and len(levels) > 1:
             gc, op = levels[1].grid, levels[1].op
         else:
-            gc = halved(g)
+            gc = halved(grid)
             # FFTW_MEASURE planning would cost more than the coarse solves themselves
             op = half_space(gc, self.e_star, prefix=self.prefix, planner="estimate")
         hc = gc.create_vec()
-        gc.rows(hc)[...] = restrict(g.rows(self.heights, readonly=True))
+        gc.rows(hc)[...] = restrict(grid.rows(self.heights, readonly=True))
         d = dict(self._defaults, preconditioner=self.preconditioner, fmg=True)
         coarse = ContactProblem(gc, hc, self.e_star, prefix=self.prefix, length_scale=self.length_scale,
                                 operator=op, petsc_options=self.petsc_options, _root=self._root, **d)
@@ -369,16 +369,16 @@ class ContactProblem(ContactLoadControl, VIProblem):
         if not st.converged:
             self._release_coarse()
             return False
-        g = self.grid
+        grid = self.grid
         if self.fmg_prolong == "bilinear":
             prolong = lambda a: prolong_bilinear(a, coarse.grid)  # noqa: E731
         else:
             prolong = prolong_constant
-        g.rows(self._pressure)[...] = prolong(coarse.grid.rows(st.pressure, readonly=True))
+        grid.rows(self._pressure)[...] = prolong(coarse.grid.rows(st.pressure, readonly=True))
         if coarse._slope_cache is not None and self.slope_warm:
             # the coarse dp/d delta: the initial guess of the first fine slope solve
-            z = g.create_vec()
-            g.rows(z)[...] = prolong(coarse.grid.rows(coarse._slope_cache[2], readonly=True))
+            z = grid.create_vec()
+            grid.rows(z)[...] = prolong(coarse.grid.rows(coarse._slope_cache[2], readonly=True))
             self._z_guess = z
         self._approach = st.approach
         self._release_coarse()
@@ -403,8 +403,8 @@ class ContactProblem(ContactLoadControl, VIProblem):
         given = [v is not None for v in (approach, mean_pressure, force)]
         if sum(given) != 1:
             raise ValueError("give exactly one of approach (m), mean_pressure (Pa) or force (N)")
-        g = self.grid
-        area = g.lengths[0] * g.lengths[1]
+        grid = self.grid
+        area = grid.lengths[0] * grid.lengths[1]
         if force is not None:
             mean_pressure = force / area
         for name, v in (("approach", approach), ("mean_pressure/force", mean_pressure)):
@@ -434,8 +434,8 @@ class ContactProblem(ContactLoadControl, VIProblem):
         else:
             converged, reason = self._solve_load(mean_pressure)
         p = self._x.copy()
-        v, gap = g.create_vec(), g.create_vec()
-        self.gap(g.rows(p, readonly=True), g.rows(gap), displacement=g.rows(v))
+        v, gap = grid.create_vec(), grid.create_vec()
+        self.gap(grid.rows(p, readonly=True), grid.rows(gap), displacement=grid.rows(v))
         err, err_gap, mean_p, frac = self._measures(p, gap)
         load_err = abs(mean_p - mean_pressure) / mean_pressure if mean_pressure else float("nan")
         state = ContactState(
@@ -445,7 +445,7 @@ class ContactProblem(ContactLoadControl, VIProblem):
             newton_iterations=self._newton, linear_iterations=self._linear,
             fft_pairs=self._fft_pairs() - pairs0, wall_time=self.history.elapsed() - t0)
         # free the parallel temporaries petsc4py parked in PETSc's garbage (collective)
-        PETSc.garbage_cleanup(g.comm)
+        PETSc.garbage_cleanup(grid.comm)
         if not converged and raise_on_failure:
             ksp_reason = reason_name(self._snes.getKSP().getConvergedReason(), PETSc.KSP.ConvergedReason)
             raise ContactSolveError(

@@ -42,15 +42,15 @@ class ContactJacobian:
         self.pc_data = PreconditionerData()
 
     def view(self, mat, viewer=None):
-        g = self.op.grid
-        view_context(viewer, [f"contactpetsc ContactJacobian: J = K on a {g.nx} x {g.ny} "
-                              f"{'periodic' if g.periodic else 'isolated'} grid, E* = {self.op.e_star:g} Pa",
+        grid = self.op.grid
+        view_context(viewer, [f"contactpetsc ContactJacobian: J = K on a {grid.nx} x {grid.ny} "
+                              f"{'periodic' if grid.periodic else 'isolated'} grid, E* = {self.op.e_star:g} Pa",
                               f"  kernel self-influence K_ii = {self.op.self_influence:g} m/Pa"])
 
     @collective_guard
     def mult(self, mat, x, y):
-        g = self.op.grid
-        self.op.apply(g.rows(x, readonly=True), g.rows(y))
+        grid = self.op.grid
+        self.op.apply(grid.rows(x, readonly=True), grid.rows(y))
 
     @collective_guard
     def getDiagonal(self, mat, d):
@@ -144,8 +144,8 @@ class ReducedJacobian:
         self.to_full(x, self.full_in)
         self.op.apply(self.full_in, self.full_out)
         if self.mean_compliance:
-            g = self.grid
-            self.full_out += self.mean_compliance * g.mpi_comm.allreduce(float(self.full_in.sum())) / (g.nx * g.ny)
+            grid = self.grid
+            self.full_out += self.mean_compliance * grid.mpi_comm.allreduce(float(self.full_in.sum())) / (grid.nx * grid.ny)
         self.from_full(self.full_out, y)
 
     @collective_guard

@@ -85,14 +85,14 @@ class TangentAndState:
     def tangent(self) -> tuple[PETSc.Vec, float]:
         """(dx/d delta, dF/d delta [N/m]) at the current state: J_II t = -dF/d delta on the
         inactive set (contact nodes keep zero gap: dq from it, da from the law)."""
-        g = self.grid
+        grid = self.grid
         self._jacobian(None, self._x, None, None)
         iset = self._inactive_set()
         J = self._snes.getJacobian()[0]
         A = J.createSubMatrix(iset, iset)
         ctx = A.getPythonContext()
         rhs = np.zeros_like(ctx.full_in)
-        ones = np.ones((g.ny_local, g.nx))
+        ones = np.ones((grid.ny_local, grid.nx))
         if self.hard_wall:
             rhs[0] = 1.0
         self.traction.apply_derivative(ones, rhs[-1])
@@ -101,7 +101,7 @@ class TangentAndState:
             rhs[-1][self._gap_rows] = 1.0   # d(g - G(a))/d delta = -1
         b, t = A.createVecs()
         ctx.from_full(rhs, b)
-        ksp = PETSc.KSP().create(comm=g.comm)
+        ksp = PETSc.KSP().create(comm=grid.comm)
         ksp.setOptionsPrefix(self.prefix + "tangent_")
         ksp.setType("gmres")
         # a predictor and a stiffness for jump detection and load updates: 1e-2 is plenty
@@ -120,8 +120,8 @@ class TangentAndState:
         ok = ksp.getConvergedReason() > 0
         for obj in (ksp, b, t, A, iset):
             obj.destroy()
-        area = g.lengths[0] * g.lengths[1]
-        stiffness = g.mpi_comm.allreduce(float(full.sum())) / (g.nx * g.ny) * area if ok else float("nan")
+        area = grid.lengths[0] * grid.lengths[1]
+        stiffness = grid.mpi_comm.allreduce(float(full.sum())) / (grid.nx * grid.ny) * area if ok else float("nan")
         return tv, stiffness
     def stability(self) -> float:
         """1 - lambda_max(A S) at the current state (see ``stability.py``); collective."""
@@ -138,23 +138,23 @@ class TangentAndState:
         """The ``AdhesiveState`` of the present unknowns: fields, errors, the stability
         ``margin`` given, the tangent stiffness if ``tangent``; ``pairs0``/``t0``: the FFT
         pairs and history time at the start of the solve."""
-        g = self.grid
-        comm = g.mpi_comm
+        grid = self.grid
+        comm = grid.mpi_comm
         xb = self.blocks(self._x, readonly=True)
-        q, a, p, gap, v = (g.create_vec(0.0) for _ in range(5))
+        q, a, p, gap, v = (grid.create_vec(0.0) for _ in range(5))
         if self.hard_wall:
-            g.rows(q)[...] = xb[0]
-        g.rows(a)[...] = xb[-1]
-        g.rows(p)[...] = xb.sum(axis=0)
-        gap_rows = self._gap(xb, g.rows(gap))
-        g.rows(v)[...] = self._v
+            grid.rows(q)[...] = xb[0]
+        grid.rows(a)[...] = xb[-1]
+        grid.rows(p)[...] = xb.sum(axis=0)
+        gap_rows = self._gap(xb, grid.rows(gap))
+        grid.rows(v)[...] = self._v
         f = self.create_unknown()
         self._residual(None, self._x, f)
         err_c, err_a, err_p, mean_p, frac = self._measures(self._x, f)
         f.destroy()
         total = self.total_error(a_rows=xb[-1], gap_rows=gap_rows)
-        prow = g.rows(p, readonly=True)
-        adhesive_force = comm.allreduce(float(prow[prow < 0].sum())) * g.element_area
+        prow = grid.rows(p, readonly=True)
+        adhesive_force = comm.allreduce(float(prow[prow < 0].sum())) * grid.element_area
         beyond = comm.allreduce(self.traction.beyond_safe_range(gap_rows), op=MPI.LOR)
         if beyond and converged:
             converged, reason = False, "LJ_BEYOND_SAFE_RANGE (z < 0.5 z0: pressure beyond the law's sane range)"
@@ -168,7 +168,7 @@ class TangentAndState:
                 self._ensure_tangent()
                 stiffness = self._tangent[2]
                 self.check_time += self.history.elapsed() - t_check
-        area = g.lengths[0] * g.lengths[1]
+        area = grid.lengths[0] * grid.lengths[1]
         return AdhesiveState(
             pressure=p, contact_pressure=q, adhesive_pressure=a, gap=gap, displacement=v,
             approach=self._approach, central_gap=self.centre_value(gap_rows),
@@ -185,7 +185,7 @@ class TangentAndState:
     def total_error(self, a_rows: np.ndarray, gap_rows: np.ndarray) -> float:
         """The paper's E_Total [z0]: rms of K (a(g) - a), the gap change when the trial
         adhesive pressures a are replaced by the law's values at the current gap g."""
-        g = self.grid
+        grid = self.grid
         da = self.traction.pressure(gap_rows) - a_rows
         dg = self.op.apply(da, np.empty_like(da))
-        return float(np.sqrt(g.mpi_comm.allreduce(float(np.sum(dg * dg))) / (g.nx * g.ny))) / self.z0
+        return float(np.sqrt(grid.mpi_comm.allreduce(float(np.sum(dg * dg))) / (grid.nx * grid.ny))) / self.z0
