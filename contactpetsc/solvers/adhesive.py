@@ -300,7 +300,8 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         """A VI Newton SNES on the shared unknowns, Jacobian and bounds; options under ``prefix``."""
         snes = self.make_vi_snes(prefix, self._bounds, max_it)
         # an inexact step (Krylov limit reached) is still a step: let the line search judge it
-        snes.setMaxLinearSolveFailures(max_it)
+        # (petsc4py >= 3.20 names it setMaxKSPFailures)
+        (getattr(snes, "setMaxKSPFailures", None) or snes.setMaxLinearSolveFailures)(max_it)
         if self.step_limit > 0:
             snes.setLineSearchPreCheck(self._limit_step)
         self.set_default("snes_linesearch_type", linesearch, prefix)

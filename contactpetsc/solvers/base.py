@@ -127,6 +127,7 @@ class VIProblem:
         outer = self._options_depth == 0
         if outer:
             self._inserted = []
+            before = set(PETSc.Options().getAll())
             for key, value in self.petsc_options.items():
                 self.set_default(key, value)
         self._options_depth += 1
@@ -136,7 +137,10 @@ class VIProblem:
             self._options_depth -= 1
             if outer:
                 opts = PETSc.Options()
-                for name in self._inserted:
+                # and what PETSc added under the prefix meanwhile (newer PETSc sets the new
+                # name of a deprecated option we gave, e.g. snes_linesearch_maxstep)
+                added = [k for k in opts.getAll() if k not in before and k.startswith(self.prefix)]
+                for name in set(self._inserted) | set(added):
                     opts.delValue(name)
                 self._inserted = None
 
