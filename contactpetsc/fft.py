@@ -103,8 +103,8 @@ class SlabRFFT:
             self.rows = empty((ny_loc, self.nkx), "complex128")
             self.cols = empty((nkx_loc, self.Ny), "complex128")   # y-stage input, zero beyond ny
             self.spectrum = empty((nkx_loc, self.Ny), "complex128")
-            # Contiguous all-to-all with local (un)packing: on shared memory this is
-            # ~5x faster than Alltoallw with strided datatypes (measured, OpenMPI 4.1).
+            # Contiguous all-to-all with local (un)packing: on shared memory faster than
+            # Alltoallw with strided datatypes (docs/performance.md).
             self.sendbuf = empty(ny_loc * self.nkx, "complex128")
             self.recvbuf = empty(nkx_loc * ny, "complex128")
             widths = [b - a for a, b in self.kx_ranges]

@@ -1,29 +1,17 @@
-"""Quasi-static loading paths of adhesive contacts: sweeps, jumps, pull-off, S-curves.
+"""Quasi-static loading paths of adhesive contacts: sweeps, jumps, pull-off, S-curves
+(docs/formulation.md, "Loading paths").
 
-Displacement control follows a branch of stable equilibria from one approach
-to the next (each step warm-started from the previous state with the
-tangent predictor).  A branch ends at a fold; the contact then jumps
-(jump-on while loading, jump-off while unloading) to another branch, which
-``AdhesiveProblem.solve`` reaches by pseudo-transient continuation.  A step
-is a jump when that fallback was needed, or when the force differs from the
-tangent prediction by more than ``jump_tol`` times the force scale; the
-jump is then located by bisection of the approach (``refine`` halvings,
-each trying Newton only from the last state on the old branch) and
-reported with the approach and the force just before and just after --
-only when it is a discontinuity: the force gap across the final bracket
-must exceed what the branches' slopes give over its width (a steep but
-smooth branch closes the gap as the bracket shrinks; a jump does not).
+Displacement control follows a branch of stable equilibria, each step warm-started with
+the tangent predictor; where a branch ends at a fold the contact jumps, and the jump is
+located by bisection of the approach and reported only when it is a discontinuity (the
+force gap across the final bracket exceeds what the branches' slopes give over its
+width).  The pull-off force is the most tensile stable state of the path, refined by
+continuation to the end of each stable segment (NaN where that state is a turning point
+or an end of the path).  Central-gap control (Greenwood's device) keeps every state,
+stable or not, and traces the whole S-shaped curve of a sphere.
 
-The pull-off force is the most tensile stable state of the path
-(``refine_pull_off``): searched by continuation from the sampled minimum
-towards its neighbours and from every stable state next to a loss of
-stability or a jump, to the end of each stable segment.  A path whose most
-tensile state is a turning point or an end of the path (e.g. a sphere that
-never left the far field) has not reached a pull-off: NaN.
-
-Central-gap control (Greenwood 1997; the reference paper's Fig. 4c) keeps
-every state, stable or not, and marks the unstable ones: that traces the
-whole S-shaped curve of a sphere.
+The problem is duck-typed: ``solve(approach=...)``, ``snapshot()`` (an object with
+``destroy()``) and ``restore(snapshot)``.
 """
 from __future__ import annotations
 
@@ -182,8 +170,8 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps):
     """Solve at ``target`` from the present state, testing for a jump; where that fails,
     go back to the last converged state and get there in halved steps, at least
     2**-``substeps`` of the whole step each.  A step longer than Newton's basin is not the
-    end of the branch: at the hard-wall law's mu = 2 sphere (96^2) every compressed state
-    failed in steps of 0.5 z0 and converged in steps of 0.1 z0 (docs/studies.md).  Returns
+    end of the branch: a strongly adhesive hard-wall sphere's compressed states need
+    shorter steps than its path gives (docs/studies.md).  Returns
     the state at ``target`` (or the failed one) with the cost of every try and sub-step in
     it, and the (approach, force, stiffness) of the last converged state."""
     if prev is None:   # the path's first state: nothing to jump from or go back to

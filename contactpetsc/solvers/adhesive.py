@@ -67,7 +67,7 @@ def newton_ksp_type(hard_wall: bool) -> str:
     """The Krylov method of the Newton and PTC steps (code default of ``-<prefix>ksp_type``).
 
     Full LJ curve: BiCGStab, which keeps no Krylov basis (GMRES's Gram-Schmidt on the
-    whole grid costs as much as the FFTs; docs/performance.md, "Rough adhesion").
+    whole grid costs as much as the FFTs; docs/performance.md, "Adhesive rough contact").
     Hard-wall laws: GMRES.
     """
     return "gmres" if hard_wall else "bcgs"
@@ -218,7 +218,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self.ptc_shift0 = opts.getReal("ptc_shift", code_default("adhesion", "ptc_shift"))
         # Newton without a new smallest error for this many steps has stalled: full steps
         # can cycle for good where a few nodes of one edge sit at their own fold; PTC then
-        # goes on from the best iterate (0: never; docs/formulation.md, "Globalisation")
+        # goes on from the best iterate (0: never; docs/formulation.md, "Adhesive contact: unknowns and Newton")
         self.stall_steps = opts.getInt("stall_steps", code_default("adhesion", "stall_steps"))
         # bounded: where PTC has not settled in a few hundred steps it wanders
         # (under-resolved strong adhesion; docs/robustness.md)
@@ -286,13 +286,12 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self._J = J
         # line search: backtracking for hard-wall laws (contact-set changes need damping);
         # full steps for the full LJ curve, whose residual norm is dominated by the stiff
-        # repulsive rows and stalls bt (docs/performance.md, "Rough adhesion")
+        # repulsive rows and stalls bt (docs/performance.md, "Adhesive rough contact")
         self._snes = self._make_snes(self.prefix, "bt" if self.hard_wall else "basic", self.max_it,
                                      1000 if self.hard_wall else 30)
         # pseudo-transient continuation takes full (shifted) steps: the residual norm
         # need not fall monotonically along the relaxation path; and inexact ones (a step
-        # of a path need not be solved exactly: with 1000 Krylov iterations a hard-wall
-        # PTC at snap number 13.8 made 179 steps in 45 s, with 30 it made its 300 in 20 s)
+        # of a path need not be solved exactly; docs/formulation.md, "Adhesive contact: unknowns and Newton")
         self._ptc = self._make_snes(self.prefix + "ptc_", "basic", self.ptc_max_it, 30)
         return self._snes
 
@@ -306,12 +305,12 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
             snes.setLineSearchPreCheck(self._limit_step)
         self.set_default("snes_linesearch_type", linesearch, prefix)
         # PETSc's default (1e8) is in the unknowns' units, Pa here: it cut every Newton step
-        # of a stiff sphere (docs/formulation.md, "Line search")
+        # of a stiff sphere (docs/formulation.md, "Adhesive contact: unknowns and Newton")
         self.set_default("snes_linesearch_maxstep", "1e300", prefix)
         ksp = snes.getKSP()
         ksp.setType(newton_ksp_type(self.hard_wall))
         # with the full LJ curve an inexact step is cheaper than an exact one far from the
-        # solution (docs/performance.md, "Rough adhesion")
+        # solution (docs/performance.md, "Adhesive rough contact")
         rtol = PETSc.Options(self.prefix).getReal("newton_ksp_rtol", code_default("adhesion", "newton_ksp_rtol"))
         ksp.setTolerances(rtol=rtol, max_it=ksp_max_it)
         pc = ksp.getPC()

@@ -1,5 +1,5 @@
 """The SNES callbacks of ``AdhesiveProblem``: residual, Jacobian update, step limit and the
-convergence test with its error measures (docs/formulation.md, "Adhesive contact")."""
+convergence test with its error measures (docs/formulation.md, "Adhesive contact: unknowns and Newton")."""
 from __future__ import annotations
 
 import numpy as np
@@ -52,7 +52,7 @@ class AdhesiveCallbacks:
     def _limit_step(self, x, y):
         """Shorten the Newton step x - y so that no gap falls more than ``step_limit`` z0
         below min(g, 0): a linear model taken in the attractive tail can send nodes deep
-        into the LJ wall (errors of 1e4 z0 measured), which costs several steps to undo."""
+        into the LJ wall (errors of thousands of z0), which costs several steps to undo."""
         g = self._g   # the gap at x: the Jacobian was just evaluated there
         dp = -self.blocks(y, readonly=True).sum(axis=0)
         dg = self.op.apply(dp, self._v2)

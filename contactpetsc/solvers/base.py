@@ -1,5 +1,5 @@
 """The VI skeleton shared by ``ContactProblem`` and ``AdhesiveProblem`` (docs/formulation.md,
-"Solver options"): one SNES VI Newton under an options prefix with bounds, code defaults,
+"Options"): one SNES VI Newton under an options prefix with bounds, code defaults,
 our own convergence test, the FFT-pair tally, reason names, the gap formula, and the
 ``petsc_options`` dict pushed under the prefix only while the problem reads options.
 """

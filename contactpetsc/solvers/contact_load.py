@@ -1,6 +1,7 @@
-"""Load control of ``ContactProblem`` (docs/formulation.md, "Load control"): a safeguarded,
-inexact Newton iteration on the approach around displacement-controlled solves, its slope
-dW/d delta from one reduced solve K_II z = 1 on the converged contact set."""
+"""Load control of ``ContactProblem``: a safeguarded, inexact Newton iteration on the approach
+around displacement-controlled solves, its slope dW/d delta from one reduced solve K_II z = 1
+on the converged contact set (docs/formulation.md, "The contact problem and the choice of
+unknown")."""
 from __future__ import annotations
 
 import numpy as np

@@ -1,4 +1,4 @@
-"""Continuation of ``AdhesiveProblem`` (docs/formulation.md, "Adhesive contact: globalisation"):
+"""Continuation of ``AdhesiveProblem`` (docs/formulation.md, "Adhesive contact: unknowns and Newton"):
 first states (nested iteration, the Signorini state, loading from rest), the fallback chain
 (the paper's relaxation, pseudo-transient continuation), the stall watch and the time budget."""
 from __future__ import annotations
@@ -43,7 +43,7 @@ class Continuation:
         self._coarse = False
         grid = self.grid
         # levels coarser than the adhesive range are kept: without them the first level
-        # that resolves it needs continuation too (docs/performance.md, "Nested iteration")
+        # that resolves it needs continuation too (docs/formulation.md, "Adhesive contact: unknowns and Newton")
         if not self.fmg or not can_halve(grid) or min(grid.nx, grid.ny) // 2 < self.fmg_min_size:
             return None
         gc = halved(grid)
@@ -93,7 +93,7 @@ class Continuation:
             old.aypx(-1.0, coarse._x)
             xb, dc = self.blocks(self._x), coarse.blocks(old, readonly=True)
             # the increment is smoother than the state: bilinear (fewer FFT pairs than
-            # piecewise constant; docs/performance.md, "Nested iteration")
+            # piecewise constant; docs/formulation.md, "Adhesive contact: unknowns and Newton")
             for k in range(self.n_blocks):
                 xb[k] += prolong_bilinear(dc[k], coarse.grid)
             if self.hard_wall:

@@ -1,5 +1,5 @@
 """One door from (grid, h, E*, law) to a solver, for the runner and API users alike, and a
-description of the solver stack it builds (``--dry-run``; docs/api.md, "Problems")."""
+description of the solver stack it builds (``--dry-run``; docs/api.md, "Non-adhesive contact")."""
 from __future__ import annotations
 
 from petsc4py import PETSc

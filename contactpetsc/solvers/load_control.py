@@ -1,5 +1,6 @@
-"""Load control as a driver over a problem's public ``solve(approach=...)`` (docs/formulation.md,
-"Load control"): Newton on the approach for a net force, stepping with the state's stiffness."""
+"""Load control as a driver over a problem's public ``solve(approach=...)``: Newton on the
+approach for a net force, stepping with the state's stiffness (docs/formulation.md,
+"Adhesive contact: unknowns and Newton")."""
 from __future__ import annotations
 
 import numpy as np

@@ -26,17 +26,9 @@ and approach the fine grid's start.  On a periodic cell K has no mean mode, so
 delta is the approach to the mean plane of the deformed surface and full
 contact is singular under displacement control: load control handles it.
 
-Options (prefix ``contact_`` by default) are read after the code defaults,
-so every PETSc option works: ``-contact_snes_monitor``,
-``-contact_ksp_monitor``, ``-contact_ksp_type``, ``-log_view``, ...  Own
-options (all listed with defaults in docs/formulation.md):
-``-contact_preconditioner spectral|mlmi|none``, ``-contact_tol``
-(complementarity error relative to the length scale), ``-contact_load_tol``
-(relative load error), ``-contact_newton_ksp_rtol``, ``-contact_fmg``,
-``-contact_fmg_prolong constant|bilinear`` (transfer of the coarse pressure
-in the nested iteration; constant is the default, bilinear measured worse on
-the benchmark), ``-contact_slope_warm_start`` (slope solves K_II z = 1 start
-from the previous z, the first one from the coarse grid's; default true), ...
+Options (prefix ``contact_`` by default; every PETSc option of the SNES, KSP
+and PC works) are read after the code defaults; the package's own are
+registered in ``options.py`` (docs/formulation.md, "Options").
 """
 from __future__ import annotations
 
@@ -146,7 +138,7 @@ class ContactProblem(ContactLoadControl, VIProblem):
         snes = self.make_vi_snes(self.prefix, (grid.create_vec(0.0), grid.create_vec(PETSc.INFINITY)),
                                  code_default("contact", "snes_max_it"))
         # backtracking: full steps (basic) diverged on the finest grid of the largest contact
-        # benchmark, bt converges there (docs/performance.md, "Contact benchmark")
+        # benchmark, bt converges there (docs/performance.md, "Non-adhesive rough contact against Tamaas")
         self.set_default("snes_linesearch_type", "bt")
         self.set_default("snes_linesearch_maxstep", "1e300")   # PETSc's 1e8 is in Pa here
         ksp = snes.getKSP()

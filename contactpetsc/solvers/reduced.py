@@ -64,8 +64,8 @@ class ContactJacobian:
 class InactiveSet:
     """Local positions ``idx`` of a reduced Vec's entries in a full local array, with the
     copies between the two.  When the set is the whole array (the full LJ curve: no
-    bounds, every unknown inactive) the copies are contiguous: 3-4x faster than an
-    indexed gather at 1024^2, once or twice per Krylov iteration."""
+    bounds, every unknown inactive) the copies are contiguous, much faster than an
+    indexed gather, once or twice per Krylov iteration."""
 
     def __init__(self, index_set: PETSc.IS, offset: int, full_size: int):
         self.idx = (index_set.getIndices() - offset).astype(np.intp)

@@ -109,8 +109,8 @@ def stability_margin(problem, q_rows: np.ndarray | None, steps: int = 30, tol: f
     # the plain three-term recurrence, no re-orthogonalisation: only lambda_max is wanted,
     # and lost orthogonality only adds copies of converged Ritz values (Paige); the top
     # one still grows monotonically (T_k is a leading block of T_k+1) and stays below
-    # lambda_max.  Two vectors instead of 2 x steps: at 512^2 on the rough benchmark, 30
-    # steps took 0.18 s against 0.65 s with full re-orthogonalisation, margins within 1 %
+    # lambda_max.  Two vectors instead of 2 x steps, at a fraction of the cost of full
+    # re-orthogonalisation and with the same margins (docs/formulation.md, "Adhesive contact: unknowns and Newton")
     v, sv = v / nrm, sv / nrm
     v_prev = None
     alphas, betas = [], []

@@ -1,6 +1,6 @@
 """States of ``AdhesiveProblem``: the tangent dx/d delta and stiffness dF/d delta, snapshots
 to come back to, the stability check and the ``AdhesiveState`` (docs/formulation.md,
-"Tangent and stability")."""
+"Adhesive contact: unknowns and Newton")."""
 from __future__ import annotations
 
 import numpy as np
