@@ -193,6 +193,10 @@ class VIProblem:
         out -= self.control_approach(out)
         return out
 
+    def fft_pairs(self) -> float:
+        """FFT pairs so far, in fine-grid units (coarse levels weighted by their size)."""
+        raise NotImplementedError
+
     def control_approach(self, h_plus_v: np.ndarray) -> float:
         """delta [m] of the gap formula, given h + K p (central-gap control derives it)."""
         return self._approach

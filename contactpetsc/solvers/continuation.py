@@ -15,6 +15,7 @@ from ..physics.interactions import UnderResolvedWarning
 from .base import AdhesiveSolveError, ContactSolveError, reason_name
 from .problem import ContactProblem
 from .relaxation import RelaxationSolver
+from .states import AdhesiveState
 from .transfer import can_halve, halved, prolong_bilinear, prolong_constant, restrict
 
 

@@ -242,7 +242,7 @@ class ContactProblem(ContactLoadControl, VIProblem):
         if self._root is not self:
             solver += f"@{self.grid.nx}x{self.grid.ny}"
         self.history.append(
-            solve=self._root._n_solves, iteration=it, fft_pairs=self._fft_pairs(),
+            solve=self._root._n_solves, iteration=it, fft_pairs=self.fft_pairs(),
             linear_iterations=self._lin0 + snes.getLinearSolveIterations(),
             complementarity_error=err, load_error=load_err, approach=self._approach,
             mean_pressure=mean_p, contact_fraction=frac, solver=solver, interference_error=err_gap)
@@ -260,7 +260,7 @@ class ContactProblem(ContactLoadControl, VIProblem):
             ops.update(self._coarse._operators())
         return ops
 
-    def _fft_pairs(self) -> float:
+    def fft_pairs(self) -> float:
         """FFT pairs of every operator of the root problem (coarse grids weighted by size), cumulative."""
         root = self._root
         return root._retired_pairs + weighted_pairs(root._operators().values(), root.grid)
@@ -415,7 +415,7 @@ class ContactProblem(ContactLoadControl, VIProblem):
         self._build()
         self._target = mean_pressure
         self._newton = self._linear = 0
-        pairs0, t0 = self._fft_pairs(), self.history.elapsed()
+        pairs0, t0 = self.fft_pairs(), self.history.elapsed()
         if self._approach is None:
             # no previous state: nested iteration, the solution on the 2x coarser grid
             self._nested_guess(approach, mean_pressure)
@@ -435,7 +435,7 @@ class ContactProblem(ContactLoadControl, VIProblem):
             force=mean_p * area, contact_fraction=frac, complementarity_error=err,
             interference_error=err_gap, load_error=load_err, converged=converged, reason=reason,
             newton_iterations=self._newton, linear_iterations=self._linear,
-            fft_pairs=self._fft_pairs() - pairs0, wall_time=self.history.elapsed() - t0)
+            fft_pairs=self.fft_pairs() - pairs0, wall_time=self.history.elapsed() - t0)
         # free the parallel temporaries petsc4py parked in PETSc's garbage (collective)
         PETSc.garbage_cleanup(grid.comm)
         if not converged and raise_on_failure:
