@@ -13,21 +13,12 @@ VI is exactly eq. (7) (or eq. 8).  ``adhesive_jacobian.py`` has the Jacobian,
 its reduced version and the block preconditioner (spectral or MLMI on the
 contact-like rows).
 
-Globalisation: the problem is non-convex.  Newton steps only ever start from
-a converged neighbouring state (tangent predictor), with a backtracking line
-search (``bt``) on the VI residual norm for hard-wall laws -- a trust region
-would also do, but the line search keeps the full Newton step whenever it
-reduces the residual, which is what warm-started steps need -- and full
-steps (``basic``) for the full LJ curve, whose residual norm is dominated by
-the stiff repulsive rows.  When Newton fails, a
-relaxation path takes over (``solve``); when it stalls (no smaller error in
-``-<prefix>stall_steps`` steps: full steps cycling where a few nodes of one
-contact edge sit at their own fold), pseudo-transient continuation goes on
-from its best iterate.  Every
-converged state is checked for stability (``stability.py``): the smallest
-eigenvalue of the displacement-space Hessian relative to the elastic one,
-1 - lambda_max(A S), by Lanczos; an unstable state is reported as such
-(``AdhesiveState.stable`` False), never passed off as a point of the path.
+Globalisation (the problem is non-convex): Newton steps only start from a
+converged neighbouring state (tangent predictor; line search ``newton_linesearch``);
+where Newton fails or stalls, the fallback chain (``continuation.py``) follows
+a relaxation path.  Every converged state is checked for stability
+(``stability.py``, 1 - lambda_max(A S) by Lanczos); an unstable state is
+reported as such, never passed off as a point of the path.
 
 Controls: ``approach`` delta [m] (displacement control) or ``central_gap``
 [m] (the gap at the apex node is prescribed and delta follows: Greenwood's
@@ -61,7 +52,22 @@ from .pc_registry import ADHESIVE_PC, ADHESIVE_PRECONDITIONERS
 from .states import AdhesiveState
 from .tangent import TangentAndState
 
-__all__ = ["AdhesiveProblem", "AdhesiveSolveError", "AdhesiveState", "newton_ksp_type"]
+__all__ = ["AdhesiveProblem", "AdhesiveSolveError", "AdhesiveState", "newton_ksp_type", "newton_linesearch"]
+
+#: line search of the pseudo-transient continuation SNES: full (shifted) steps, the residual
+#: norm need not fall monotonically along the relaxation path
+PTC_LINESEARCH = "basic"
+
+
+def newton_linesearch(hard_wall: bool) -> str:
+    """The line search of the Newton steps (code default of ``-<prefix>snes_linesearch_type``).
+
+    Backtracking for hard-wall laws (contact-set changes need damping); full steps for the
+    full LJ curve, whose residual norm is dominated by the stiff repulsive rows and stalls
+    bt (docs/performance.md, "Adhesive rough contact").
+    """
+    return "bt" if hard_wall else "basic"
+
 
 def newton_ksp_type(hard_wall: bool) -> str:
     """The Krylov method of the Newton and PTC steps (code default of ``-<prefix>ksp_type``).
@@ -284,15 +290,11 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
             self.blocks(lower)[0] = 0.0
         self._bounds = (lower, upper)
         self._J = J
-        # line search: backtracking for hard-wall laws (contact-set changes need damping);
-        # full steps for the full LJ curve, whose residual norm is dominated by the stiff
-        # repulsive rows and stalls bt (docs/performance.md, "Adhesive rough contact")
-        self._snes = self._make_snes(self.prefix, "bt" if self.hard_wall else "basic", self.max_it,
+        self._snes = self._make_snes(self.prefix, newton_linesearch(self.hard_wall), self.max_it,
                                      1000 if self.hard_wall else 30)
-        # pseudo-transient continuation takes full (shifted) steps: the residual norm
-        # need not fall monotonically along the relaxation path; and inexact ones (a step
-        # of a path need not be solved exactly; docs/formulation.md, "Adhesive contact: unknowns and Newton")
-        self._ptc = self._make_snes(self.prefix + "ptc_", "basic", self.ptc_max_it, 30)
+        # pseudo-transient continuation takes inexact steps: a step of a path need not be
+        # solved exactly (docs/formulation.md, "Adhesive contact: unknowns and Newton")
+        self._ptc = self._make_snes(self.prefix + "ptc_", PTC_LINESEARCH, self.ptc_max_it, 30)
         return self._snes
 
     def _make_snes(self, prefix: str, linesearch: str, max_it: int, ksp_max_it: int) -> PETSc.SNES:

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from petsc4py import PETSc
 
-from .adhesive import AdhesiveProblem, newton_ksp_type
+from .adhesive import PTC_LINESEARCH, AdhesiveProblem, newton_ksp_type, newton_linesearch
 from .base import VIProblem
 from .pc_registry import ADHESIVE_PC, ADHESIVE_PRECONDITIONERS, PRECONDITIONERS
-from .problem import ContactProblem
+from .problem import NEWTON_KSP, NEWTON_LINESEARCH, ContactProblem
 from .relaxation import RelaxationSolver
 
 METHODS = ("newton", "relaxation")
@@ -92,7 +92,7 @@ def describe_solver(law=None, method: str = "newton", prefix: str | None = None,
             choice = db.getString("preconditioner", "spectral").lower()
             if choice not in PRECONDITIONERS:
                 raise ValueError(f"-{prefix}preconditioner must be one of {sorted(PRECONDITIONERS)}, got {choice!r}")
-            return _describe_snes(opts, prefix, "bt", "cg", PRECONDITIONERS[choice])
+            return _describe_snes(opts, prefix, NEWTON_LINESEARCH, NEWTON_KSP, PRECONDITIONERS[choice])
         choice = db.getString("preconditioner", "spectral").lower()
         if choice not in ADHESIVE_PRECONDITIONERS:
             raise ValueError(f"-{prefix}preconditioner must be one of {', '.join(ADHESIVE_PRECONDITIONERS)}, "
@@ -100,9 +100,9 @@ def describe_solver(law=None, method: str = "newton", prefix: str | None = None,
         pc_path = None if choice == "none" else ADHESIVE_PC
         if method == "relaxation":
             return [f"relaxation-mlmi (the reference paper's MLMI relaxation; options prefix -{prefix}relax_)"]
-        lines = _describe_snes(opts, prefix, "bt" if law.hard_wall else "basic", newton_ksp_type(law.hard_wall),
+        lines = _describe_snes(opts, prefix, newton_linesearch(law.hard_wall), newton_ksp_type(law.hard_wall),
                                pc_path)
         lines.append(f"  contact-row preconditioner {choice} (-{prefix}preconditioner)")
-        lines += ["fallback " + line for line in _describe_snes(opts, prefix + "ptc_", "basic",
+        lines += ["fallback " + line for line in _describe_snes(opts, prefix + "ptc_", PTC_LINESEARCH,
                                                                  newton_ksp_type(law.hard_wall), pc_path)]
         return lines

@@ -51,6 +51,12 @@ from .reduced import ContactJacobian
 from .states import ContactState
 from .transfer import can_halve, halved, prolong_bilinear, prolong_constant, restrict
 
+#: code defaults of the Newton steps' ``-<prefix>snes_linesearch_type`` and ``ksp_type``:
+#: backtracking, where full steps diverged on the finest grid of the largest contact
+#: benchmark (docs/performance.md), and CG (K_II is symmetric positive definite)
+NEWTON_LINESEARCH, NEWTON_KSP = "bt", "cg"
+
+
 class ContactProblem(ContactLoadControl, VIProblem):
     """Contact of an elastic half-space with a rigid composite surface h, no adhesion.
 
@@ -137,12 +143,10 @@ class ContactProblem(ContactLoadControl, VIProblem):
         self._x_best = grid.create_vec(0.0)   # the iterate of smallest error of the running solve
         snes = self.make_vi_snes(self.prefix, (grid.create_vec(0.0), grid.create_vec(PETSc.INFINITY)),
                                  code_default("contact", "snes_max_it"))
-        # backtracking: full steps (basic) diverged on the finest grid of the largest contact
-        # benchmark, bt converges there (docs/performance.md, "Non-adhesive rough contact against Tamaas")
-        self.set_default("snes_linesearch_type", "bt")
+        self.set_default("snes_linesearch_type", NEWTON_LINESEARCH)
         self.set_default("snes_linesearch_maxstep", "1e300")   # PETSc's 1e8 is in Pa here
         ksp = snes.getKSP()
-        ksp.setType("cg")
+        ksp.setType(NEWTON_KSP)
         # inexact Newton: the semismooth Newton method converges linearly with
         # rate ~ rtol once the contact set has settled, so a loose Krylov
         # tolerance costs at most a Newton step or two and saves many Krylov steps

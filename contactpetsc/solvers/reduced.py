@@ -145,7 +145,8 @@ class ReducedJacobian:
         self.op.apply(self.full_in, self.full_out)
         if self.mean_compliance:
             grid = self.grid
-            self.full_out += self.mean_compliance * grid.mpi_comm.allreduce(float(self.full_in.sum())) / (grid.nx * grid.ny)
+            total = grid.mpi_comm.allreduce(float(self.full_in.sum()))
+            self.full_out += self.mean_compliance * total / (grid.nx * grid.ny)
         self.from_full(self.full_out, y)
 
     @collective_guard
