@@ -28,17 +28,8 @@ from __future__ import annotations
 import numpy as np
 import pyfftw
 from mpi4py import MPI
-from petsc4py import PETSc
 
-_events: dict[str, PETSc.Log.Event] = {}
-
-
-def log_event(name: str) -> PETSc.Log.Event:
-    """A PETSc log event, created on first use (so -log_view lists it)."""
-    ev = _events.get(name)
-    if ev is None:
-        ev = _events[name] = PETSc.Log.Event(name)
-    return ev
+from .log_events import log_event
 
 
 def split_range(n: int, parts: int) -> list[tuple[int, int]]:
@@ -112,8 +103,8 @@ class SlabRFFT:
             self.rows = empty((ny_loc, self.nkx), "complex128")
             self.cols = empty((nkx_loc, self.Ny), "complex128")   # y-stage input, zero beyond ny
             self.spectrum = empty((nkx_loc, self.Ny), "complex128")
-            # Contiguous all-to-all with local (un)packing: on shared memory this is
-            # ~5x faster than Alltoallw with strided datatypes (measured, OpenMPI 4.1).
+            # Contiguous all-to-all with local (un)packing: on shared memory faster than
+            # Alltoallw with strided datatypes (docs/performance.md).
             self.sendbuf = empty(ny_loc * self.nkx, "complex128")
             self.recvbuf = empty(nkx_loc * ny, "complex128")
             widths = [b - a for a, b in self.kx_ranges]

@@ -136,6 +136,7 @@ class SurfaceGrid:
         self.ys, self.ye = self.y_ranges[self.mpi_comm.Get_rank()]
         self._stencil_width = int(stencil_width)
         self._da = None
+        self._halo = None    # (global, local) work Vecs of halo_rows
 
     @property
     def da(self) -> PETSc.DMDA:
@@ -255,34 +256,32 @@ class SurfaceGrid:
                   edge: str = "zero") -> tuple[np.ndarray, np.ndarray]:
         """Fill ``lo`` with row ys - 1 and ``hi`` with row ye of a (ny_loc, nx) array.
 
-        Rows come from the neighbouring ranks (periodic wrap-around on a
-        periodic grid).  Beyond an isolated grid's edge: zeros
+        Rows come from the neighbouring ranks through the DMDA's ghost exchange
+        (``globalToLocal``; periodic wrap-around on a periodic grid).  Beyond an isolated grid's edge: zeros
         (``edge="zero"``) or the edge row repeated (``edge="repeat"``).
         Collective; ``lo`` and ``hi`` are caller-owned buffers of length nx.
         """
-        comm = self.mpi_comm
-        size, rank = comm.Get_size(), comm.Get_rank()
-        if edge == "zero":
-            lo[...] = 0.0
-            hi[...] = 0.0
-        elif edge == "repeat":
-            lo[...] = rows[0]
-            hi[...] = rows[-1]
-        else:
+        if edge not in ("zero", "repeat"):
             raise ValueError(f"edge must be 'zero' or 'repeat', got {edge!r}")
-        if size == 1:
-            if self.periodic:
-                lo[...], hi[...] = rows[-1], rows[0]
-            return lo, hi
-        if self.periodic:
-            below, above = (rank - 1) % size, (rank + 1) % size
+        # the DMDA's own ghost exchange (periodic wrap-around included); its work Vecs are
+        # made once per grid
+        da = self.da
+        if self._halo is None:
+            self._halo = (da.createGlobalVec(), da.createLocalVec())
+        global_vec, local_vec = self._halo
+        self.rows(global_vec)[...] = rows
+        da.globalToLocal(global_vec, local_vec)
+        (gxs, gxe), (gys, gye) = da.getGhostRanges()
+        ghosted = local_vec.getArray(readonly=True).reshape(gye - gys, gxe - gxs)
+        x0 = self.xs - gxs
+        if gys < self.ys:
+            lo[...] = ghosted[self.ys - 1 - gys, x0:x0 + self.nx]
         else:
-            below = rank - 1 if rank > 0 else MPI.PROC_NULL
-            above = rank + 1 if rank < size - 1 else MPI.PROC_NULL
-        comm.Sendrecv(np.ascontiguousarray(rows[0]), dest=below, sendtag=21,
-                      recvbuf=hi, source=above, recvtag=21)
-        comm.Sendrecv(np.ascontiguousarray(rows[-1]), dest=above, sendtag=22,
-                      recvbuf=lo, source=below, recvtag=22)
+            lo[...] = 0.0 if edge == "zero" else rows[0]
+        if gye > self.ye:
+            hi[...] = ghosted[self.ye - gys, x0:x0 + self.nx]
+        else:
+            hi[...] = 0.0 if edge == "zero" else rows[-1]
         return lo, hi
 
     def gather(self, vec: PETSc.Vec, root: int | None = None) -> np.ndarray | None:

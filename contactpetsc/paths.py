@@ -1,30 +1,18 @@
-"""Quasi-static loading paths of adhesive contacts: sweeps, jumps, pull-off, S-curves.
+"""Quasi-static loading paths of adhesive contacts: sweeps, jumps, pull-off, S-curves
+(docs/formulation.md, "Loading paths").
 
-Displacement control follows a branch of stable equilibria from one approach
-to the next (each step warm-started from the previous state with the
-tangent predictor).  A branch ends at a fold; the contact then jumps
-(jump-on while loading, jump-off while unloading) to another branch, which
-``AdhesiveProblem.solve`` reaches by pseudo-transient continuation.  A step
-is a jump when that fallback was needed, or when the force differs from the
-tangent prediction by more than ``jump_tol`` times the force scale; the
-jump is then located by bisection of the approach (``refine`` halvings,
-each trying Newton only from the last state on the old branch) and
-reported with the approach and the force just before and just after --
-only when it is a discontinuity: the force gap across the final bracket
-must exceed what the branches' slopes give over its width (a steep but
-smooth branch closes the gap as the bracket shrinks; a jump does not).
+Displacement control follows a branch of stable equilibria, each step warm-started with
+the tangent predictor; where a branch ends at a fold the contact jumps, and the jump is
+located by bisection of the approach and reported only when it is a discontinuity (the
+force gap across the final bracket exceeds what the branches' slopes give over its
+width).  The pull-off force is the most tensile stable state of the path, refined by
+continuation to the end of each stable segment (NaN where the path does not bracket that
+state in approach: a sphere that never left the far field is most tensile where the path
+turned).  Central-gap control (Greenwood's device) keeps every state,
+stable or not, and traces the whole S-shaped curve of a sphere.
 
-The pull-off force is the most tensile stable state of the path
-(``refine_pull_off``): searched by continuation from the sampled minimum
-towards its neighbours and from every stable state next to a loss of
-stability or a jump, to the end of each stable segment.  A path whose most
-tensile state is not bracketed in approach by the path (e.g. a sphere that
-never left the far field: its most tensile state is where the path turned) has not
-reached a pull-off: NaN.
-
-Central-gap control (Greenwood 1997; the reference paper's Fig. 4c) keeps
-every state, stable or not, and marks the unstable ones: that traces the
-whole S-shaped curve of a sphere.
+The problem is duck-typed: ``solve(approach=...)``, ``snapshot()`` (an object with
+``destroy()``) and ``restore(snapshot)``.
 """
 from __future__ import annotations
 
@@ -175,7 +163,7 @@ def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0
                 # bisection has found its end already: the jump's force_before)
                 path._edges.append((last[0], pt.approach, last[1]))
             else:
-                _free(last[1])
+                last[1].destroy()
             last = None
         if good:
             last = (i, problem.snapshot())
@@ -192,12 +180,12 @@ def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0
                 best = path._best
                 if best is None or st.force < path.points[best[0]].force:
                     if best is not None:
-                        _free(best[1])
+                        best[1].destroy()
                     path._best = (i, problem.snapshot())
             if on_state is not None:
                 on_state(k, st, pt)
     if last is not None:
-        _free(last[1])
+        last[1].destroy()
     return path
 
 
@@ -205,8 +193,8 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps):
     """Solve at ``target`` from the present state, testing for a jump; where that fails,
     go back to the last converged state and get there in halved steps, at least
     2**-``substeps`` of the whole step each.  A step longer than Newton's basin is not the
-    end of the branch: at the hard-wall law's mu = 2 sphere (96^2) every compressed state
-    failed in steps of 0.5 z0 and converged in steps of 0.1 z0 (docs/studies.md).  Returns
+    end of the branch: a strongly adhesive hard-wall sphere's compressed states need
+    shorter steps than its path gives (docs/studies.md).  Returns
     the state at ``target`` (or the failed one) with the cost of every try and sub-step in
     it, and the (approach, force, stiffness) of the last converged state."""
     if prev is None:   # the path's first state: nothing to jump from or go back to
@@ -239,7 +227,7 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps):
             else:
                 problem.restore(snap)   # the last converged state, with its tangent
                 h *= 0.5
-        _free(snap)
+        snap.destroy()
         if final:
             break
     if not st.converged and st.approach != target:
@@ -308,7 +296,7 @@ def refine_pull_off(problem, path: Path, xtol: float, max_solves: int = 40,
     found.append((pts[k].force, path._bracketed(k)))
     found += [(f, True) for j in path.jumps for f in (j.force_before, j.force_after)]
     problem.restore(end)
-    _free(end)
+    end.destroy()
     force, reached = min(found, key=lambda f: (f[0], not f[1]))
     path.refined_pull_off = force if reached else float("nan")
     return path.refined_pull_off
@@ -337,10 +325,10 @@ def _continue(problem, snap, start, towards, xtol, max_solves, jump_tol):
         if _good(st) and abs(st.force - predicted) <= max(jump_tol * scale, abs(predicted - cur[1])):
             cur = (d, st.force, st.stiffness)
             states.append((d, st.force, problem.snapshot()))
-            _free(here)
+            here.destroy()
         else:
             problem.restore(here)
-            _free(here)
+            here.destroy()
             if abs(h) <= xtol:
                 ended = True
                 break
@@ -352,7 +340,7 @@ def _continue(problem, snap, start, towards, xtol, max_solves, jump_tol):
         force = min(force, _golden(problem, states[m][2], states[m - 1][0], states[m + 1][0], xtol, max_solves))
     for state in states:
         if state[2] is not None:
-            _free(state[2])
+            state[2].destroy()
     return force, reached, nearest
 
 
@@ -389,12 +377,6 @@ def _golden(problem, snap, lo, hi, xtol, max_solves) -> float:
     return best
 
 
-def _free(snap) -> None:
-    snap[0].destroy()
-    if snap[2] is not None:
-        snap[2][1].destroy()
-
-
 def _locate_jump(problem, snap, prev, after, refine) -> Jump | None:
     """Bisect [prev approach, after.approach] with Newton from the old branch only; None when
     the branch is continuous there: the force gap across the final bracket is no larger than
@@ -414,13 +396,13 @@ def _locate_jump(problem, snap, prev, after, refine) -> Jump | None:
         on_old = (st.converged and st.stable is not False
                   and abs(st.force - w_lo) < 0.5 * abs(w_hi - w_lo))
         if on_old:
-            _free(snap)
+            snap.destroy()
             snap = problem.snapshot()
             d_lo, w_lo, k_lo = mid, st.force, st.stiffness
         else:
             d_hi = mid
     problem.restore(new_branch)
-    _free(new_branch)
+    new_branch.destroy()
     k_hi = after.stiffness
     if refine and abs(d_hi - after.approach) > 0:
         # the force just after the jump, on the new branch, at the bisected approach
@@ -429,7 +411,7 @@ def _locate_jump(problem, snap, prev, after, refine) -> Jump | None:
         problem.solve(approach=after.approach, raise_on_failure=False)
     else:
         w_after = w_hi
-    _free(snap)
+    snap.destroy()
     width, gap = abs(d_hi - d_lo), abs(w_after - w_lo)
     slope = max(abs(k_lo), abs(k_hi))
     smooth = 2.0 * slope * width if np.isfinite(slope) else 4.0 * gap0 * width / max(width0, np.finfo(float).tiny)

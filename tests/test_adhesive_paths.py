@@ -103,7 +103,7 @@ def test_truncated_stability_check_says_so(coll):
     st = pb.solve(approach=0.5)
     assert st.converged and st.stability_converged is False
     pb.stability_steps = 60
-    full = pb._stability()
+    full = pb.stability()
     assert pb.stability_converged is True
     assert full <= st.stability_margin + 1e-12
 

@@ -98,7 +98,7 @@ def test_failed_adhesive_solve_returns_its_best_iterate(coll):
     # the reported pressure is its own adhesive pressure (no wall: p = a)
     assert coll.max(np.abs(p - grid.rows(st.adhesive_pressure, readonly=True))) == 0.0
     # the next solve starts from the last converged state
-    x = problem.snapshot()[0]
+    x = problem.snapshot().x
     start = x.getArray(readonly=True)
     assert coll.max(np.abs(start - grid.rows(good.pressure, readonly=True).ravel())) == 0.0
     x.destroy()

@@ -90,39 +90,29 @@ def resolution_nodes(scene: dict, law: InteractionLaw | None) -> float | None:
                             rms_slope=g["rms_slope"] if g["kind"] == "self-affine" else None)
 
 
-def push_options(prefix: str, options: dict) -> None:
-    """The scene's ``solver.options`` under ``prefix``; the command line wins over the scene."""
-    opts = PETSc.Options(prefix)
-    for key, value in options.items():
-        if not opts.hasName(key):
-            opts.setValue(key, str(value))
-
-
 def build_problem(scene: dict, grid: SurfaceGrid, heights: PETSc.Vec, law: InteractionLaw | None):
-    """(problem, relaxation solver or None) of the scene: ``ContactProblem`` without adhesion,
-    ``AdhesiveProblem`` with it (and the paper's relaxation on it for ``solver.method =
-    relaxation``).  The resolution is checked by ``resolution_nodes``, not again here."""
-    sol = scene["solver"]
+    """(problem, relaxation solver or None) of the scene, by ``solvers.factory.make_problem``:
+    ``ContactProblem`` without adhesion, ``AdhesiveProblem`` with it (and the paper's
+    relaxation on it for ``solver.method = relaxation``); the scene's ``solver.options`` go
+    to the problem's ``petsc_options``.  The resolution is checked by ``resolution_nodes``,
+    not again here."""
+    from ..solvers.factory import make_problem
+    sol, e_star = scene["solver"], scene["material"]["e_star"]
+    options = dict(sol["options"])
     if law is None:
-        from ..solvers import ContactProblem
-        push_options(CONTACT_PREFIX, sol["options"])
         g, control = scene["geometry"], scene["protocol"]["control"]
         # a Hertz sphere in displacement control: errors relative to the largest approach
         hertz = (g["kind"] == "sphere" and not g["periodic"] and scene["interaction"]["law"] == "none"
                  and control == "approach")
-        problem = ContactProblem(grid, heights, scene["material"]["e_star"], tol=sol["tol"] or 1e-10,
-                                 preconditioner=sol["preconditioner"], prefix=CONTACT_PREFIX,
-                                 length_scale=max(scene["protocol"]["values"]) if hertz else None)
+        problem = make_problem(grid, heights, e_star, prefix=CONTACT_PREFIX, petsc_options=options,
+                               tol=sol["tol"] or 1e-10, preconditioner=sol["preconditioner"],
+                               length_scale=max(scene["protocol"]["values"]) if hertz else None)
         return problem, None
-    from ..solvers.adhesive import AdhesiveProblem
-    from ..solvers.relaxation import RelaxationSolver
-    push_options(ADHESION_PREFIX, sol["options"])
     relax = sol["method"] == "relaxation"
     tol = sol["tol"] if sol["tol"] is not None else (1e-4 if relax else None)
     with warnings.catch_warnings():   # the scene's criterion was checked (resolution_nodes)
         warnings.simplefilter("ignore", UnderResolvedWarning)
-        problem = AdhesiveProblem(grid, heights, scene["material"]["e_star"], law,
-                                  element_integration=scene["interaction"]["element_integration"],
-                                  tol=None if relax else tol, preconditioner=sol["preconditioner"],
-                                  prefix=ADHESION_PREFIX)
-    return problem, (RelaxationSolver(problem, tol=tol) if relax else None)
+        built = make_problem(grid, heights, e_star, law, method=sol["method"], prefix=ADHESION_PREFIX,
+                             petsc_options=options, tol=tol, preconditioner=sol["preconditioner"],
+                             element_integration=scene["interaction"]["element_integration"])
+    return (built.problem, built) if relax else (built, None)

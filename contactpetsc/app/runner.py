@@ -25,22 +25,17 @@ __all__ = ["run", "plan", "CURVE_COLUMNS"]
 def plan(scene: dict, grid: SurfaceGrid, law=None, out_dir: str | None = None) -> list[str]:
     """What a run will do: grid, decomposition, solver chain, memory, outputs (dry run and log
     header); ``law`` the builder's (``builder.build_law``), None without adhesion."""
+    from ..solvers.factory import describe_solver
     g, sol = scene["geometry"], scene["solver"]
     if law is not None:
-        it = scene["interaction"]
         law_text = f"law {law.name}, w = {law.work_of_adhesion:g} J/m^2" + (
-            ", element-integrated" if it["element_integration"] else "")
-        from ..solvers.adhesive import newton_ksp_type
-        ksp = newton_ksp_type(law.hard_wall)
-        chain = (f"  solver: SNES vinewtonrsls on (contact, adhesive) pressures (prefix adhesion_), "
-                 f"KSP {ksp}, preconditioner {sol['preconditioner']}, Lanczos stability check"
-                 if sol["method"] == "newton" else
-                 "  solver: the reference paper's MLMI relaxation (prefix adhesion_relax_), E_Total tol "
-                 f"{sol['tol'] or 1e-4:g} z0")
+            ", element-integrated" if scene["interaction"]["element_integration"] else "")
     else:
         law_text = "no adhesion (Signorini)"
-        chain = (f"  solver: SNES vinewtonrsls (prefix contact_), KSP cg, preconditioner "
-                 f"{sol['preconditioner']}, tol {sol['tol'] or 1e-10:g}")
+    # the solver stack as built from the code defaults, the scene and the command line
+    stack = describe_solver(law, sol["method"], builder.ADHESION_PREFIX if law is not None else builder.CONTACT_PREFIX,
+                            petsc_options={**sol["options"], "preconditioner": sol["preconditioner"]})
+    chain = "\n".join("  solver: " + line if k == 0 else "          " + line for k, line in enumerate(stack))
     per_rank = builder.memory_per_rank(scene, grid.mpi_comm.Get_size())
     return [f"scene {scene['name']}: {g['kind']} surface, E* = {scene['material']['e_star']:g} Pa, {law_text}",
             f"  {grid}",

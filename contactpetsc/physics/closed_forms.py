@@ -46,7 +46,9 @@ def dmt_force(law, e_star: float, radius: float, approach: float) -> tuple[float
     a = np.sqrt(radius * approach)
     m = 1.0 + np.logspace(-10, 5, 300001)
     h = hertz_gap_outside(radius, a, m * a)
-    adhesive = float(np.trapz(law.pressure(h) * 2.0 * np.pi * m * a * a, m))
+    # numpy 2 renamed trapz to trapezoid (and removed trapz in 2.4)
+    trapezoid = getattr(np, "trapezoid", None) or np.trapz
+    adhesive = float(trapezoid(law.pressure(h) * 2.0 * np.pi * m * a * a, m))
     # beyond m = 1e5 the gap is r^2 / 2R: Derjaguin for the rest of the tail
     adhesive += 2.0 * np.pi * radius * float(law.energy(h[-1]))
     return float(hertz_force(e_star, radius, approach)) + adhesive, adhesive

@@ -1,5 +1,9 @@
-"""Solvers: the SNES VI contact problem, its preconditioners and histories."""
+"""Solvers: the SNES VI contact problems, their preconditioners and histories."""
 from .history import SolveHistory, HistoryRecord
 from .problem import ContactProblem, ContactState, ContactSolveError
+from .preconditioners import SpectralPC
+from .mlmi import MLMIPC
+from .adhesive_jacobian import AdhesivePC
 
-__all__ = ["ContactProblem", "ContactState", "ContactSolveError", "SolveHistory", "HistoryRecord"]
+__all__ = ["ContactProblem", "ContactState", "ContactSolveError", "SolveHistory", "HistoryRecord",
+           "SpectralPC", "MLMIPC", "AdhesivePC"]

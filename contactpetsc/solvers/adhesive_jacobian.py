@@ -23,7 +23,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..collective import collective_guard
-from .reduced import InactiveSet, python_submatrix
+from .reduced import InactiveSet, PreconditionerData, python_submatrix, view_context
 
 
 class AdhesiveJacobian:
@@ -34,9 +34,9 @@ class AdhesiveJacobian:
         self.op = problem.op
         self.grid = problem.grid
         self.prefix = problem.prefix
-        self.cache = {}   # shared with the preconditioners (spectral kernels, MLMI levels)
-        g = self.grid
-        shape = (g.ny_local, g.nx)
+        self.pc_data = PreconditionerData()   # shared by the preconditioners of every solve
+        grid = self.grid
+        shape = (grid.ny_local, grid.nx)
         self.w = np.zeros(shape)
         self.aw = np.zeros(shape)
 
@@ -127,6 +127,16 @@ class AdhesivePC:
     ``-<prefix>preconditioner spectral|mlmi`` chooses the inner one.
     """
 
+    inner_pc = None       # the pressure-space PC of the contact-like rows, made at the first set-up
+
+    def view(self, pc, viewer=None):
+        lines = ["contactpetsc AdhesivePC: block preconditioner of the reduced adhesive Jacobian",
+                 f"  contact-like rows: {getattr(self, 'n_union', 0)} (inner "
+                 f"{type(self.inner_pc).__name__ if self.inner_pc else 'none'}), the others Jacobi"]
+        view_context(viewer, lines)
+        if self.inner_pc is not None and getattr(self, "inner_active", False):
+            view_context(viewer, ["  " + line for line in self.inner_pc.describe()])
+
     @collective_guard
     def setUp(self, pc):
         _, P = pc.getOperators()
@@ -152,14 +162,16 @@ class AdhesivePC:
         floor = 0.1 * kappa
         local = np.where(np.abs(local) < floor, np.copysign(floor, local), local)
         self.jacobi = 1.0 / local
-        n_union = ctx.grid.mpi_comm.allreduce(int(self.union.sum()))
-        self.inner_pc = None
+        self.n_union = n_union = ctx.grid.mpi_comm.allreduce(int(self.union.sum()))
         if n_union:
-            from .mlmi import MLMIPC
-            from .preconditioners import SpectralPC
-            cls = MLMIPC if pb.preconditioner == "mlmi" else SpectralPC
-            self.inner_pc = cls()
+            if self.inner_pc is None:
+                from .mlmi import MLMIPC
+                from .preconditioners import SpectralPC
+                self.inner_pc = (MLMIPC if pb.preconditioner == "mlmi" else SpectralPC)()
             self.inner_pc.prepare(_SetView(ctx.parent, self.union))
+            self.inner_active = True
+        else:
+            self.inner_active = False
         self.f = np.zeros(self.union.shape)
         self.z = np.zeros(self.union.shape)
         self.full = np.zeros_like(ctx.full_in)
@@ -178,7 +190,7 @@ class AdhesivePC:
             ctx.to_full(x, full)
         a_in = full[-1]
         np.multiply(a_in, self.jacobi, out=out[-1])
-        if self.inner_pc is not None:
+        if self.inner_active:
             f = self.f
             np.multiply(a_in, self.inv_scale, out=f)   # zero off the stiff rows
             if ctx.problem.hard_wall:

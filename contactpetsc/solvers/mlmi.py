@@ -45,7 +45,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..fft import log_event
+from ..log_events import log_event
 from ..operators.elastic import half_space
 from .preconditioners import ReducedPreconditioner, lowest_mode_stiffness
 from .transfer import can_halve, halved, prolong_constant, restrict
@@ -89,11 +89,11 @@ class Level:
         then every sweep is a contraction in the energy norm and the cycle is
         positive definite on any set.
         """
-        g = self.grid
+        grid = self.grid
         key = (power_its, bound)
         same = (self.mask is not None and getattr(self, "_key", None) == key
                 and np.array_equal(self.mask > 0, mask))
-        if g.mpi_comm.allreduce(bool(same), op=MPI.LAND):
+        if grid.mpi_comm.allreduce(bool(same), op=MPI.LAND):
             return  # same set: same scaling and the same (guaranteed) damping bound
         self._key = key
         self.mask = mask.astype(float)
@@ -101,9 +101,9 @@ class Level:
         lam = self.k0 - 0.25 * (self.kx * sx + self.ky * sy)   # (chi D chi K chi)_ii
         with np.errstate(divide="ignore", invalid="ignore"):
             self.scale = np.where(self.mask > 0, np.sqrt(self.omega / np.where(lam > 0, lam, 1.0)), 0.0)
-        comm = g.mpi_comm
-        i = np.arange(g.nx)[None, :]
-        j = np.arange(g.ys, g.ye)[:, None]
+        comm = grid.mpi_comm
+        i = np.arange(grid.nx)[None, :]
+        j = np.arange(grid.ys, grid.ye)[:, None]
         v = np.where((i + j) % 2 == 0, 1.0, 0.0) * self.mask
         norm = np.sqrt(comm.allreduce(float(np.vdot(v, v))))
         rho = 0.0
@@ -123,10 +123,10 @@ class Level:
 
     def neighbour_sums(self, r: np.ndarray, sx: np.ndarray, sy: np.ndarray):
         """(sum over the 2 x-neighbours, sum over the 2 y-neighbours) of r; halo rows from adjacent ranks."""
-        g = self.grid
-        g.halo_rows(r, self.halo_lo, self.halo_hi, edge="zero")
+        grid = self.grid
+        grid.halo_rows(r, self.halo_lo, self.halo_hi, edge="zero")
         sx[...] = 0.0
-        if g.periodic:
+        if grid.periodic:
             sx += np.roll(r, 1, axis=1)
             sx += np.roll(r, -1, axis=1)
         else:
@@ -179,14 +179,14 @@ def build_levels(fine_op, max_levels: int = 8, min_size: int = 8) -> list[Level]
 class MLMIPC(ReducedPreconditioner):
     """Multilevel V/W-cycle with distributive Jacobi smoothing on the inactive set (see module doc)."""
 
-    def prepare(self, ctx):
-        cache = ctx.parent.cache
+    def initialize(self, ctx):
+        data = ctx.parent.pc_data
         prefix = ctx.parent.prefix
         opts = PETSc.Options(prefix)
-        if "mlmi_levels" not in cache:
-            cache["mlmi_levels"] = build_levels(ctx.op, opts.getInt("mlmi_levels", 8),
-                                                opts.getInt("mlmi_min_size", 8))
-        self.levels = cache["mlmi_levels"]
+        if data.mlmi_levels is None:
+            data.mlmi_levels = build_levels(ctx.op, opts.getInt("mlmi_levels", 8),
+                                            opts.getInt("mlmi_min_size", 8))
+        self.levels = data.mlmi_levels
         self.cycle = opts.getString("mlmi_cycle", "v").lower()
         if self.cycle not in ("v", "w"):
             raise ValueError(f"{prefix}mlmi_cycle must be v or w, got {self.cycle!r}")
@@ -195,20 +195,28 @@ class MLMIPC(ReducedPreconditioner):
         self.coarse_sweeps = opts.getInt("mlmi_coarse_sweeps", 4)
         self.power_its = opts.getInt("mlmi_power_its", 6)
         self.bound = opts.getReal("mlmi_rho_bound", 1.6)
+        # the distributive stencil and (on periodic cells) K vanish at q = 0, so the
+        # cycle leaves the mean of p on I alone; a rank-one term gives it the
+        # stiffness of the lowest mode, keeping M positive definite
+        if data.mlmi_mean_stiffness is None:
+            data.mlmi_mean_stiffness = lowest_mode_stiffness(ctx.op)
+        self.mean_stiffness = data.mlmi_mean_stiffness
+
+    def update(self, ctx):
         mask = ctx.mask
         for l, lev in enumerate(self.levels):
             lev.set_mask(mask, self.power_its, self.bound)
             if l + 1 < len(self.levels):
                 mask = mask.reshape(mask.shape[0] // 2, 2, mask.shape[1] // 2, 2).all(axis=(1, 3))
-        # the distributive stencil and (on periodic cells) K vanish at q = 0, so the
-        # cycle leaves the mean of p on I alone; a rank-one term gives it the
-        # stiffness of the lowest mode, keeping M positive definite
-        if "mlmi_mean_stiffness" not in cache:
-            cache["mlmi_mean_stiffness"] = lowest_mode_stiffness(ctx.op)
-        self.mean_stiffness = cache["mlmi_mean_stiffness"]
         self.n_set = max(ctx.grid.mpi_comm.allreduce(int(ctx.mask.sum())), 1)
         self.x = [np.zeros_like(lev.mask) for lev in self.levels]
         self.r = [np.zeros_like(lev.mask) for lev in self.levels]
+
+    def describe(self):
+        sizes = ", ".join(f"{lev.grid.nx}x{lev.grid.ny}" for lev in self.levels)
+        return [f"contactpetsc MLMIPC: {self.cycle.upper()}-cycle on {len(self.levels)} levels ({sizes})",
+                f"  smoothing {self.pre} pre, {self.post} post, {self.coarse_sweeps} on the coarsest; "
+                f"damping bound {self.bound:g} from {self.power_its} power iterations"]
 
     def _cycle(self, l: int, b: np.ndarray) -> np.ndarray:
         lev = self.levels[l]

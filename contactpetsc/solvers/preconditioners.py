@@ -2,8 +2,8 @@
 
 Both approximate K_II^-1 on the inactive set I by an operator M acting on
 full grid arrays that vanish outside I.  Select with
-``-<prefix>pc_type python -<prefix>pc_python_type contactpetsc.solvers.preconditioners.SpectralPC``
-(or ``contactpetsc.solvers.mlmi.MLMIPC``), or with the problem's shortcut
+``-<prefix>pc_type python -<prefix>pc_python_type contactpetsc.solvers.SpectralPC``
+(or ``contactpetsc.solvers.MLMIPC``; ``pc_registry.py``), or with the problem's shortcut
 ``-<prefix>preconditioner spectral|mlmi|none``.
 """
 from __future__ import annotations
@@ -22,6 +22,8 @@ class ReducedPreconditioner:
     so the set-up of each Newton step allocates no grid-sized buffer.
     """
 
+    _data = None   # the PreconditionerData this PC was initialised with
+
     @collective_guard
     def setUp(self, pc):
         _, P = pc.getOperators()
@@ -30,6 +32,18 @@ class ReducedPreconditioner:
         self.prepare(ctx)
         self.f, self.z = ctx.full_in, ctx.full_out
 
+    def prepare(self, ctx) -> None:
+        """``initialize`` once per problem, then ``update`` to the operator's set (also what an
+        outer PC or solver calls for an inner use on a set view)."""
+        if self._data is not ctx.parent.pc_data:
+            self._data = ctx.parent.pc_data
+            self.initialize(ctx)
+        self.update(ctx)
+
+    def view(self, pc, viewer=None):
+        from .reduced import view_context
+        view_context(viewer, self.describe())
+
     @collective_guard
     def apply(self, pc, x, y):
         self.ctx.to_full(x, self.f)
@@ -37,8 +51,17 @@ class ReducedPreconditioner:
         self.ctx.from_full(self.z, y)
 
     # -- to implement ----------------------------------------------------------
-    def prepare(self, ctx):
+    def initialize(self, ctx) -> None:
+        """What does not change with the set (kernels, levels, options)."""
         raise NotImplementedError
+
+    def update(self, ctx) -> None:
+        """What follows the set ``ctx.mask`` of the operator now in use."""
+        raise NotImplementedError
+
+    def describe(self) -> list[str]:
+        """Lines of ``view``."""
+        return [f"contactpetsc {type(self).__name__}"]
 
     def inner(self, f: np.ndarray, out: np.ndarray) -> np.ndarray:
         raise NotImplementedError
@@ -61,15 +84,23 @@ class SpectralPC(ReducedPreconditioner):
     One FFT pair per application.
     """
 
-    def prepare(self, ctx):
+    def initialize(self, ctx):
         op = self.op = ctx.op
-        cache = ctx.parent.cache
-        if "spectral_pairs" not in cache:
+        data = ctx.parent.pc_data
+        if data.spectral_pairs is None:
             inv = np.array(op.inverse_kernel, copy=True)
             inv[inv == 0] = lowest_mode_stiffness(op) / (op.fft.Nx * op.fft.Ny)
-            cache["spectral_pairs"] = op.as_pairs(inv)
-        self.pairs = cache["spectral_pairs"]
+            data.spectral_pairs = op.as_pairs(inv)
+        self.pairs = data.spectral_pairs
+
+    def update(self, ctx):
         self.mask = ctx.mask
+
+    def describe(self):
+        g = self.op.grid
+        n = g.mpi_comm.allreduce(int(self.mask.sum())) if getattr(self, "mask", None) is not None else 0
+        return [f"contactpetsc SpectralPC: M = R_I K^-1 R_I^T (Fourier inverse of K on a {g.nx} x {g.ny} grid)",
+                f"  set I: {n} nodes; one FFT pair per application"]
 
     def inner(self, f, out):
         self.op.convolve(self.pairs, f, out)

@@ -15,17 +15,42 @@ from ..collective import collective_guard
 from ..lifetime import destroy_at_exit
 
 
+class PreconditionerData:
+    """Data of one problem that its preconditioners share (Newton, tangent, stability and
+    PTC solves each have their own PC object): built once, by the first PC that needs it."""
+
+    def __init__(self):
+        self.spectral_pairs = None       #: the spectral PC's kernel in the operator's pair layout
+        self.mlmi_levels = None          #: the MLMI hierarchy (grids and operators)
+        self.mlmi_mean_stiffness = None  #: stiffness of the lowest mode [Pa/m]
+        self.reduced_buffers = None      #: (mask, full_in, full_out) of the reduced Jacobians
+
+
+def view_context(viewer, lines) -> None:
+    """Print ``lines`` on an ASCII viewer (indented like PETSc's own objects); others ignore them."""
+    if viewer is None or viewer.getType() != "ascii":
+        return
+    for line in lines:
+        viewer.printfASCII(f"  {line}\n")
+
+
 class ContactJacobian:
     """Python-context Mat on the grid's Vecs: J p = K p."""
 
     def __init__(self, op, prefix: str):
         self.op, self.prefix = op, prefix
-        self.cache = {}  # per-problem data of the preconditioners (kernels, coarse levels)
+        self.pc_data = PreconditionerData()
+
+    def view(self, mat, viewer=None):
+        grid = self.op.grid
+        view_context(viewer, [f"contactpetsc ContactJacobian: J = K on a {grid.nx} x {grid.ny} "
+                              f"{'periodic' if grid.periodic else 'isolated'} grid, E* = {self.op.e_star:g} Pa",
+                              f"  kernel self-influence K_ii = {self.op.self_influence:g} m/Pa"])
 
     @collective_guard
     def mult(self, mat, x, y):
-        g = self.op.grid
-        self.op.apply(g.rows(x, readonly=True), g.rows(y))
+        grid = self.op.grid
+        self.op.apply(grid.rows(x, readonly=True), grid.rows(y))
 
     @collective_guard
     def getDiagonal(self, mat, d):
@@ -39,8 +64,8 @@ class ContactJacobian:
 class InactiveSet:
     """Local positions ``idx`` of a reduced Vec's entries in a full local array, with the
     copies between the two.  When the set is the whole array (the full LJ curve: no
-    bounds, every unknown inactive) the copies are contiguous: 3-4x faster than an
-    indexed gather at 1024^2, once or twice per Krylov iteration."""
+    bounds, every unknown inactive) the copies are contiguous, much faster than an
+    indexed gather, once or twice per Krylov iteration."""
 
     def __init__(self, index_set: PETSc.IS, offset: int, full_size: int):
         self.idx = (index_set.getIndices() - offset).astype(np.intp)
@@ -83,11 +108,11 @@ class ReducedJacobian:
         self.set = InactiveSet(index_set, g.nx * g.ys, g.nx * g.ny_local)
         self.n_local = self.set.n_local
         # SNES VI asks for a new sub-matrix at every Newton step: the grid-sized work
-        # arrays live in the parent's cache (one reduced Mat is in use at a time)
-        buffers = parent.cache.get("reduced_buffers")
+        # arrays are the parent's (one reduced Mat is in use at a time)
+        buffers = parent.pc_data.reduced_buffers
         if buffers is None:
             shape = (g.ny_local, g.nx)
-            buffers = parent.cache["reduced_buffers"] = (np.empty(shape, bool), np.empty(shape), np.empty(shape))
+            buffers = parent.pc_data.reduced_buffers = (np.empty(shape, bool), np.empty(shape), np.empty(shape))
         self.mask, self.full_in, self.full_out = buffers
         self.mask.fill(False)
         self.mask.reshape(-1)[self.set.idx] = True
@@ -102,6 +127,11 @@ class ReducedJacobian:
             from .preconditioners import lowest_mode_stiffness
             self.mean_compliance = 1.0 / lowest_mode_stiffness(self.op)
 
+    def view(self, mat, viewer=None):
+        n = self.grid.mpi_comm.allreduce(self.n_local)
+        view_context(viewer, [f"contactpetsc ReducedJacobian: K_II on {n} inactive nodes of "
+                              f"{self.grid.nx * self.grid.ny}"])
+
     def to_full(self, x: PETSc.Vec, out: np.ndarray) -> np.ndarray:
         """Scatter a reduced Vec into a full (ny_loc, nx) array (entries outside I untouched)."""
         return self.set.to_full(x, out)
@@ -114,8 +144,9 @@ class ReducedJacobian:
         self.to_full(x, self.full_in)
         self.op.apply(self.full_in, self.full_out)
         if self.mean_compliance:
-            g = self.grid
-            self.full_out += self.mean_compliance * g.mpi_comm.allreduce(float(self.full_in.sum())) / (g.nx * g.ny)
+            grid = self.grid
+            total = grid.mpi_comm.allreduce(float(self.full_in.sum()))
+            self.full_out += self.mean_compliance * total / (grid.nx * grid.ny)
         self.from_full(self.full_out, y)
 
     @collective_guard

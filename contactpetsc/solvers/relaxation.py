@@ -33,7 +33,9 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from .adhesive_jacobian import _SetView
-from .problem import check_tolerance
+from .base import AdhesiveSolveError, check_tolerance
+from .mlmi import MLMIPC
+from .options import code_default
 
 
 class RelaxationSolver:
@@ -49,46 +51,47 @@ class RelaxationSolver:
         if not problem.hard_wall:
             raise ValueError(f"the relaxation solver needs a hard-wall law (hardwall-lj, exponential, "
                              f"dugdale); law {problem.law.name!r} is solved by Newton (solver = 'newton')")
-        self.pb = problem
-        opts = PETSc.Options(problem.prefix + "relax_")
-        pre = problem.prefix + "relax_"
-        self.tol = check_tolerance(opts.getReal("tol", 1e-4 if tol is None else tol), f"tol (-{pre}tol)")
-        self.contact_tol = check_tolerance(opts.getReal("contact_tol", 1e-4 if contact_tol is None else contact_tol),
-                                           f"contact_tol (-{pre}contact_tol)")
-        self.max_cycles = opts.getInt("max_cycles", 20000 if max_cycles is None else max_cycles)
-        self.max_inner = opts.getInt("max_inner", 200)
-        self.omega_max = opts.getReal("omega_max", 1.0)
+        self.pb = self.problem = problem
+        with problem.inserted_options():
+            self._read_options(tol, contact_tol, max_cycles)
         self.solver_name = "relaxation-mlmi"
         self._mlmi = None
+
+    def _read_options(self, tol, contact_tol, max_cycles) -> None:
+        problem = self.pb
+        opts = PETSc.Options(problem.prefix + "relax_")
+
+        def default(key, given):
+            return code_default("adhesion", "relax_" + key) if given is None else given
+
+        pre = problem.prefix + "relax_"
+        self.tol = check_tolerance(opts.getReal("tol", default("tol", tol)), f"tol (-{pre}tol)")
+        self.contact_tol = check_tolerance(opts.getReal("contact_tol", default("contact_tol", contact_tol)),
+                                           f"contact_tol (-{pre}contact_tol)")
+        self.max_cycles = opts.getInt("max_cycles", default("max_cycles", max_cycles))
+        self.max_inner = opts.getInt("max_inner", default("max_inner", None))
+        self.omega_max = opts.getReal("omega_max", default("omega_max", None))
 
     # -- the multilevel contact relaxation ------------------------------------------------
     def _cycle(self, mask: np.ndarray, r: np.ndarray) -> np.ndarray:
         """One MLMI V-cycle on the set ``mask`` applied to the gap residual r (pressure units)."""
-        from .mlmi import MLMIPC
         if self._mlmi is None:
             self._mlmi = MLMIPC()
-        # the levels live in the problem's Jacobian cache: shared with an MLMI-preconditioned
+        # the levels live in the problem's preconditioner data: shared with an MLMI-preconditioned
         # Newton, and counted by the problem's FFT-pair tally
-        self._mlmi.prepare(_SetView(self.pb._jac, mask))
+        self._mlmi.prepare(_SetView(self.pb.jacobian_context, mask))
         out = np.empty_like(r)
         self._mlmi.inner(r * mask, out)
         return out
 
-    def _gap(self, q, a, delta, out):
-        g = self.pb.grid
-        self.pb.op.apply(q + a, out)
-        out += g.rows(self.pb.heights, readonly=True)
-        out -= delta
-        return out
-
-    def _relax_contact(self, q, a, delta, g):
+    def _relax_contact(self, q, a, g):
         """Step 1: q to convergence for fixed a; returns (rms residual [z0], relaxations)."""
         pb = self.pb
         comm = pb.grid.mpi_comm
         omega, prev = 1.0, np.inf
         rms = np.inf
         for it in range(self.max_inner + 1):
-            self._gap(q, a, delta, g)
+            pb.gap(q + a, g)
             active = (q > 0) | (g < 0)
             sums = comm.allreduce(np.array([float(np.sum(g[active] ** 2)), float(active.sum())]))
             rms = np.sqrt(sums[0] / max(sums[1], 1.0)) / pb.z0
@@ -106,15 +109,10 @@ class RelaxationSolver:
         """Relax the problem's unknowns in place to the state at approach delta [m];
         returns (converged, reason, adhesive cycles, contact relaxations)."""
         pb = self.pb
-        pb._build()
         comm = pb.grid.mpi_comm
         delta = float(approach)
-        pb.centre_owner = None
-        if not getattr(pb, "_started", False):
-            pb._initial_guess(delta)
-            pb._started = True
-        pb._approach = delta
-        xb = pb.blocks(pb._x)
+        pb.prepare(delta)
+        xb = pb.blocks(pb.x)
         q, a = xb[0].copy(), xb[1].copy()
         g = np.empty_like(q)
         n = pb.grid.nx * pb.grid.ny
@@ -124,7 +122,7 @@ class RelaxationSolver:
         inner_total = cycle = 0
         converged, reason = False, f"DIVERGED_MAX_CYCLES ({self.max_cycles})"
         for cycle in range(self.max_cycles):
-            rms_c, inner = self._relax_contact(q, a, delta, g)
+            rms_c, inner = self._relax_contact(q, a, g)
             inner_total += inner
             target = d.pressure(g)
             dg = pb.op.apply(target - a, np.empty_like(g))
@@ -133,7 +131,7 @@ class RelaxationSolver:
             p = q + a
             sums = comm.allreduce(np.array([p.sum(), np.count_nonzero(p > 0)], float))
             pb.history.append(
-                solve=pb._n_solves, iteration=cycle, fft_pairs=pb._fft_pairs(),
+                solve=pb.solve_count, iteration=cycle, fft_pairs=pb.fft_pairs(),
                 linear_iterations=inner_total, complementarity_error=rms_c, load_error=float("nan"),
                 approach=delta, mean_pressure=sums[0] / n, contact_fraction=sums[1] / n,
                 solver=self.solver_name, adhesive_error=err_a, total_error=e_total)
@@ -156,7 +154,7 @@ class RelaxationSolver:
                 omega_a = min(self.omega_max, 1.05 * omega_a)
             e_prev = e_total
             a += omega_a * (target - a)
-        pb._n_solves += 1
+        pb.record_solve()
         self.errors = (e_total, rms_c, omega_a)
         if converged:
             xb[0], xb[1] = q, a
@@ -165,17 +163,20 @@ class RelaxationSolver:
     def solve(self, *, approach: float, raise_on_failure: bool = True, check_stability: bool | None = None):
         """Relax to the state at approach delta [m] from the problem's current state;
         returns an ``AdhesiveState`` (solver ``relaxation-mlmi``)."""
+        with self.pb.inserted_options():
+            return self._solve(approach, raise_on_failure, check_stability)
+
+    def _solve(self, approach, raise_on_failure, check_stability):
         pb = self.pb
-        pairs0, t0 = pb._fft_pairs(), pb.history.elapsed()
-        pb._check_time = 0.0
+        pairs0, t0 = pb.fft_pairs(), pb.history.elapsed()
+        pb.check_time = 0.0
         converged, reason, cycles, inner = self.relax(approach)
         check = pb.stability_check if check_stability is None else check_stability
-        margin = pb._stability() if (converged and check) else float("nan")
-        state = pb._state(converged, reason, cycles, inner, pairs0, t0, margin,
+        margin = pb.stability() if (converged and check) else float("nan")
+        state = pb.make_state(converged, reason, cycles, inner, pairs0, t0, margin,
                           self.solver_name, tangent=False)
         PETSc.garbage_cleanup(pb.grid.comm)
         if not converged and raise_on_failure:
-            from .adhesive import AdhesiveSolveError
             e_total, rms_c, omega_a = self.errors
             raise AdhesiveSolveError(
                 f"relaxation did not converge: {reason}; E_Total {e_total:.3e} z0 (tol {self.tol:.1e}), "

@@ -26,6 +26,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..lifetime import destroy_at_exit
+from .pc_registry import PRECONDITIONERS
 
 
 class _Compliance:
@@ -33,31 +34,31 @@ class _Compliance:
 
     def __init__(self, problem, contact: np.ndarray):
         self.op, self.grid = problem.op, problem.grid
-        g = self.grid
-        self.n_contact = g.mpi_comm.allreduce(int(contact.sum()))
+        grid = self.grid
+        self.n_contact = grid.mpi_comm.allreduce(int(contact.sum()))
         self.contact = contact
         self.ksp = None
         if self.n_contact:
             from .reduced import ContactJacobian
             jac = ContactJacobian(self.op, problem.prefix + "stability_")
             J = destroy_at_exit(PETSc.Mat().createPython(
-                ((g.nx * g.ny_local, g.nx * g.ny),) * 2, jac, comm=g.comm))
+                ((grid.nx * grid.ny_local, grid.nx * grid.ny),) * 2, jac, comm=grid.comm))
             J.setUp()
-            local = (np.flatnonzero(contact) + g.nx * g.ys).astype(PETSc.IntType)
-            self.iset = PETSc.IS().createGeneral(local, comm=g.comm)
+            local = (np.flatnonzero(contact) + grid.nx * grid.ys).astype(PETSc.IntType)
+            self.iset = PETSc.IS().createGeneral(local, comm=grid.comm)
             self.A = J.createSubMatrix(self.iset, self.iset)
             self.J = J
-            ksp = self.ksp = PETSc.KSP().create(comm=g.comm)
+            ksp = self.ksp = PETSc.KSP().create(comm=grid.comm)
             ksp.setOptionsPrefix(problem.prefix + "stability_")
             ksp.setType("cg")
             ksp.setTolerances(rtol=1e-8, max_it=500)
             ksp.getPC().setType("python")
-            ksp.getPC().setPythonType("contactpetsc.solvers.preconditioners.SpectralPC")
+            ksp.getPC().setPythonType(PRECONDITIONERS["spectral"])
             ksp.setOperators(self.A, self.A)
             ksp.setFromOptions()
             self.b, self.y = self.A.createVecs()
             self.ctx = self.A.getPythonContext()
-        self.tmp = np.zeros((g.ny_local, g.nx))
+        self.tmp = np.zeros((grid.ny_local, grid.nx))
 
     def __call__(self, x: np.ndarray, out: np.ndarray) -> np.ndarray:
         self.op.apply(x, out)
@@ -85,8 +86,8 @@ def stability_margin(problem, q_rows: np.ndarray | None, steps: int = 30, tol: f
     an unsettled positive margin is an upper bound: the state may still be unstable
     (seen on rough surfaces, whose top of A S is a cluster of asperity modes)."""
     problem.stability_converged = True
-    g = problem.grid
-    comm = g.mpi_comm
+    grid = problem.grid
+    comm = grid.mpi_comm
     gap = problem._g
     d = problem.traction._derivative(gap)
     contact = (q_rows > 0) if q_rows is not None else np.zeros(gap.shape, bool)
@@ -99,7 +100,7 @@ def stability_margin(problem, q_rows: np.ndarray | None, steps: int = 30, tol: f
     # from node to node by a fixed hash of the global index (rank-count independent), so
     # that it has every Fourier mode: a uniform start is in the null space of the
     # periodic compliance (the mean mode)
-    index = (np.arange(g.ys, g.ye)[:, None] * g.nx + np.arange(g.nx)[None, :]).astype(float)
+    index = (np.arange(grid.ys, grid.ye)[:, None] * grid.nx + np.arange(grid.nx)[None, :]).astype(float)
     v = np.maximum(d, 0.0) * (1.0 + 0.5 * np.modf(np.abs(np.sin(index * 12.9898)) * 43758.5453)[0])
     sv = S(v, np.empty_like(v))
     nrm = np.sqrt(dot(v, sv))
@@ -108,8 +109,8 @@ def stability_margin(problem, q_rows: np.ndarray | None, steps: int = 30, tol: f
     # the plain three-term recurrence, no re-orthogonalisation: only lambda_max is wanted,
     # and lost orthogonality only adds copies of converged Ritz values (Paige); the top
     # one still grows monotonically (T_k is a leading block of T_k+1) and stays below
-    # lambda_max.  Two vectors instead of 2 x steps: at 512^2 on the rough benchmark, 30
-    # steps took 0.18 s against 0.65 s with full re-orthogonalisation, margins within 1 %
+    # lambda_max.  Two vectors instead of 2 x steps, at a fraction of the cost of full
+    # re-orthogonalisation and with the same margins (docs/formulation.md, "Adhesive contact: unknowns and Newton")
     v, sv = v / nrm, sv / nrm
     v_prev = None
     alphas, betas = [], []

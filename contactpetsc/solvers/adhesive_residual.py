@@ -1,0 +1,162 @@
+"""The SNES callbacks of ``AdhesiveProblem``: residual, Jacobian update, step limit and the
+convergence test with its error measures (docs/formulation.md, "Adhesive contact: unknowns and Newton")."""
+from __future__ import annotations
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from ..collective import collective_guard
+from .base import convergence_verdict
+
+
+class AdhesiveCallbacks:
+    """Mixin of ``AdhesiveProblem``: what the SNES calls back."""
+
+    def _gap(self, blocks: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """The gap [m] (``VIProblem.gap``) of the unknowns ``blocks``; K p stays in ``_v``."""
+        p = blocks.sum(axis=0) if self.n_blocks > 1 else blocks[0]
+        return self.gap(p, out, displacement=self._v)
+
+    def control_approach(self, h_plus_v: np.ndarray) -> float:
+        """delta [m]; under central-gap control the one that gives the control node its gap."""
+        if self.centre_owner is not None:
+            self._approach = self.centre_value(h_plus_v) - self._central_gap
+        return self._approach
+
+    @collective_guard
+    def _residual(self, snes, x, f):
+        xb, fb = self.blocks(x, readonly=True), self.blocks(f)
+        g = self._gap(xb, self._g)
+        if self.hard_wall:
+            fb[0] = g
+        fa, a = fb[-1], xb[-1]
+        self.traction.pressure(g, out=fa)
+        # |a - a(g)| relative to P + |a(g)| (P the law's peak attraction): the pressure
+        # error on the law's own scale, which K_ii |a - a(g)| in z0 cannot see when
+        # w / (E* z0) is small; on the repulsive side |a(g)| makes it a gap error
+        scale = np.abs(fa)
+        scale += self.pressure_scale
+        np.subtract(a, fa, out=fa)
+        self._adhesive_residual = float(np.abs(fa).max()) * self.kappa
+        self._pressure_residual = float((np.abs(fa) / scale).max())
+        fa *= self.kappa
+        if self.gap_form:
+            # on the repulsive side (g < 0) the row is g - G(a), G the law's
+            # inverse: Newton on a = a(g) there moves g by at most ~g/9 per step when g is
+            # too small (a ~ g^-9 is convex); on g = G(a) it goes to G(a) at once
+            rows = self._repulsive_rows(a, g)
+            fa[rows] = g[rows] - self.traction.repulsive_gap(a[rows])[0]
+
+    @collective_guard
+    def _limit_step(self, x, y):
+        """Shorten the Newton step x - y so that no gap falls more than ``step_limit`` z0
+        below min(g, 0): a linear model taken in the attractive tail can send nodes deep
+        into the LJ wall (errors of thousands of z0), which costs several steps to undo."""
+        g = self._g   # the gap at x: the Jacobian was just evaluated there
+        dp = -self.blocks(y, readonly=True).sum(axis=0)
+        dg = self.op.apply(dp, self._v2)
+        if self.centre_owner is not None:
+            dg -= self.centre_value(dg)
+        floor = np.minimum(g, 0.0) - self.step_limit * self.z0
+        deep = (g + dg < floor)
+        lam = float(np.min((g[deep] - floor[deep]) / -dg[deep])) if deep.any() else 1.0
+        lam = self.grid.mpi_comm.allreduce(lam, op=MPI.MIN)
+        if lam < 1.0:
+            y.scale(max(lam, 0.1))
+        return lam < 1.0
+
+    @staticmethod
+    def _repulsive_rows(a: np.ndarray, g: np.ndarray) -> np.ndarray:
+        return g < 0
+
+    @collective_guard
+    def _jacobian(self, snes, x, J, P):
+        xb = self.blocks(x, readonly=True)
+        self._gap(xb, self._g)
+        self.traction.linearise(self._g)
+        if self.gap_form:
+            rows = self._repulsive_rows(xb[-1], self._g)
+            slope = np.zeros_like(self._g)
+            slope[rows] = self.traction.repulsive_gap(xb[-1][rows])[1]
+            self._gap_rows, self._gap_slope = rows, slope
+            # the rows' flat positions and slopes: the Jacobian applies them once or twice
+            # per Krylov iteration, and gathers of a few rows beat boolean masks of all of them
+            at = np.flatnonzero(rows)
+            self._gap_at = (at, slope.reshape(-1)[at])
+        if self.shift:
+            # switched evolution relaxation: the shift follows the residual, falling as
+            # it falls (towards Newton), rising when a step made it worse
+            err, prev = self._last_error, self._ptc_prev
+            if prev > 0 and np.isfinite(err):
+                self.shift = float(np.clip(self.shift * err / prev, 1e-8, 1e8))
+            self._ptc_prev = err
+
+    def _measures(self, x, f):
+        """(complementarity error [z0], self-consistency error [z0], pressure error [relative],
+        mean p, contact fraction) at the last residual evaluation.
+
+        The pressure error is the largest of |a - a(g)| / (P + |a(g)|) and |min(q / P, g / z0)|
+        (P the law's peak attraction, ``pressure_scale``): pressures right on the law's
+        own scale, whatever w / (E* z0) -- the errors in z0 are K_ii times pressure errors
+        and vanish with the pressures themselves."""
+        comm = self.grid.mpi_comm
+        xb, fb = self.blocks(x, readonly=True), self.blocks(f, readonly=True)
+        p = xb.sum(axis=0)
+        errs = np.array([0.0, self._adhesive_residual, self._pressure_residual])
+        if self.hard_wall:
+            q, g = xb[0], fb[0]
+            errs[0] = float(np.abs(np.minimum(self.kappa * q, g)).max()) / self.z0
+            errs[2] = max(errs[2], float(np.abs(np.minimum(q / self.pressure_scale, g / self.z0)).max()))
+        errs[1] /= self.z0
+        comm.Allreduce(MPI.IN_PLACE, errs, op=MPI.MAX)
+        sums = comm.allreduce(np.array([p.sum(), np.count_nonzero(p > 0)], float))
+        n = self.grid.nx * self.grid.ny
+        return errs[0], errs[1], errs[2], sums[0] / n, sums[1] / n
+
+    def fft_pairs(self) -> float:
+        """FFT pairs so far in fine-grid units: the operator's, plus those of the coarse
+        levels of any MLMI cycle (preconditioner or relaxation), weighted by their size."""
+        ops = {id(self.op): self.op}
+        levels = (self._jac.pc_data.mlmi_levels or ()) if self._snes is not None else ()
+        for lev in levels:
+            ops[id(lev.op)] = lev.op
+        n0 = self.grid.nx * self.grid.ny
+        pairs = float(sum(op.fft_pairs * op.grid.nx * op.grid.ny / n0 for op in ops.values()))
+        if self._coarse:
+            pairs += self._coarse.fft_pairs() / 4.0
+        return pairs + self._coarse_pairs
+
+    @collective_guard
+    def _converged(self, snes, it, norms):
+        x, f = snes.getSolution(), snes.getFunction()[0]
+        err_c, err_a, err_p, mean_p, frac = self._measures(x, f)
+        self.history.append(
+            solve=self._n_solves, iteration=it, fft_pairs=self.fft_pairs(),
+            linear_iterations=self._lin0 + snes.getLinearSolveIterations(),
+            complementarity_error=err_c, load_error=float("nan"), approach=self._approach,
+            mean_pressure=mean_p, contact_fraction=frac, solver=self.solver_name,
+            adhesive_error=err_a, pressure_error=err_p)
+        # the PTC shift and the stall watch follow the errors in z0 (their trend, not their size)
+        err = max(err_c, err_a)
+        self._last_error = err
+        # converged: gaps right in z0 and pressures right on the law's scale, both to tol
+        full = max(err, err_p)
+        if not full >= self._solve_best[0]:   # NaN never replaces a real iterate
+            self._solve_best = (full, f"{'ptc' if self.shift else 'Newton'} iteration {it}")
+            x.copy(self._x_solve_best)
+        verdict = convergence_verdict(snes, it, full, self.tol)
+        if verdict == PETSc.SNES.ConvergedReason.ITERATING and self._stall_watch and not self.shift:
+            if it == 0 or err < self._best[0]:
+                self._best = (err, it)
+                x.copy(self._x_best)
+            elif it - self._best[1] >= self.stall_steps:
+                self._stalled = True
+                return PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT   # named STALLED by _run_snes
+        if verdict == PETSc.SNES.ConvergedReason.ITERATING and self.out_of_time():
+            return PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT   # named WALL_TIME_BUDGET by _run_snes
+        return verdict
+
+    @property
+    def solver_name(self) -> str:
+        return f"newton-vi+{self.preconditioner}"

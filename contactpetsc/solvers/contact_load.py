@@ -1,0 +1,153 @@
+"""Load control of ``ContactProblem``: a safeguarded, inexact Newton iteration on the approach
+around displacement-controlled solves, its slope dW/d delta from one reduced solve K_II z = 1
+on the converged contact set (docs/formulation.md, "The contact problem and the choice of
+unknown")."""
+from __future__ import annotations
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from .base import MAX_TOL
+
+#: the smallest mean pressure of load control, in units of E*
+MIN_LOAD = 1e-12
+
+
+class ContactLoadControl:
+    """Mixin of ``ContactProblem``: ``_solve_load`` and the slope it steps with."""
+
+    def _approach_slope(self):
+        """(dW/d delta [Pa/m] as d(mean p)/d delta, z = dp/d delta) on the last solve's inactive set.
+
+        Solves K_II z = 1 with its own KSP (options prefix ``<prefix>slope_``),
+        preconditioned like the Newton steps.
+        """
+        grid = self.grid
+        inactive = (grid.rows(self._x, readonly=True) > 0) | (grid.rows(self._f, readonly=True) <= 0)
+        cached = self._slope_cache
+        if cached is not None:
+            same = cached[0].shape == inactive.shape and np.array_equal(cached[0], inactive)
+            if grid.mpi_comm.allreduce(bool(same), op=MPI.LAND):
+                return cached[1], cached[2]   # same set, same K_II: same z
+        local = (np.flatnonzero(inactive) + grid.nx * grid.ys).astype(PETSc.IntType)
+        index_set = PETSc.IS().createGeneral(local, comm=grid.comm)
+        J = self._snes.getJacobian()[0]
+        A = J.createSubMatrix(index_set, index_set)
+        ctx = A.getPythonContext()
+        ksp = self._slope_ksp
+        ksp.reset()  # the inactive set, hence the size, changes between calls
+        ksp.setOperators(A, A)
+        b, z = A.createVecs()
+        b.set(1.0)
+        guess = self._z_guess if self.slope_warm else None
+        if guess is not None:
+            # the last z (or the coarse grid's): the set changes little between outer steps
+            ctx.from_full(grid.rows(guess, readonly=True), z)
+        else:
+            z.set(0.0)
+        ksp.setInitialGuessNonzero(guess is not None)
+        ksp.solve(b, z)
+        self._linear += ksp.getIterationNumber()
+        if self._dp is None:
+            self._dp = grid.create_vec()
+        dp = self._dp   # overwritten in place: the warm start z was read above
+        dp.set(0.0)
+        ctx.to_full(z, grid.rows(dp))
+        # petsc4py defers freeing parallel objects to PETSc's garbage until exit:
+        # destroy the per-solve temporaries explicitly (collective, all ranks here)
+        for obj in (b, z, A, index_set):
+            obj.destroy()
+        slope = dp.sum() / (self.grid.nx * self.grid.ny)
+        self._slope_cache = (inactive, slope, dp)
+        self._z_guess = dp
+        return slope, dp
+
+    def _solve_load(self, target: float):
+        """Safeguarded, inexact Newton on delta; returns (converged, reason).
+
+        W(delta) = mean p is increasing and (for contact of rough surfaces,
+        typically) convex, so after the first step the Newton iterates approach
+        the root from above; a step is only replaced by bisection when it leaves
+        the bracket [lo, hi] of evaluated approaches.  The inner solves are
+        inexact: their complementarity tolerance is ``inner_eta`` times the
+        last approach update (in units of the length scale), never above
+        ``load_inner_tol``; the last solve is to the full tolerance.
+
+        Periodic cells: mean(g) = mean(h) - delta >= 0, so delta <= mean(h) =
+        ``bound``, and delta = mean(h) means full contact, where mean p is set
+        by the initial guess (the reduced Jacobian keeps the mean of the step at
+        zero): a step beyond ``bound`` tries full contact once, with the
+        initial pressure's mean set to the target.
+        """
+        grid = self.grid
+        n = grid.nx * grid.ny
+        lo = lo0 = float(self.heights.min()[1])  # delta <= min h: no contact, no load
+        lo_exact = hi_exact = True
+        hi = np.inf                         # smallest evaluated approach with a load above the target
+        bound = self.heights.sum() / n if grid.periodic else np.inf
+        tried_full = False
+        delta = self._approach if self._approach is not None else lo
+        p = self._pressure.copy()
+        inner = max(self.tol, self.inner_tol0)
+        slope = 0.0
+        reason = "no iteration"
+        for _ in range(self.max_outer):
+            ok, reason = self._solve_at(delta, p, inner)
+            if not ok:
+                if delta < bound:
+                    return False, reason   # a real failure of the inner solve: report it
+                # full contact tried below the full-contact load: no equilibrium there
+                hi = min(hi, delta)
+                p = self._pressure.copy()
+                delta = 0.5 * (lo + min(hi, bound))
+                continue
+            self._x.copy(p)
+            p.copy(self._pressure)
+            w = p.sum() / n
+            load_err = abs(w - target) / target
+            # the load error that a complementarity error tol (a gap error of tol * L,
+            # i.e. an approach error of that size) allows: a tighter load_tol cannot be met
+            load_tol = max(self.load_tol, 2.0 * slope * self.tol * self.length_scale / target)
+            if load_err <= load_tol and load_err > MAX_TOL and self._root is self:
+                # a coarse level's state is only a start; the reported one must carry its load
+                return False, (f"LOAD_ERROR_UNCONTROLLED (relative load error {load_err:.3e}: at this load the "
+                               f"complementarity tol {self.tol:.1e} allows load errors up to {load_tol:.3e}; "
+                               f"lower -{self.prefix}tol)")
+            if load_err <= load_tol:
+                if inner <= self.tol:
+                    return True, reason
+                inner = self.tol   # right load, loose solve: tighten at the same approach
+                continue
+            # brackets from inexact (loose) solves are soft: a Newton step may cross them
+            exact = inner <= self.tol
+            if w < target:
+                lo, lo_exact = max(lo, delta), exact
+            else:
+                hi, hi_exact = min(hi, delta), exact
+            slope, dp = self._approach_slope()
+            new = delta + (target - w) / slope if slope > 0 else np.inf
+            if np.isfinite(new):
+                if new >= hi and not hi_exact:
+                    hi = np.inf
+                if new <= lo and not lo_exact:
+                    lo = lo0
+            upper = min(hi, bound)
+            if lo < new < upper:
+                p.axpy(new - delta, dp)  # Newton predictor on the current contact set
+                rows = grid.rows(p)
+                np.maximum(rows, 0.0, out=rows)
+            elif new >= bound and hi > bound and not tried_full:
+                tried_full = True  # full contact: delta = mean h, mean p from the guess
+                new = bound
+                p.axpy(new - delta, dp)
+                p.shift(target - p.sum() / n)
+                rows = grid.rows(p)
+                np.maximum(rows, 0.0, out=rows)
+            elif np.isfinite(upper):
+                new = 0.5 * (lo + upper)
+            else:
+                new = lo + 2.0 * max(delta - lo, self.length_scale)
+            inner = max(self.tol, min(self.inner_tol0, self.inner_eta * abs(new - delta) / self.length_scale))
+            delta = new
+        return False, f"DIVERGED_LOAD_ITERATION ({self.max_outer} approach updates; last SNES {reason})"

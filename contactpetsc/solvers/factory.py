@@ -1,0 +1,109 @@
+"""One door from (grid, h, E*, law) to a solver, for the runner and API users alike, and a
+description of the solver stack it builds (``--dry-run``; docs/api.md, "Non-adhesive contact")."""
+from __future__ import annotations
+
+from petsc4py import PETSc
+
+from .adhesive import PTC_LINESEARCH, AdhesiveProblem, newton_ksp_type, newton_linesearch
+from .base import VIProblem
+from .pc_registry import ADHESIVE_PC, ADHESIVE_PRECONDITIONERS, PRECONDITIONERS
+from .problem import NEWTON_KSP, NEWTON_LINESEARCH, ContactProblem
+from .relaxation import RelaxationSolver
+
+METHODS = ("newton", "relaxation")
+#: keyword defaults of ``make_problem`` that go to the relaxation solver, not to its problem
+RELAXATION_DEFAULTS = ("tol", "contact_tol", "max_cycles")
+
+
+def _no_adhesion(law) -> bool:
+    return law is None or law.name == "none"
+
+
+def _check_method(law, method: str) -> None:
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    if method == "relaxation" and (_no_adhesion(law) or not law.hard_wall):
+        name = "none" if _no_adhesion(law) else law.name
+        raise ValueError(f"method 'relaxation' needs a hard-wall law (hardwall-lj, exponential, dugdale), "
+                         f"got law {name!r}")
+
+
+def make_problem(grid, heights, e_star: float, law=None, *, method: str = "newton", prefix: str | None = None,
+                 petsc_options: dict | None = None, **defaults):
+    """``ContactProblem`` (``law`` None or ``none``), ``AdhesiveProblem`` (method ``newton``) or a
+    ``RelaxationSolver`` on an ``AdhesiveProblem`` (method ``relaxation``; its ``tol``,
+    ``contact_tol`` and ``max_cycles`` go to the relaxation).  ``prefix`` defaults to
+    ``contact_`` / ``adhesion_``; ``defaults`` are the problems' keyword code defaults."""
+    _check_method(law, method)
+    if _no_adhesion(law):
+        return ContactProblem(grid, heights, e_star, prefix=prefix or "contact_", petsc_options=petsc_options,
+                              **defaults)
+    relax = {k: defaults.pop(k) for k in RELAXATION_DEFAULTS if method == "relaxation" and k in defaults}
+    problem = AdhesiveProblem(grid, heights, e_star, law, prefix=prefix or "adhesion_",
+                              petsc_options=petsc_options, **defaults)
+    return RelaxationSolver(problem, **relax) if method == "relaxation" else problem
+
+
+class _Options(VIProblem):
+    """Only the options push and pop of ``VIProblem`` (no grid, no operator)."""
+
+    def __init__(self, prefix, petsc_options):   # noqa: D107 - no VIProblem.__init__: nothing to solve
+        self.prefix = prefix
+        self.petsc_options = {str(k).lstrip("-"): v for k, v in dict(petsc_options or {}).items()}
+        self._inserted, self._options_depth = None, 0
+
+
+def _describe_snes(opts: _Options, prefix: str, linesearch: str, ksp_type: str, pc_path: str | None) -> list[str]:
+    snes = PETSc.SNES().create(comm=PETSc.COMM_SELF)
+    try:
+        snes.setOptionsPrefix(prefix)
+        snes.setType("vinewtonrsls")
+        opts.set_default("snes_linesearch_type", linesearch, prefix)
+        ksp = snes.getKSP()
+        ksp.setType(ksp_type)
+        pc = ksp.getPC()
+        if pc_path is None:
+            pc.setType("none")
+        else:
+            pc.setType("python")
+            pc.setPythonType(pc_path)
+        snes.setFromOptions()
+        line = PETSc.Options(prefix).getString("snes_linesearch_type", linesearch)
+        pc_type = pc.getType() + (f" ({pc.getPythonType()})" if pc.getType() == "python" else "")
+        return [f"SNES {snes.getType()} (prefix -{prefix}, line search {line})",
+                f"  KSP {ksp.getType()} (prefix -{ksp.getOptionsPrefix()})",
+                f"  PC {pc_type} (prefix -{pc.getOptionsPrefix()})"]
+    finally:
+        snes.destroy()
+
+
+def describe_solver(law=None, method: str = "newton", prefix: str | None = None,
+                    petsc_options: dict | None = None) -> list[str]:
+    """The SNES/KSP/PC types and options prefixes that ``make_problem`` would solve with, from
+    the code defaults and the options (``petsc_options`` under the prefix, the command line);
+    builds only those PETSc objects, no grid vectors."""
+    _check_method(law, method)
+    adhesive = not _no_adhesion(law)
+    prefix = prefix or ("adhesion_" if adhesive else "contact_")
+    opts = _Options(prefix, petsc_options)
+    with opts.inserted_options():
+        db = PETSc.Options(prefix)
+        if not adhesive:
+            choice = db.getString("preconditioner", "spectral").lower()
+            if choice not in PRECONDITIONERS:
+                raise ValueError(f"-{prefix}preconditioner must be one of {sorted(PRECONDITIONERS)}, got {choice!r}")
+            return (_describe_snes(opts, prefix, NEWTON_LINESEARCH, NEWTON_KSP, PRECONDITIONERS[choice])
+                    + [f"  preconditioner {choice} (-{prefix}preconditioner)"])
+        choice = db.getString("preconditioner", "spectral").lower()
+        if choice not in ADHESIVE_PRECONDITIONERS:
+            raise ValueError(f"-{prefix}preconditioner must be one of {', '.join(ADHESIVE_PRECONDITIONERS)}, "
+                             f"got {choice!r}")
+        pc_path = None if choice == "none" else ADHESIVE_PC
+        if method == "relaxation":
+            return [f"relaxation-mlmi (the reference paper's MLMI relaxation; options prefix -{prefix}relax_)"]
+        lines = _describe_snes(opts, prefix, newton_linesearch(law.hard_wall), newton_ksp_type(law.hard_wall),
+                               pc_path)
+        lines.append(f"  preconditioner {choice} on the contact-like rows (-{prefix}preconditioner)")
+        lines += ["fallback " + line for line in _describe_snes(opts, prefix + "ptc_", PTC_LINESEARCH,
+                                                                 newton_ksp_type(law.hard_wall), pc_path)]
+        return lines

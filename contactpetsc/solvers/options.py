@@ -1,0 +1,129 @@
+"""The package's own options, registered once: their code defaults (read by the problems), the
+option tables of docs/formulation.md ("Options", "Adhesion options") and the ``-help`` text.
+
+Keys are relative to the problem's prefix (``contact_`` / ``adhesion_`` by default); a key
+with a leading dash in a row is shown in full (``-<prefix>key``) instead of as a ``_key`` suffix.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from petsc4py import PETSc
+
+
+@dataclass(frozen=True)
+class Option:
+    names: tuple                 #: keys under the prefix, one row of the table
+    default: tuple | str         #: typed code defaults, one per key, or a text for sub-objects
+    meaning: str
+
+    @property
+    def keys(self) -> tuple:
+        return tuple(n.lstrip("-") for n in self.names)
+
+
+def _text(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float) and value != 0 and not (1e-2 <= abs(value) < 1e4):
+        mantissa, exponent = f"{value:.0e}".split("e")
+        return f"{mantissa}e{int(exponent)}"
+    return str(value)
+
+
+CONTACT = (
+    Option(("snes_max_it", "-ksp_max_it"), (100, 500), "Newton steps per solve, Krylov steps per Newton step"),
+    Option(("slope_ksp_*",), "cg, rtol 1e-2, max_it 500", "the KSP of the load-control slope solves K_II z = 1"),
+    Option(("preconditioner",), ("spectral",), "`spectral`, `mlmi` or `none`"),
+    Option(("tol",), (1e-10,), "complementarity error relative to the length scale"),
+    Option(("load_tol",), (1e-10,), "relative load error (floored at what `tol` allows)"),
+    Option(("newton_ksp_rtol",), (0.1,), "Krylov tolerance of the Newton steps"),
+    Option(("load_max_it",), (50,), "approach updates under load control"),
+    Option(("load_inner_tol", "load_inner_eta"), (1e-3, 0.1), "inexact intermediate solves"),
+    Option(("slope_warm_start",), (True,), "slope solves start from the previous z"),
+    Option(("fmg", "fmg_min_size", "fmg_tol"), (True, 32, 1e-4), "nested iteration on first solve"),
+    Option(("fmg_prolong",), ("constant",), "coarse-to-fine pressure transfer: constant or bilinear"),
+    Option(("mlmi_levels", "mlmi_min_size"), (8, 8), "multilevel hierarchy"),
+    Option(("mlmi_cycle", "mlmi_pre", "mlmi_post", "mlmi_coarse_sweeps"), ("v", 1, 1, 4), "cycle"),
+    Option(("mlmi_power_its", "mlmi_rho_bound"), (6, 1.6), "smoother damping bound"),
+    Option(("fft_threads", "-fft_planner"), (1, "measure"),
+           "FFTW threads per rank, planner effort (a standalone operator reads `-elastic_fft_*`)"),
+)
+
+ADHESION = (
+    Option(("tol",), (1e-8,), "errors (z0) at convergence"),
+    Option(("max_it",), (100,), "Newton steps per solve"),
+    Option(("newton_ksp_rtol",), (1e-2,), "Krylov tolerance of the Newton steps"),
+    Option(("ksp_max_it",), "30 (full LJ), 1000", "Krylov iterations per Newton step"),
+    Option(("repulsive_rows",), ("gap",), "gap-form rows g - G(a) where g < 0 (full LJ, nodal), or pressure"),
+    Option(("step_limit",), "0.5 (full LJ), 0", "largest fall of a gap below min(g, 0) per Newton step (z0)"),
+    Option(("fmg", "fmg_min_size", "fmg_tol", "fmg_steps"), (True, 32, 1e-3, True),
+           "nested iteration and the coarse-grid predictor"),
+    Option(("preconditioner",), ("spectral",), "spectral, mlmi or none"),
+    Option(("element_integration",), (False,), "the paper's element integration"),
+    Option(("stability_check", "stability_steps"), (True, 30), "Lanczos stability check"),
+    Option(("predictor",), (True,), "tangent predictor under displacement control"),
+    Option(("stiffness",), (True,),
+           "every displacement-controlled state's tangent stiffness (false: NaN, the tangent only for the predictor)"),
+    Option(("load_from_rest", "initial_step"), (False, 0.25),
+           "first solve: load from separation in steps of at most this many z0"),
+    Option(("fallback",), "relaxation,ptc (hard wall); ptc", "where Newton fails or ends unstable: these in turn"),
+    Option(("fallback_tol", "fallback_max_cycles"), (1e-3, 5000), "relaxation fallback"),
+    Option(("ptc_shift", "ptc_max_it"), (1.0, 300), "pseudo-transient continuation: first shift, steps"),
+    Option(("ptc_snes_*",), "vinewtonrsls, line search basic", "the SNES of pseudo-transient continuation"),
+    Option(("stall_steps",), (8,),
+           "Newton without a smaller error in this many steps has stalled (`STALLED`): PTC goes on from its "
+           "best iterate, where PTC is a fallback (0: never)"),
+    Option(("time_budget",), (0.0,),
+           "wall time [s] for all of the problem's solves (0: none); then `WALL_TIME_BUDGET`"),
+    Option(("relax_tol", "relax_contact_tol"), (1e-4, 1e-4), "the paper's solver (z0)"),
+    Option(("relax_max_cycles", "relax_max_inner", "relax_omega_max"), (20000, 200, 1.0), "its limits"),
+    Option(("tangent_ksp_*", "-stability_ksp_*"), "gmres 1e-2, cg 1e-8",
+           "the tangent (coarse levels of the nested iteration compute none) and stability solves"),
+)
+
+TABLES = {"contact": CONTACT, "adhesion": ADHESION}
+
+
+def code_default(table: str, key: str):
+    """The typed code default of ``-<prefix><key>`` in ``table`` (``contact`` or ``adhesion``)."""
+    for option in TABLES[table]:
+        if key in option.keys and not isinstance(option.default, str):
+            return option.default[option.keys.index(key)]
+    raise KeyError(f"no typed code default for {key!r} in the {table} options")
+
+
+def _default_text(option: Option) -> str:
+    if isinstance(option.default, str):
+        return option.default
+    return ", ".join(_text(v) for v in option.default)
+
+
+def options_markdown(table: str) -> str:
+    """The option table of docs/formulation.md for ``table``, default prefix ``<table>_``."""
+    rows = ["| option | default | meaning |", "|---|---|---|"]
+    for option in TABLES[table]:
+        names = [f"`-{table}_{option.names[0]}`"]
+        names += [f"`-{table}_{n[1:]}`" if n.startswith("-") else f"`_{n}`" for n in option.names[1:]]
+        default = _default_text(option)
+        if option.names == ("preconditioner",) and table == "contact":
+            default = f"`{default}`"
+        rows.append(f"| {', '.join(names)} | {default} | {option.meaning} |")
+    return "\n".join(rows) + "\n"
+
+
+_helped: set = set()
+
+
+def print_help(table: str, prefix: str, comm=None) -> None:
+    """With ``-help`` in the options, print this table's options under ``prefix`` once per
+    prefix (petsc4py has no PetscOptionsBegin for Python code: PETSc's own ``-help`` lists
+    only its objects' options)."""
+    if not PETSc.Options().hasName("help") or (table, prefix) in _helped:
+        return
+    _helped.add((table, prefix))
+    lines = [f"contactpetsc {table} options (docs/formulation.md):"]
+    for option in TABLES[table]:
+        names = ", ".join(f"-{prefix}{k}" for k in option.keys)
+        lines.append(f"  {names} <{_default_text(option)}>: {option.meaning}")
+    PETSc.Sys.Print("\n".join(lines), comm=comm)

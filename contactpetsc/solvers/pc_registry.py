@@ -1,0 +1,36 @@
+"""The one registry of the package's preconditioner names and their short public Python
+paths (``-<prefix>pc_python_type``; docs/formulation.md, "Preconditioners")."""
+from __future__ import annotations
+
+import importlib
+
+#: ``-<prefix>preconditioner`` choices of the contact problem -> ``pc_python_type`` (None: no PC)
+PRECONDITIONERS = {
+    "spectral": "contactpetsc.solvers.SpectralPC",
+    "mlmi": "contactpetsc.solvers.MLMIPC",
+    "none": None,
+}
+#: the block preconditioner of the adhesive Newton and tangent solves
+ADHESIVE_PC = "contactpetsc.solvers.AdhesivePC"
+#: ``-<prefix>preconditioner`` choices of the adhesive problem (the contact-like rows' PC)
+ADHESIVE_PRECONDITIONERS = ("spectral", "mlmi", "none")
+
+
+def resolve(path: str):
+    """The object a dotted ``pc_python_type`` path names (None when it names nothing)."""
+    module, _, name = path.rpartition(".")
+    try:
+        return getattr(importlib.import_module(module), name)
+    except (ImportError, AttributeError, ValueError):
+        return None
+
+
+def preconditioner_name(python_type: str | None, pc_type: str) -> str:
+    """The registry name of a PC in use (its Python type under any path), else its own type."""
+    if python_type:
+        cls = resolve(python_type)
+        for name, path in PRECONDITIONERS.items():
+            if path and (path == python_type or (cls is not None and resolve(path) is cls)):
+                return name
+        return python_type
+    return pc_type

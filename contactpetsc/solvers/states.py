@@ -1,0 +1,52 @@
+"""Solved states: ``ContactState`` and the ``AdhesiveState`` that extends it (fields with
+units; docs/outputs.md lists the curve columns built from them)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from petsc4py import PETSc
+
+
+@dataclass
+class ContactState:
+    """A converged (or failed) contact state.  Vecs live on the problem's grid."""
+    pressure: PETSc.Vec       #: p [Pa], compressive positive
+    gap: PETSc.Vec            #: g = h + v - delta [m]
+    displacement: PETSc.Vec   #: v = K p [m]
+    approach: float           #: delta [m]
+    mean_pressure: float      #: [Pa]
+    force: float              #: total normal force [N] = mean_pressure * area
+    contact_fraction: float   #: fraction of nodes with p > 0
+    complementarity_error: float  #: max |min(K_ii p, g)| / length_scale (adhesion: in z0)
+    #: max |min(K_ii p, g)| / min(length_scale, delta - min h): the measure converged to tol (NaN with adhesion)
+    interference_error: float
+    load_error: float         #: |mean p - target| / target (load control), else NaN
+    converged: bool
+    reason: str               #: SNES converged/diverged reason
+    newton_iterations: int
+    linear_iterations: int
+    fft_pairs: float          #: fine-grid FFT pairs of this solve (coarse levels weighted)
+    wall_time: float          #: [s]
+
+
+@dataclass
+class AdhesiveState(ContactState):
+    """A solved adhesive contact state; Vecs on the problem's grid (``pressure`` is p = q + a)."""
+    contact_pressure: PETSc.Vec = None   #: q >= 0 [Pa] (zero for the full LJ curve)
+    adhesive_pressure: PETSc.Vec = None  #: a [Pa]
+    central_gap: float = float("nan")    #: gap at the control node [m]
+    adhesive_force: float = 0.0          #: sum of the negative pressures times the element area [N]
+    adhesive_error: float = float("nan")  #: max K_ii |a - a(g)| [z0]
+    #: max of |a - a(g)| / (P + |a(g)|) and |min(q / P, g / z0)|, P the law's peak attraction [-]
+    pressure_error: float = float("nan")
+    total_error: float = float("nan")    #: the paper's E_Total [z0]
+    stable: bool | None = None           #: None when not checked
+    stability_margin: float = float("nan")  #: 1 - lambda_max(A S): > 0 stable, < 0 unstable
+    #: tangent dF/d delta [N/m] (displacement control); NaN if not computed (-<prefix>stiffness false)
+    stiffness: float = float("nan")
+    check_time: float = 0.0       #: [s] of wall_time spent on the stability check and the tangent
+    #: False when the Lanczos estimate had not settled after -<prefix>stability_steps: a positive
+    #: margin is then an upper bound (None when not checked)
+    stability_converged: bool | None = None
+    solver: str = "newton"
+    fallback: bool = False        #: Newton from the previous state failed: a relaxation path was followed

@@ -1,0 +1,191 @@
+"""States of ``AdhesiveProblem``: the tangent dx/d delta and stiffness dF/d delta, snapshots
+to come back to, the stability check and the ``AdhesiveState`` (docs/formulation.md,
+"Adhesive contact: unknowns and Newton")."""
+from __future__ import annotations
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from .base import with_options
+from .pc_registry import ADHESIVE_PC
+from .stability import stability_margin
+from .states import AdhesiveState
+
+
+class Snapshot:
+    """A copy of a problem's unknowns ``x``, its ``approach`` [m] and tangent (approach [m],
+    dx/d delta, dF/d delta [N/m]) or None.  Frees its Vecs with ``destroy()`` (or as a
+    context manager); ``AdhesiveProblem.restore`` copies from it, so it may be reused."""
+
+    def __init__(self, x: PETSc.Vec, approach: float, tangent):
+        self.x, self.approach, self.tangent = x, approach, tangent
+
+    def destroy(self) -> None:
+        """Free the Vecs (collective); safe to call twice."""
+        if self.x is not None:
+            self.x.destroy()
+        if self.tangent is not None:
+            self.tangent[1].destroy()
+        self.x = self.tangent = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.destroy()
+        return False
+
+
+class TangentAndState:
+    """Mixin of ``AdhesiveProblem``: tangent, snapshots, stability and the solved state."""
+
+    @with_options
+    def snapshot(self) -> Snapshot:
+        """The current unknowns, approach and tangent: to come back to (e.g. to bisect a jump)."""
+        self._build()
+        self._ensure_tangent()
+        tangent = None if self._tangent is None else (self._tangent[0], self._tangent[1].copy(), self._tangent[2])
+        return Snapshot(self._x.copy(), self._approach, tangent)
+
+    def restore(self, snap: Snapshot) -> None:
+        """Make ``snap`` the present state (``snap`` stays valid: it is copied)."""
+        snap.x.copy(self._x)
+        self._approach = snap.approach
+        self._drop_tangent()
+        tangent = snap.tangent
+        self._tangent = None if tangent is None else (tangent[0], tangent[1].copy(), tangent[2])
+        self._started = True
+
+    def _inactive_set(self) -> PETSc.IS:
+        """Global indices of the unknowns off their bounds: q > 0 (contact) and every a."""
+        xb = self.blocks(self._x, readonly=True)
+        local = [np.flatnonzero(xb[0] > 0)] if self.hard_wall else []
+        local.append(np.arange(xb[-1].size) + (xb[-1].size if self.hard_wall else 0))
+        idx = (np.concatenate(local) + self.offset).astype(PETSc.IntType)
+        return PETSc.IS().createGeneral(idx, comm=self.grid.comm)
+
+    def _drop_tangent(self) -> None:
+        if self._tangent is not None:
+            self._tangent[1].destroy()
+        self._tangent = self._tangent_due = None
+
+    def _ensure_tangent(self) -> None:
+        """Compute the tangent of the present state if it is due (see ``make_state``)."""
+        if self._tangent_due is None:
+            return
+        approach = self._tangent_due
+        self._tangent_due = None
+        here, self._approach = self._approach, approach   # the state's own approach
+        tv, stiffness = self.tangent()
+        self._approach = here
+        self._tangent = (approach, tv, stiffness)
+
+    @with_options
+    def tangent(self) -> tuple[PETSc.Vec, float]:
+        """(dx/d delta, dF/d delta [N/m]) at the current state: J_II t = -dF/d delta on the
+        inactive set (contact nodes keep zero gap: dq from it, da from the law)."""
+        grid = self.grid
+        self._jacobian(None, self._x, None, None)
+        iset = self._inactive_set()
+        J = self._snes.getJacobian()[0]
+        A = J.createSubMatrix(iset, iset)
+        ctx = A.getPythonContext()
+        rhs = np.zeros_like(ctx.full_in)
+        ones = np.ones((grid.ny_local, grid.nx))
+        if self.hard_wall:
+            rhs[0] = 1.0
+        self.traction.apply_derivative(ones, rhs[-1])
+        rhs[-1] *= -self.kappa
+        if self._gap_rows is not None:
+            rhs[-1][self._gap_rows] = 1.0   # d(g - G(a))/d delta = -1
+        b, t = A.createVecs()
+        ctx.from_full(rhs, b)
+        ksp = PETSc.KSP().create(comm=grid.comm)
+        ksp.setOptionsPrefix(self.prefix + "tangent_")
+        ksp.setType("gmres")
+        # a predictor and a stiffness for jump detection and load updates: 1e-2 is plenty
+        # (a jump is a force change larger than the predicted change itself; the predictor's
+        # error is the branch's curvature times the step squared; docs/performance.md)
+        ksp.setTolerances(rtol=1e-2, max_it=1000)
+        ksp.getPC().setType("python")
+        ksp.getPC().setPythonType(ADHESIVE_PC)
+        ksp.setOperators(A, A)
+        ksp.setFromOptions()
+        ksp.solve(b, t)
+        full = np.zeros_like(ctx.full_in)
+        ctx.to_full(t, full)
+        tv = self.create_unknown()
+        self.blocks(tv)[...] = full
+        ok = ksp.getConvergedReason() > 0
+        for obj in (ksp, b, t, A, iset):
+            obj.destroy()
+        area = grid.lengths[0] * grid.lengths[1]
+        stiffness = grid.mpi_comm.allreduce(float(full.sum())) / (grid.nx * grid.ny) * area if ok else float("nan")
+        return tv, stiffness
+    def stability(self) -> float:
+        """1 - lambda_max(A S) at the current state (see ``stability.py``); collective."""
+        t0 = self.history.elapsed()
+        xb = self.blocks(self._x, readonly=True)
+        self._gap(xb, self._g)
+        margin = stability_margin(self, q_rows=xb[0] if self.hard_wall else None,
+                                  steps=self.stability_steps)
+        self.check_time += self.history.elapsed() - t0
+        return margin
+
+    def make_state(self, converged, reason, newton, linear, pairs0, t0, margin, solver,
+                   tangent=False) -> AdhesiveState:
+        """The ``AdhesiveState`` of the present unknowns: fields, errors, the stability
+        ``margin`` given, the tangent stiffness if ``tangent``; ``pairs0``/``t0``: the FFT
+        pairs and history time at the start of the solve."""
+        grid = self.grid
+        comm = grid.mpi_comm
+        xb = self.blocks(self._x, readonly=True)
+        q, a, p, gap, v = (grid.create_vec(0.0) for _ in range(5))
+        if self.hard_wall:
+            grid.rows(q)[...] = xb[0]
+        grid.rows(a)[...] = xb[-1]
+        grid.rows(p)[...] = xb.sum(axis=0)
+        gap_rows = self._gap(xb, grid.rows(gap))
+        grid.rows(v)[...] = self._v
+        f = self.create_unknown()
+        self._residual(None, self._x, f)
+        err_c, err_a, err_p, mean_p, frac = self._measures(self._x, f)
+        f.destroy()
+        total = self.total_error(a_rows=xb[-1], gap_rows=gap_rows)
+        prow = grid.rows(p, readonly=True)
+        adhesive_force = comm.allreduce(float(prow[prow < 0].sum())) * grid.element_area
+        beyond = comm.allreduce(self.traction.beyond_safe_range(gap_rows), op=MPI.LOR)
+        if beyond and converged:
+            converged, reason = False, "LJ_BEYOND_SAFE_RANGE (z < 0.5 z0: pressure beyond the law's sane range)"
+        stable = None if not np.isfinite(margin) else bool(margin > 0)
+        self._drop_tangent()
+        stiffness = float("nan")
+        if tangent and converged:
+            self._tangent_due = self._approach
+            if self.compute_stiffness:
+                t_check = self.history.elapsed()
+                self._ensure_tangent()
+                stiffness = self._tangent[2]
+                self.check_time += self.history.elapsed() - t_check
+        area = grid.lengths[0] * grid.lengths[1]
+        return AdhesiveState(
+            pressure=p, contact_pressure=q, adhesive_pressure=a, gap=gap, displacement=v,
+            approach=self._approach, central_gap=self.centre_value(gap_rows),
+            mean_pressure=mean_p, force=mean_p * area, adhesive_force=adhesive_force,
+            contact_fraction=frac, complementarity_error=err_c, adhesive_error=err_a,
+            pressure_error=err_p, total_error=total, stable=stable, stability_margin=margin, stiffness=stiffness,
+            interference_error=float("nan"), load_error=float("nan"), converged=converged,
+            reason=reason, newton_iterations=newton, linear_iterations=linear,
+            fft_pairs=self.fft_pairs() - pairs0, wall_time=self.history.elapsed() - t0,
+            check_time=self.check_time,
+            stability_converged=self.stability_converged if np.isfinite(margin) else None,
+            solver=solver, fallback=solver.endswith(("+ptc", "+relaxation")))
+
+    def total_error(self, a_rows: np.ndarray, gap_rows: np.ndarray) -> float:
+        """The paper's E_Total [z0]: rms of K (a(g) - a), the gap change when the trial
+        adhesive pressures a are replaced by the law's values at the current gap g."""
+        grid = self.grid
+        da = self.traction.pressure(gap_rows) - a_rows
+        dg = self.op.apply(da, np.empty_like(da))
+        return float(np.sqrt(grid.mpi_comm.allreduce(float(np.sum(dg * dg))) / (grid.nx * grid.ny))) / self.z0
