@@ -69,6 +69,14 @@ class HalfSpaceOperator:
         """FFT pairs done so far (one per apply): the unit of cost."""
         return self.fft.fft_pairs
 
+    def lowest_mode_stiffness(self) -> float:
+        """min over modes of 1/K_hat [Pa/m]: E*|q_min|/2 on a periodic cell, 1/K_hat(0) when
+        isolated; collective."""
+        norm = 1.0 / (self.fft.Nx * self.fft.Ny)
+        inv = self.inverse_kernel
+        local = float(inv[inv > 0].min()) if (inv > 0).any() else np.inf
+        return self.grid.mpi_comm.allreduce(local, op=MPI.MIN) / norm
+
     @staticmethod
     def as_pairs(kernel: np.ndarray) -> np.ndarray:
         """A real kernel duplicated for (re, im) pairs: a float*float multiply, faster than

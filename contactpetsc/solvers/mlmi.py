@@ -47,7 +47,7 @@ from petsc4py import PETSc
 
 from ..log_events import log_event
 from ..operators.elastic import half_space
-from .preconditioners import ReducedPreconditioner, lowest_mode_stiffness
+from .preconditioners import ReducedPreconditioner
 from .transfer import can_halve, halved, prolong_constant, restrict
 
 
@@ -199,7 +199,7 @@ class MLMIPC(ReducedPreconditioner):
         # cycle leaves the mean of p on I alone; a rank-one term gives it the
         # stiffness of the lowest mode, keeping M positive definite
         if data.mlmi_mean_stiffness is None:
-            data.mlmi_mean_stiffness = lowest_mode_stiffness(ctx.op)
+            data.mlmi_mean_stiffness = ctx.op.lowest_mode_stiffness()
         self.mean_stiffness = data.mlmi_mean_stiffness
 
     def update(self, ctx):

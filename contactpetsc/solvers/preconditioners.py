@@ -9,9 +9,9 @@ full grid arrays that vanish outside I.  Select with
 from __future__ import annotations
 
 import numpy as np
-from mpi4py import MPI
 
 from ..collective import collective_guard
+from .reduced import view_context
 
 
 class ReducedPreconditioner:
@@ -41,7 +41,6 @@ class ReducedPreconditioner:
         self.update(ctx)
 
     def view(self, pc, viewer=None):
-        from .reduced import view_context
         view_context(viewer, self.describe())
 
     @collective_guard
@@ -67,14 +66,6 @@ class ReducedPreconditioner:
         raise NotImplementedError
 
 
-def lowest_mode_stiffness(op) -> float:
-    """min over modes of 1/K_hat [Pa/m]: E*|q_min|/2 on a periodic cell, 1/K_hat(0) when isolated."""
-    norm = 1.0 / (op.fft.Nx * op.fft.Ny)
-    inv = op.inverse_kernel
-    local = float(inv[inv > 0].min()) if (inv > 0).any() else np.inf
-    return op.grid.mpi_comm.allreduce(local, op=MPI.MIN) / norm
-
-
 class SpectralPC(ReducedPreconditioner):
     """M = R_I K^-1 R_I^T: the Fourier-space inverse of the full operator, restricted to I.
 
@@ -89,7 +80,7 @@ class SpectralPC(ReducedPreconditioner):
         data = ctx.parent.pc_data
         if data.spectral_pairs is None:
             inv = np.array(op.inverse_kernel, copy=True)
-            inv[inv == 0] = lowest_mode_stiffness(op) / (op.fft.Nx * op.fft.Ny)
+            inv[inv == 0] = op.lowest_mode_stiffness() / (op.fft.Nx * op.fft.Ny)
             data.spectral_pairs = op.as_pairs(inv)
         self.pairs = data.spectral_pairs
 
