@@ -62,7 +62,8 @@ def greenwood_case(mu, radius, law_name, n, dx, approaches, prefix, central_gaps
     import numpy as np
     from contactpetsc.geometry import surfaces
     from contactpetsc.grid import SurfaceGrid
-    from contactpetsc.paths import central_gap_path, edge_gap_path, refine_pull_off, sweep
+    from contactpetsc.paths import central_gap_path, edge_gap_path, sweep
+    from contactpetsc.pull_off import refine_pull_off
     from contactpetsc.physics.interactions import make_law
     from contactpetsc.solvers.adhesive import AdhesiveProblem
 

@@ -115,7 +115,8 @@ def _pull_off_case(mu, law_name, solver="newton", n=64, dx=1.0, radius=20.0, ste
                    z0=1.0, e_star=1.0):
     """Load a sphere to about its JKR pull-off force, unload past pull-off; the most tensile
     force of the path against Maugis-Dugdale (lambda = 1.16 mu)."""
-    from contactpetsc.paths import refine_pull_off, sweep
+    from contactpetsc.paths import sweep
+    from contactpetsc.pull_off import refine_pull_off
     _, _, interactions, maugis, _ = _lib()
     w = np.sqrt(mu ** 3 * e_star ** 2 * z0 ** 3 / radius)
     pb = _sphere(n, dx, radius, e_star, law_name, w, z0, "sm_")
@@ -373,7 +374,8 @@ def _material(e_star, name, maxstep=None):
     """SI: a sphere R = 30 nm, z0 = 0.3 nm, w = 0.1 J/m^2 on materials of modulus E*: loaded to
     1 z0 and pulled off in steps of z0 / 4, the pull-off refined (Newton).  ``maxstep``: PETSc's
     line-search step limit (-snes_linesearch_maxstep, default 1e8 in the unknowns' units, Pa)."""
-    from contactpetsc.paths import refine_pull_off, sweep
+    from contactpetsc.paths import sweep
+    from contactpetsc.pull_off import refine_pull_off
     from petsc4py import PETSc
     _, _, interactions, maugis, _ = _lib()
     if maxstep is not None:
