@@ -20,8 +20,9 @@ def refine_pull_off(problem, path: Path, xtol: float, max_solves: int = 40,
     """The most tensile stable state of the path [N], to ``xtol`` [m] in approach.
 
     Searches by continuation (``_continue``) from the sampled minimum towards its
-    neighbours along the path (across a reversal of the approach too) and from every stable state next to a loss of stability or a
-    failed step towards it (``path._edges``), at most ``max_solves`` solves each;
+    neighbours along the path (across a reversal of the approach too) and from every stable
+    state next to a loss of stability or a failed step towards it (``path._edges``), at most
+    ``max_solves`` solves each;
     golden-section search where the smallest force lies between two higher ones.  The
     states on either side of a jump (located by bisection in ``sweep``) are candidates.
     NaN when the most tensile state found is not bracketed by the path (``Path._bracketed``:

@@ -133,7 +133,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         # stiffness beats its elastic one), so the discrete problem has an equilibrium for
         # every subset of snapped nodes -- the adhesive range is under-resolved by the grid
         probe = np.linspace(0.0, 20.0, 20001) * law.length_scale()
-        self.snap_number = float(self.kappa * max(0.0, float(np.max(self.traction._derivative(probe)))))
+        self.snap_number = float(self.kappa * max(0.0, float(np.max(self.traction.nodal_derivative(probe)))))
         self.hard_wall = law.hard_wall
         self.n_blocks = 2 if self.hard_wall else 1
         self._defaults = dict(tol=tol, preconditioner=preconditioner, stability_check=stability_check)
