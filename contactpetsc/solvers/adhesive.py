@@ -91,7 +91,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
     e_star : float
         Effective modulus E* [Pa].
     law : InteractionLaw
-        ``hardwall-lj``, ``lj``, ``exponential`` or ``dugdale`` (``none``: use ``ContactProblem``).
+        A law with adhesion (``physics.interactions.adhesive_laws``; ``none``: use ``ContactProblem``).
     element_integration : bool
         Code default of ``-<prefix>element_integration`` (off).
     prefix : str
@@ -115,8 +115,8 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
                  operator: HalfSpaceOperator | None = None, tol: float | None = None,
                  preconditioner: str | None = None, stability_check: bool | None = None,
                  centre: tuple[int, int] | None = None, petsc_options: dict | None = None):
-        if law.name == "none":
-            raise ValueError("law 'none' has no adhesion: use ContactProblem")
+        if not law.adhesive:
+            raise ValueError(f"law {law.name!r} has no adhesion: use ContactProblem")
         if tol is not None:
             check_tolerance(tol, "tol")
         super().__init__(grid, heights, e_star, prefix=prefix, operator=operator, petsc_options=petsc_options)
