@@ -231,9 +231,8 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         # (under-resolved strong adhesion; docs/robustness.md)
         self.ptc_max_it = opts.getInt("ptc_max_it", code_default("adhesion", "ptc_max_it"))
         # the relaxation paths tried in turn where Newton fails or ends on an unstable state.
-        # Hard-wall laws: the paper's relaxation first, then PTC -- from rest at mu = 2 the
-        # relaxation reaches the state where PTC ran its 300 steps (Tabor-2 benchmark sphere),
-        # while at the jump-off of a mu = 1 sphere it stopped at its cycle cap and PTC got there
+        # Hard-wall laws: the paper's relaxation first, then PTC -- each reaches states where
+        # the other stops at its cap (a strongly adhesive sphere loaded from rest, a jump-off)
         chain = opts.getString("fallback", "relaxation,ptc" if self.hard_wall else "ptc").lower()
         self.fallback_chain = [m.strip() for m in chain.split(",") if m.strip()]
         if not self.fallback_chain or any(m not in ("relaxation", "ptc") for m in self.fallback_chain):

@@ -145,7 +145,7 @@ def _pull_off_case(mu, law_name, solver="newton", n=64, dx=1.0, radius=20.0, ste
     md = maugis.maugis_pull_off(radius, w, 1.16 * mu)
     out = {"mu": mu, "w_over_Ez0": w / (e_star * z0), "dx_over_z0": dx / z0, "n": n, "jumps": jumps}
     out.update(_outcome(states, solves))
-    # LJ against the Dugdale law: 1-6 % apart in the resolved range (docs/validation.md)
+    # LJ against the Dugdale law: a few per cent apart in the resolved range (docs/validation.md)
     out.update(_truth(pull, md, 0.08, "Maugis-Dugdale pull-off" + ("" if solver == "newton" else " (sampled)")))
     return out
 
@@ -182,7 +182,7 @@ def _w_tiny(law_name="hardwall-lj"):
     st = pb.solve(approach=2.0, raise_on_failure=False)
     out = {"w_over_Ez0": 1e-8}
     out.update(_outcome([st]))
-    # a = sqrt(R delta) = 20 dx: the discrete Hertz force is within ~1 %
+    # a = sqrt(R delta) = 20 dx: the contact is resolved, the discrete Hertz force close to the closed form
     out.update(_truth(st.force, float(maugis.hertz_force(1.0, radius, 2.0)), 0.02, "Hertz force"))
     return out
 
@@ -277,7 +277,7 @@ def _near_zero_adhesive():
     out = _outcome([st])
     out.update(_truth(st.force, 0.0, 1e-6, "zero net force, in 2 pi R w", scale=2 * np.pi * radius * w))
     # for information: DMT (Muller et al.), the approach where the Hertz load balances the adhesive
-    # force; the contact is ~5 nodes wide at this load, and mu = 0.1 is not quite DMT
+    # force; the contact is a few nodes wide at this load, and mu = 0.1 is not quite DMT
     lo, hi = 1e-6, 5.0       # bisection: F_DMT rises with the approach
     for _ in range(40):
         mid = 0.5 * (lo + hi)
