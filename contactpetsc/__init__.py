@@ -19,7 +19,7 @@ _PUBLIC = {
     "describe_solver": "solvers.factory",
     "make_law": "physics.interactions", "tabor_parameter": "physics.interactions",
     "lj_from_atomistic": "physics.interactions", "check_resolution": "physics.resolution",
-    "sweep": "paths", "refine_pull_off": "paths", "central_gap_path": "paths", "edge_gap_path": "paths",
+    "sweep": "paths", "refine_pull_off": "pull_off", "central_gap_path": "paths", "edge_gap_path": "paths",
     "hertz_force": "physics.closed_forms", "maugis_pull_off": "physics.closed_forms",
 }
 

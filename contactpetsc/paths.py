@@ -5,10 +5,10 @@ Displacement control follows a branch of stable equilibria, each step warm-start
 the tangent predictor; where a branch ends at a fold the contact jumps, and the jump is
 located by bisection of the approach and reported only when it is a discontinuity (the
 force gap across the final bracket exceeds what the branches' slopes give over its
-width).  The pull-off force is the most tensile stable state of the path, refined by
-continuation to the end of each stable segment (NaN where the path does not bracket that
-state in approach: a sphere that never left the far field is most tensile where the path
-turned).  Central-gap control (Greenwood's device) keeps every state,
+width).  The pull-off force is the most tensile stable state of the path (NaN where the
+path does not bracket that state in approach: a sphere that never left the far field is
+most tensile where the path turned); ``pull_off.refine_pull_off`` refines it by
+continuation to the end of each stable segment.  Central-gap control (Greenwood's device) keeps every state,
 stable or not, and traces the whole S-shaped curve of a sphere.
 
 The problem is duck-typed: ``solve(approach=...)``, ``snapshot()`` (an object with
@@ -58,7 +58,7 @@ class Path:
     points: list = field(default_factory=list)
     jumps: list = field(default_factory=list)
 
-    refined_pull_off: float | None = None   #: set by ``refine_pull_off``
+    refined_pull_off: float | None = None   #: set by ``pull_off.refine_pull_off``
     _best: tuple | None = None               #: (point index, snapshot) of the most tensile stable state
     #: (point index, approach to search towards [m], snapshot) of stable states next to a
     #: loss of stability or a failed step: where a stable segment ends
@@ -67,11 +67,11 @@ class Path:
     @property
     def pull_off_force(self) -> float:
         """The most tensile force [N] of the path's stable states, or its refinement
-        (``refine_pull_off``); NaN when the path does not bracket that state (``_bracketed``:
+        (``pull_off.refine_pull_off``); NaN when the path does not bracket that state (``_bracketed``:
         no pull-off reached)."""
         if self.refined_pull_off is not None:
             return self.refined_pull_off
-        good = [k for k, p in enumerate(self.points) if _good(p)]
+        good = [k for k, p in enumerate(self.points) if good_state(p)]
         if not good:
             return float("nan")
         k = min(good, key=lambda i: self.points[i].force)
@@ -92,7 +92,7 @@ class Path:
                      (lo <= jp.approach_before <= hi or lo <= jp.approach_after <= hi) for jp in self.jumps)
         if jumped:
             return "jump"
-        if not _good(pts[j]):
+        if not good_state(pts[j]):
             return "edge"
         return "turn" if turned else "stable"
 
@@ -116,7 +116,8 @@ class Path:
         return np.array([getattr(p, name) for p in self.points])
 
 
-def _good(p) -> bool:
+def good_state(p) -> bool:
+    """Whether a point or state converged and is not known to be unstable."""
     return p.converged and p.stable is not False
 
 
@@ -156,7 +157,7 @@ def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0
         pt = _point(k, here, st)
         path.points.append(pt)
         i = len(path.points) - 1
-        good = _good(pt)
+        good = good_state(pt)
         if last is not None:
             if path._side(last[0], 1) == "edge":
                 # the stable segment of the last point ends before this one (at a jump the
@@ -241,140 +242,6 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps):
     if st.converged:
         prev = (st.approach, st.force, st.stiffness)
     return st, prev
-
-
-#: Newton iterations of a solve of the pull-off search (``refine_pull_off``)
-SEARCH_NEWTON_STEPS = 30
-
-
-def refine_pull_off(problem, path: Path, xtol: float, max_solves: int = 40,
-                    jump_tol: float = 0.05) -> float:
-    """The most tensile stable state of the path [N], to ``xtol`` [m] in approach.
-
-    Searches by continuation (``_continue``) from the sampled minimum towards its
-    neighbours along the path (across a reversal of the approach too) and from every stable state next to a loss of stability or a
-    failed step towards it (``path._edges``), at most ``max_solves`` solves each;
-    golden-section search where the smallest force lies between two higher ones.  The
-    states on either side of a jump (located by bisection in ``sweep``) are candidates.
-    NaN when the most tensile state found is not bracketed by the path (``Path._bracketed``:
-    no pull-off reached).  Sets ``path.refined_pull_off``; the problem's state is restored."""
-    if path._best is None:
-        path.refined_pull_off = float("nan")
-        return path.refined_pull_off
-    pts = path.points
-    end = problem.snapshot()
-    found = []   # (force, reached): reached = bounded by higher forces or at a segment's end
-    k, snap = path._best
-    sides = [path._side(k, s) for s in (-1, 1)]
-    snes = problem.snes()
-    rtol, atol, stol, max_it = snes.getTolerances()
-    # Newton from a state at most a quarter step away needs a few iterations; one that has
-    # not converged in SEARCH_NEWTON_STEPS has left the branch (near its end, such solves ran
-    # their 100 iterations and cost most of the search)
-    snes.setTolerances(max_it=min(max_it, SEARCH_NEWTON_STEPS))
-    try:
-        searched, bracket = set(), [pts[k].approach, pts[k].approach]
-        for n, (side, step) in enumerate(zip(sides, (-1, 1))):
-            if side in ("stable", "edge", "turn"):
-                towards = pts[k + step].approach
-                searched.add((k, towards))
-                force, reached, nearest = _continue(problem, snap, pts[k], towards, xtol, max_solves, jump_tol)
-                found.append((force, reached))
-                bracket[n] = nearest
-        d_k = pts[k].approach
-        if (bracket[0] - d_k) * (bracket[1] - d_k) < 0 and all(f[0] == np.inf for f in found):
-            # nothing below the sampled minimum on either side: it lies between the nearest
-            # stable states on either side
-            found.append((_golden(problem, snap, bracket[0], bracket[1], xtol, max_solves), True))
-        for i, towards, edge_snap in path._edges:
-            if (i, towards) not in searched:
-                found.append(_continue(problem, edge_snap, pts[i], towards, xtol, max_solves, jump_tol)[:2])
-    finally:
-        snes.setTolerances(max_it=max_it)
-    # the sampled minimum itself: reached when the path brackets it (``Path._bracketed``);
-    # the states on either side of each jump (the end of the old branch, bisected)
-    found.append((pts[k].force, path._bracketed(k)))
-    found += [(f, True) for j in path.jumps for f in (j.force_before, j.force_after)]
-    problem.restore(end)
-    end.destroy()
-    force, reached = min(found, key=lambda f: (f[0], not f[1]))
-    path.refined_pull_off = force if reached else float("nan")
-    return path.refined_pull_off
-
-
-def _continue(problem, snap, start, towards, xtol, max_solves, jump_tol):
-    """(smallest force [N], reached, nearest) of the stable states connected to ``snap``
-    (the state of point ``start``) by continuation towards the approach ``towards`` [m]:
-    steps of a quarter of the way, halved where a solve fails, is unstable or jumps (its
-    force misses the tangent prediction by more than ``jump_tol`` of the force), down to
-    ``xtol`` -- there the stable segment ends (reached).  A smallest force between two
-    higher ones is refined by golden-section search (reached); one at ``start`` is not
-    reached here (inf).  ``nearest``: the approach [m] of the first state beyond ``start``
-    (``start``'s own without one)."""
-    problem.restore(snap)
-    cur = (start.approach, start.force, start.stiffness)
-    states = [(cur[0], cur[1], None)]          # (approach, force, snapshot or None)
-    h, solves, ended = (towards - start.approach) / 4.0, 0, False
-    while solves < max_solves and abs(towards - cur[0]) > 1e-12 * max(abs(towards), xtol):
-        d = towards if abs(towards - cur[0]) <= abs(h) * (1 + 1e-12) else cur[0] + h
-        here = problem.snapshot()
-        st = problem.solve(approach=d, raise_on_failure=False, fallback=False)
-        solves += 1
-        predicted = cur[1] + (cur[2] if np.isfinite(cur[2]) else 0.0) * (d - cur[0])
-        scale = max(abs(cur[1]), abs(st.force), np.finfo(float).tiny)
-        if _good(st) and abs(st.force - predicted) <= max(jump_tol * scale, abs(predicted - cur[1])):
-            cur = (d, st.force, st.stiffness)
-            states.append((d, st.force, problem.snapshot()))
-            here.destroy()
-        else:
-            problem.restore(here)
-            here.destroy()
-            if abs(h) <= xtol:
-                ended = True
-                break
-            h *= 0.5
-    m = min(range(len(states)), key=lambda i: states[i][1])
-    nearest = states[min(1, len(states) - 1)][0]
-    force, reached = (states[m][1], m < len(states) - 1 or ended) if m else (np.inf, False)
-    if 0 < m < len(states) - 1:
-        force = min(force, _golden(problem, states[m][2], states[m - 1][0], states[m + 1][0], xtol, max_solves))
-    for state in states:
-        if state[2] is not None:
-            state[2].destroy()
-    return force, reached, nearest
-
-
-def _golden(problem, snap, lo, hi, xtol, max_solves) -> float:
-    """Golden-section search of the smallest force [N] on [lo, hi] [m], each solve by Newton
-    from ``snap`` (a stable state inside the bracket); an unstable or failed solve counts
-    as +inf."""
-    lo, hi = min(lo, hi), max(lo, hi)
-    best = np.inf
-
-    def force(delta):
-        nonlocal best
-        problem.restore(snap)
-        st = problem.solve(approach=delta, raise_on_failure=False, fallback=False)
-        if not _good(st):
-            return np.inf
-        best = min(best, st.force)
-        return st.force
-
-    gr = (np.sqrt(5.0) - 1.0) / 2.0
-    c, d = hi - gr * (hi - lo), lo + gr * (hi - lo)
-    fc, fd = force(c), force(d)
-    for _ in range(max_solves):
-        if hi - lo <= xtol:
-            break
-        if fc < fd:
-            hi, d, fd = d, c, fc
-            c = hi - gr * (hi - lo)
-            fc = force(c)
-        else:
-            lo, c, fc = c, d, fd
-            d = lo + gr * (hi - lo)
-            fd = force(d)
-    return best
 
 
 def _locate_jump(problem, snap, prev, after, refine) -> Jump | None:

@@ -24,7 +24,8 @@ import numpy as np  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
 from contactpetsc.grid import SurfaceGrid  # noqa: E402
-from contactpetsc.paths import refine_pull_off, sweep  # noqa: E402
+from contactpetsc.paths import sweep  # noqa: E402
+from contactpetsc.pull_off import refine_pull_off  # noqa: E402
 from contactpetsc.physics.interactions import make_law, tabor_parameter  # noqa: E402
 from contactpetsc.physics.closed_forms import maugis_pull_off  # noqa: E402
 from contactpetsc.solvers.adhesive import AdhesiveProblem  # noqa: E402

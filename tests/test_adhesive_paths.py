@@ -6,7 +6,8 @@ branches meeting, the stability margin's bound.  Units: z0 = 1, E* = 1 (Greenwoo
 import numpy as np
 from petsc4py import PETSc
 
-from contactpetsc.paths import central_gap_path, edge_gap_path, refine_pull_off, sweep
+from contactpetsc.paths import central_gap_path, edge_gap_path, sweep
+from contactpetsc.pull_off import refine_pull_off
 
 from adhesive_setup import work_for, sphere_problem
 

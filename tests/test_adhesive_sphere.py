@@ -3,7 +3,8 @@ the Maugis-Dugdale limits.  Units: z0 = 1, E* = 1 (Greenwood's).
 """
 import numpy as np
 
-from contactpetsc.paths import refine_pull_off, sweep
+from contactpetsc.paths import sweep
+from contactpetsc.pull_off import refine_pull_off
 from contactpetsc.physics.closed_forms import dmt_force, maugis_pull_off_bar
 from contactpetsc.solvers.problem import ContactProblem
 

@@ -1,5 +1,6 @@
 """The command line's front door: every PETSc option passes through (option files included),
-``python -m contactpetsc`` is the command, the console script names a real entry point, and
+``python -m contactpetsc`` is the command, the console script names a real entry point,
+``-help`` lists the package's own options before anything is solved, and
 ``import contactpetsc`` neither initialises PETSc nor pays for the solvers.
 
 Independent truth: an option set only in a file takes effect (the SNES monitor prints its
@@ -80,3 +81,15 @@ def test_the_package_import_is_cheap_and_its_public_names_resolve():
     """)
     run = subprocess.run([sys.executable, "-c", code], env=ENV, capture_output=True, text=True, timeout=120)
     assert run.returncode == 0, run.stderr
+
+
+@pytest.mark.serial
+@pytest.mark.parametrize("scene, option", [(None, "-contact_tol"),
+                                           ("examples/scenes/adhesive_sphere.toml", "-adhesion_tol")])
+def test_help_lists_the_package_options_of_the_scene_before_anything_is_solved(scene, option):
+    # independent truth: the option table of solvers/options.py, whose names the problems read
+    words = ["run"] + ([os.path.join(ROOT, scene)] if scene else []) + ["--dry-run", "-help"]
+    run = subprocess.run(CLI + words, env=ENV, capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    table = "adhesion" if scene else "contact"
+    assert f"contactpetsc {table} options" in run.stdout and f"  {option} <" in run.stdout, run.stdout[-2000:]

@@ -1,6 +1,7 @@
 """A new interaction law is one class: defined and registered here, it is accepted by the scene
 schema with its own parameters (required, refused for other laws, range-checked), listed in the
-generated docs, and solved through the scene runner on a tiny adhesive sphere.
+generated docs, named where a hard-wall law is needed, and solved through the scene runner on a
+tiny adhesive sphere.
 
 Independent truths: the Derjaguin force 2 pi R Phi(g0) on a nearly rigid sphere at apex gap g0
 (a constant traction over the disc where the gap is below the law's range), and the built-in
@@ -90,6 +91,23 @@ def test_an_unregistered_law_and_its_keys_are_refused():
         scenes.validate(scene(law="dugdale", work_of_adhesion=1e-3, sigma0=1e-3, cohesive_range=1.0))
     with pytest.raises(scenes.SceneError, match="accepted values are none, hardwall-lj"):
         scenes.validate(scene(law="toy-cohesive", work_of_adhesion=1e-3))
+
+
+def test_the_hard_wall_refusals_name_a_registered_hard_wall_law(toy_law):
+    # independent truth: the toy law's class declares hard_wall = True (InteractionLaw's default)
+    from types import SimpleNamespace
+
+    from contactpetsc.physics.interactions import make_law
+    from contactpetsc.solvers.factory import describe_solver
+    from contactpetsc.solvers.relaxation import RelaxationSolver
+    assert toy_law.hard_wall
+    lj = make_law("lj", work_of_adhesion=1e-3, z0=1.0)
+    with pytest.raises(ValueError, match=r"needs a hard-wall law \(.*toy-cohesive.*\), got law 'lj'"):
+        describe_solver(lj, method="relaxation")
+    with pytest.raises(ValueError, match=r"needs a hard-wall law \(.*toy-cohesive.*\); law 'lj'"):
+        RelaxationSolver(SimpleNamespace(hard_wall=False, law=lj))
+    with pytest.raises(scenes.SceneError, match=r"needs a hard-wall law \(.*toy-cohesive.*\)"):
+        scenes.validate(dict(scene(law="lj", work_of_adhesion=1e-3, z0=1.0), solver={"method": "relaxation"}))
 
 
 def test_a_registered_law_refuses_a_clashing_parameter():

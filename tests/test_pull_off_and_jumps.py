@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from contactpetsc.grid import SurfaceGrid
-from contactpetsc.paths import refine_pull_off, sweep
+from contactpetsc.paths import sweep
+from contactpetsc.pull_off import refine_pull_off
 from contactpetsc.physics.interactions import make_law
 from contactpetsc.solvers.adhesive import AdhesiveProblem
 from contactpetsc.geometry.surfaces import sphere

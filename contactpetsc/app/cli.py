@@ -11,7 +11,8 @@ reference paper's material) pressed onto an isolated elastic half-space,
 swept through five approaches in displacement control with warm starts,
 each state compared with Hertz.  PETSc options that nothing used by the
 end of a run (misspelt, or for a solver the scene does not run) are listed in
-a warning; ``-options_left`` also works as in any PETSc program.
+a warning; ``-options_left`` also works as in any PETSc program.  ``-help`` lists the
+package's own options of the scene's problem as well as PETSc's.
 
 Exit status (docs/outputs.md):
 
@@ -122,6 +123,7 @@ def main(argv=None) -> int:
         from . import runner, scenes
         scene = scenes.load(args.scene) if args.scene else scenes.validate(scenes.DEFAULT_SCENE)
         scene["output"]["plots"] |= args.plots
+        _print_options_help(scene)
         if args.restart and args.overwrite:
             raise ValueError("--restart keeps the run in the output directory, --overwrite removes it: "
                              "give one of them")
@@ -141,6 +143,16 @@ def main(argv=None) -> int:
         if comm.Get_size() > 1:
             comm.Abort(1)  # one rank's error must not leave the others waiting in a collective
         return 1
+
+
+def _print_options_help(scene: dict) -> None:
+    """With ``-help``: the package's own options of the scene's problem under its prefix, before
+    anything is built or solved (PETSc lists its objects' options as they are set up)."""
+    from ..solvers.options import print_help
+    from .builder import ADHESION_PREFIX, CONTACT_PREFIX
+    from .scenes import adhesive
+    table, prefix = ("adhesion", ADHESION_PREFIX) if adhesive(scene) else ("contact", CONTACT_PREFIX)
+    print_help(table, prefix)
 
 
 def _plot(directory: str, comm) -> int:

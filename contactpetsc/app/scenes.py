@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 import tomllib
 
-from ..physics.interactions import LAWS, WORK_OF_ADHESION
+from ..physics.interactions import LAWS, WORK_OF_ADHESION, adhesive_laws
 
 POS = (0.0, math.inf, False, False)      # (low, high, low included?, high included?)
 NONNEG = (0.0, math.inf, True, False)
@@ -265,10 +265,9 @@ def _check_geometry(g: dict, given: set) -> None:
 
 def _check_interaction(out: dict, given: set) -> None:
     it, law = out["interaction"], out["interaction"]["law"]
-    adhesive_laws = [n for n, cls in LAWS.items() if cls.parameters]
     if not LAWS[law].parameters and it["work_of_adhesion"] > 0:
         raise SceneError(f"interaction.work_of_adhesion = {it['work_of_adhesion']!r} with "
-                         f"interaction.law = {law!r}: set a law ({', '.join(adhesive_laws)}) for "
+                         f"interaction.law = {law!r}: set a law ({', '.join(adhesive_laws())}) for "
                          f"adhesion, or work_of_adhesion = 0")
     for key in sorted(given - {"law", "work_of_adhesion", "element_integration"}):
         if key not in law_keys(law):
@@ -293,8 +292,7 @@ def _check_interaction(out: dict, given: set) -> None:
         raise SceneError(f"protocol.control = {out['protocol']['control']!r} with adhesion: load "
                          f"control is unstable on parts of adhesive paths; use approach or central_gap")
     if out["solver"]["method"] == "relaxation" and not LAWS[law].hard_wall:
-        hard = [n for n in adhesive_laws if LAWS[n].hard_wall]
-        raise SceneError(f"solver.method = 'relaxation' needs a hard-wall law ({', '.join(hard)}); "
+        raise SceneError(f"solver.method = 'relaxation' needs a hard-wall law ({', '.join(adhesive_laws(True))}); "
                          f"law {law!r} has no hard wall and is solved by newton")
 
 

@@ -172,7 +172,7 @@ class AdhesiveSteps:
 
     def finish(self) -> dict:
         """The pull-off force refined by golden section (``protocol.refine_pull_off``)."""
-        from ..paths import refine_pull_off
+        from ..pull_off import refine_pull_off
         if not self.sweeping:
             return {}
         pull, refined = self.path.pull_off_force, False

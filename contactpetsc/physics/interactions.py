@@ -111,7 +111,7 @@ class NoAdhesion(InteractionLaw):
         # a work of adhesion with a law that has none would be silently ignored
         if work_of_adhesion != 0:
             raise ValueError(f"work_of_adhesion = {work_of_adhesion!r} J/m^2 with law 'none' (no adhesion): "
-                             f"accepted value 0; choose hardwall-lj, lj, exponential or dugdale for adhesion")
+                             f"accepted value 0; choose {', '.join(adhesive_laws())} for adhesion")
 
     def pressure(self, gap):
         return np.zeros_like(np.asarray(gap, dtype=float))
@@ -291,6 +291,14 @@ def register_law(cls):
 
 for _law in (NoAdhesion, HardWallLennardJones, LennardJones, Exponential, Dugdale):
     register_law(_law)
+
+
+def adhesive_laws(hard_wall: bool | None = None) -> tuple[str, ...]:
+    """Names of the registered laws with adhesion (those that take a work of adhesion), in
+    registration order; with ``hard_wall`` only those with (True) or without (False) a hard
+    wall, g >= 0 as a constraint."""
+    return tuple(name for name, cls in LAWS.items()
+                 if WORK_OF_ADHESION in cls.parameters and (hard_wall is None or cls.hard_wall == hard_wall))
 
 
 def make_law(name: str, **params) -> InteractionLaw:

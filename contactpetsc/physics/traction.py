@@ -67,7 +67,9 @@ class AdhesiveTraction:
         return np.where(g < self.g_safe, self._p_safe + self._d_safe * (g - self.g_safe),
                         self.law.pressure(gs))
 
-    def _derivative(self, g):
+    def nodal_derivative(self, g):
+        """da/dg [Pa/m] of the guarded pointwise law at the gaps ``g`` [m] (zero on a hard wall's
+        contact, linear continuation below a singular law's safe gap)."""
         if self.hard_wall:
             return np.where(g > 0, self.law.derivative(np.maximum(g, 0.0)), 0.0)
         if self.g_safe is None:
@@ -89,7 +91,7 @@ class AdhesiveTraction:
         close = np.abs(d) <= 1e-6 * self.law.length_scale()
         safe_d = np.where(close, 1.0, d)
         m = np.where(close, self._pressure(0.5 * (a + b)), (self._energy(a) - self._energy(b)) / safe_d)
-        half = 0.5 * self._derivative(0.5 * (a + b))
+        half = 0.5 * self.nodal_derivative(0.5 * (a + b))
         dma = np.where(close, half, (m - self._pressure(a)) / safe_d)
         dmb = np.where(close, half, (self._pressure(b) - m) / safe_d)
         return m, dma, dmb
@@ -123,7 +125,7 @@ class AdhesiveTraction:
     def linearise(self, g: np.ndarray) -> None:
         """Store da/dg at ``g`` for ``apply_derivative`` (collective with element integration)."""
         if not self.element_integration:
-            self.diagonal = self._derivative(g)
+            self.diagonal = self.nodal_derivative(g)
             self._coupling = None
             return
         diag = np.zeros_like(g)
@@ -169,7 +171,7 @@ class AdhesiveTraction:
                 break
         gap = law.z0 / np.cbrt(t) - law.z0
         gap = np.where(a > self._p_safe, self.g_safe + (a - self._p_safe) / self._d_safe, gap)
-        slope = 1.0 / self._derivative(gap)
+        slope = 1.0 / self.nodal_derivative(gap)
         # a < 0 has no repulsive preimage: continue G linearly (C1 at a = 0), so that a
         # node in the wall with an attractive trial pressure still gets a gap-form row
         # whose only root is on the branch

@@ -91,7 +91,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
     e_star : float
         Effective modulus E* [Pa].
     law : InteractionLaw
-        ``hardwall-lj``, ``lj``, ``exponential`` or ``dugdale`` (``none``: use ``ContactProblem``).
+        A law with adhesion (``physics.interactions.adhesive_laws``; ``none``: use ``ContactProblem``).
     element_integration : bool
         Code default of ``-<prefix>element_integration`` (off).
     prefix : str
@@ -115,8 +115,8 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
                  operator: HalfSpaceOperator | None = None, tol: float | None = None,
                  preconditioner: str | None = None, stability_check: bool | None = None,
                  centre: tuple[int, int] | None = None, petsc_options: dict | None = None):
-        if law.name == "none":
-            raise ValueError("law 'none' has no adhesion: use ContactProblem")
+        if not law.adhesive:
+            raise ValueError(f"law {law.name!r} has no adhesion: use ContactProblem")
         if tol is not None:
             check_tolerance(tol, "tol")
         super().__init__(grid, heights, e_star, prefix=prefix, operator=operator, petsc_options=petsc_options)
@@ -133,7 +133,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         # stiffness beats its elastic one), so the discrete problem has an equilibrium for
         # every subset of snapped nodes -- the adhesive range is under-resolved by the grid
         probe = np.linspace(0.0, 20.0, 20001) * law.length_scale()
-        self.snap_number = float(self.kappa * max(0.0, float(np.max(self.traction._derivative(probe)))))
+        self.snap_number = float(self.kappa * max(0.0, float(np.max(self.traction.nodal_derivative(probe)))))
         self.hard_wall = law.hard_wall
         self.n_blocks = 2 if self.hard_wall else 1
         self._defaults = dict(tol=tol, preconditioner=preconditioner, stability_check=stability_check)
@@ -231,9 +231,8 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         # (under-resolved strong adhesion; docs/robustness.md)
         self.ptc_max_it = opts.getInt("ptc_max_it", code_default("adhesion", "ptc_max_it"))
         # the relaxation paths tried in turn where Newton fails or ends on an unstable state.
-        # Hard-wall laws: the paper's relaxation first, then PTC -- from rest at mu = 2 the
-        # relaxation reaches the state where PTC ran its 300 steps (Tabor-2 benchmark sphere),
-        # while at the jump-off of a mu = 1 sphere it stopped at its cycle cap and PTC got there
+        # Hard-wall laws: the paper's relaxation first, then PTC -- each reaches states where
+        # the other stops at its cap (a strongly adhesive sphere loaded from rest, a jump-off)
         chain = opts.getString("fallback", "relaxation,ptc" if self.hard_wall else "ptc").lower()
         self.fallback_chain = [m.strip() for m in chain.split(",") if m.strip()]
         if not self.fallback_chain or any(m not in ("relaxation", "ptc") for m in self.fallback_chain):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from petsc4py import PETSc
 
+from ..physics.interactions import adhesive_laws
 from .adhesive import PTC_LINESEARCH, AdhesiveProblem, newton_ksp_type, newton_linesearch
 from .base import VIProblem
 from .pc_registry import ADHESIVE_PC, ADHESIVE_PRECONDITIONERS, PRECONDITIONERS
@@ -16,15 +17,15 @@ RELAXATION_DEFAULTS = ("tol", "contact_tol", "max_cycles")
 
 
 def _no_adhesion(law) -> bool:
-    return law is None or law.name == "none"
+    return law is None or not law.adhesive
 
 
 def _check_method(law, method: str) -> None:
     if method not in METHODS:
         raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
     if method == "relaxation" and (_no_adhesion(law) or not law.hard_wall):
-        name = "none" if _no_adhesion(law) else law.name
-        raise ValueError(f"method 'relaxation' needs a hard-wall law (hardwall-lj, exponential, dugdale), "
+        name = "none" if law is None else law.name
+        raise ValueError(f"method 'relaxation' needs a hard-wall law ({', '.join(adhesive_laws(True))}), "
                          f"got law {name!r}")
 
 

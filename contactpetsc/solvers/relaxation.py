@@ -21,7 +21,7 @@ values; ``-<prefix>relax_tol``, ``-<prefix>relax_contact_tol``).  The paper
 notes that high Tabor parameters need small adhesive relaxation
 coefficients; so it is here, which is why Newton is the default.
 
-Hard-wall laws only (hardwall-lj, exponential, dugdale): the full
+Hard-wall laws only (``physics.interactions.adhesive_laws(hard_wall=True)``): the full
 Lennard-Jones curve has no contact pressure to relax apart.
 Every cycle is recorded in the problem's history (``total_error`` is
 E_Total), like the Newton iterations.
@@ -32,6 +32,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..physics.interactions import adhesive_laws
 from .adhesive_jacobian import _SetView
 from .base import AdhesiveSolveError, check_tolerance
 from .mlmi import MLMIPC
@@ -49,8 +50,8 @@ class RelaxationSolver:
     def __init__(self, problem, *, tol: float | None = None, contact_tol: float | None = None,
                  max_cycles: int | None = None):
         if not problem.hard_wall:
-            raise ValueError(f"the relaxation solver needs a hard-wall law (hardwall-lj, exponential, "
-                             f"dugdale); law {problem.law.name!r} is solved by Newton (solver = 'newton')")
+            raise ValueError(f"the relaxation solver needs a hard-wall law ({', '.join(adhesive_laws(True))}); "
+                             f"law {problem.law.name!r} is solved by Newton (solver = 'newton')")
         self.pb = self.problem = problem
         with problem.inserted_options():
             self._read_options(tol, contact_tol, max_cycles)

@@ -78,8 +78,10 @@ class _Compliance:
                 obj.destroy()
 
 
-def stability_margin(problem, q_rows: np.ndarray | None, steps: int = 30, tol: float = 1e-4) -> float:
-    """1 - lambda_max(A S) at the problem's last gap (see the module doc); collective.
+def stability_margin(problem, gap: np.ndarray, q_rows: np.ndarray | None, steps: int = 30,
+                     tol: float = 1e-4) -> float:
+    """1 - lambda_max(A S) at the rank's gap rows ``gap`` [m] (ny_loc, nx) of the problem's
+    state, contact pressures ``q_rows`` [Pa] (hard wall) or None (see the module doc); collective.
 
     Sets ``problem.stability_converged``: False when Lanczos ran its ``steps`` without
     the Ritz value settling to ``tol``.  The Ritz value only grows towards lambda_max, so
@@ -88,8 +90,7 @@ def stability_margin(problem, q_rows: np.ndarray | None, steps: int = 30, tol: f
     problem.stability_converged = True
     grid = problem.grid
     comm = grid.mpi_comm
-    gap = problem._g
-    d = problem.traction._derivative(gap)
+    d = problem.traction.nodal_derivative(gap)
     contact = (q_rows > 0) if q_rows is not None else np.zeros(gap.shape, bool)
     d = np.where(contact, 0.0, d)
     if comm.allreduce(float(d.max()), op=MPI.MAX) <= 0.0:

@@ -123,12 +123,13 @@ class TangentAndState:
         area = grid.lengths[0] * grid.lengths[1]
         stiffness = grid.mpi_comm.allreduce(float(full.sum())) / (grid.nx * grid.ny) * area if ok else float("nan")
         return tv, stiffness
+
     def stability(self) -> float:
         """1 - lambda_max(A S) at the current state (see ``stability.py``); collective."""
         t0 = self.history.elapsed()
         xb = self.blocks(self._x, readonly=True)
-        self._gap(xb, self._g)
-        margin = stability_margin(self, q_rows=xb[0] if self.hard_wall else None,
+        gap = self._gap(xb, self._g)
+        margin = stability_margin(self, gap, q_rows=xb[0] if self.hard_wall else None,
                                   steps=self.stability_steps)
         self.check_time += self.history.elapsed() - t0
         return margin

@@ -17,7 +17,7 @@ R = 100 (mu = 2):
          Maugis-Dugdale with lambda = 1.16 mu.  The hard-wall law at mu = 2,
          loading and unloading, in steps of 0.1 z0: from 0.25 z0 away some of
          its compressed states are out of reach of Newton and both fallbacks
-         (the sweep's sub-steps get there, at 50-150 s a state; docs/studies.md).  The small
+         (the sweep's sub-steps get there, slowly; docs/studies.md).  The small
          size leaves it out: 48^2 does not resolve its cohesive zone (1.2 grid
          spacings) and the compressed states fail.
 Fig. 5: the adhesive load and area ratios (1 % cut-off) of smooth spheres
@@ -62,7 +62,8 @@ def greenwood_case(mu, radius, law_name, n, dx, approaches, prefix, central_gaps
     import numpy as np
     from contactpetsc.geometry import surfaces
     from contactpetsc.grid import SurfaceGrid
-    from contactpetsc.paths import central_gap_path, edge_gap_path, refine_pull_off, sweep
+    from contactpetsc.paths import central_gap_path, edge_gap_path, sweep
+    from contactpetsc.pull_off import refine_pull_off
     from contactpetsc.physics.interactions import make_law
     from contactpetsc.solvers.adhesive import AdhesiveProblem
 

@@ -42,7 +42,8 @@ def main(argv=None):
     from petsc4py import PETSc
 
     from contactpetsc.grid import SurfaceGrid
-    from contactpetsc.paths import refine_pull_off, sweep
+    from contactpetsc.paths import sweep
+    from contactpetsc.pull_off import refine_pull_off
     from contactpetsc.physics.interactions import make_law
     from contactpetsc.physics.closed_forms import maugis_pull_off_bar
     from contactpetsc.solvers.adhesive import AdhesiveProblem

@@ -115,7 +115,8 @@ def _pull_off_case(mu, law_name, solver="newton", n=64, dx=1.0, radius=20.0, ste
                    z0=1.0, e_star=1.0):
     """Load a sphere to about its JKR pull-off force, unload past pull-off; the most tensile
     force of the path against Maugis-Dugdale (lambda = 1.16 mu)."""
-    from contactpetsc.paths import refine_pull_off, sweep
+    from contactpetsc.paths import sweep
+    from contactpetsc.pull_off import refine_pull_off
     _, _, interactions, maugis, _ = _lib()
     w = np.sqrt(mu ** 3 * e_star ** 2 * z0 ** 3 / radius)
     pb = _sphere(n, dx, radius, e_star, law_name, w, z0, "sm_")
@@ -144,7 +145,7 @@ def _pull_off_case(mu, law_name, solver="newton", n=64, dx=1.0, radius=20.0, ste
     md = maugis.maugis_pull_off(radius, w, 1.16 * mu)
     out = {"mu": mu, "w_over_Ez0": w / (e_star * z0), "dx_over_z0": dx / z0, "n": n, "jumps": jumps}
     out.update(_outcome(states, solves))
-    # LJ against the Dugdale law: 1-6 % apart in the resolved range (docs/validation.md)
+    # LJ against the Dugdale law: a few per cent apart in the resolved range (docs/validation.md)
     out.update(_truth(pull, md, 0.08, "Maugis-Dugdale pull-off" + ("" if solver == "newton" else " (sampled)")))
     return out
 
@@ -181,7 +182,7 @@ def _w_tiny(law_name="hardwall-lj"):
     st = pb.solve(approach=2.0, raise_on_failure=False)
     out = {"w_over_Ez0": 1e-8}
     out.update(_outcome([st]))
-    # a = sqrt(R delta) = 20 dx: the discrete Hertz force is within ~1 %
+    # a = sqrt(R delta) = 20 dx: the contact is resolved, the discrete Hertz force close to the closed form
     out.update(_truth(st.force, float(maugis.hertz_force(1.0, radius, 2.0)), 0.02, "Hertz force"))
     return out
 
@@ -276,7 +277,7 @@ def _near_zero_adhesive():
     out = _outcome([st])
     out.update(_truth(st.force, 0.0, 1e-6, "zero net force, in 2 pi R w", scale=2 * np.pi * radius * w))
     # for information: DMT (Muller et al.), the approach where the Hertz load balances the adhesive
-    # force; the contact is ~5 nodes wide at this load, and mu = 0.1 is not quite DMT
+    # force; the contact is a few nodes wide at this load, and mu = 0.1 is not quite DMT
     lo, hi = 1e-6, 5.0       # bisection: F_DMT rises with the approach
     for _ in range(40):
         mid = 0.5 * (lo + hi)
@@ -373,7 +374,8 @@ def _material(e_star, name, maxstep=None):
     """SI: a sphere R = 30 nm, z0 = 0.3 nm, w = 0.1 J/m^2 on materials of modulus E*: loaded to
     1 z0 and pulled off in steps of z0 / 4, the pull-off refined (Newton).  ``maxstep``: PETSc's
     line-search step limit (-snes_linesearch_maxstep, default 1e8 in the unknowns' units, Pa)."""
-    from contactpetsc.paths import refine_pull_off, sweep
+    from contactpetsc.paths import sweep
+    from contactpetsc.pull_off import refine_pull_off
     from petsc4py import PETSc
     _, _, interactions, maugis, _ = _lib()
     if maxstep is not None:

@@ -1,0 +1,146 @@
+"""The pull-off force of a loading path refined: the most tensile stable state, searched by
+continuation to the end of each stable segment and by golden section between higher forces
+(docs/formulation.md, "Loading paths").
+
+The problem is duck-typed as in ``paths``: ``solve(approach=...)``, ``snapshot()`` and
+``restore(snapshot)``, plus ``snes()`` for its Newton iteration limit.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .paths import Path, good_state
+
+#: Newton iterations of a solve of the pull-off search (``refine_pull_off``)
+SEARCH_NEWTON_STEPS = 30
+
+
+def refine_pull_off(problem, path: Path, xtol: float, max_solves: int = 40,
+                    jump_tol: float = 0.05) -> float:
+    """The most tensile stable state of the path [N], to ``xtol`` [m] in approach.
+
+    Searches by continuation (``_continue``) from the sampled minimum towards its
+    neighbours along the path (across a reversal of the approach too) and from every stable
+    state next to a loss of stability or a failed step towards it (``path._edges``), at most
+    ``max_solves`` solves each;
+    golden-section search where the smallest force lies between two higher ones.  The
+    states on either side of a jump (located by bisection in ``sweep``) are candidates.
+    NaN when the most tensile state found is not bracketed by the path (``Path._bracketed``:
+    no pull-off reached).  Sets ``path.refined_pull_off``; the problem's state is restored."""
+    if path._best is None:
+        path.refined_pull_off = float("nan")
+        return path.refined_pull_off
+    pts = path.points
+    end = problem.snapshot()
+    found = []   # (force, reached): reached = bounded by higher forces or at a segment's end
+    k, snap = path._best
+    sides = [path._side(k, s) for s in (-1, 1)]
+    snes = problem.snes()
+    rtol, atol, stol, max_it = snes.getTolerances()
+    # Newton from a state at most a quarter step away needs a few iterations; one that has
+    # not converged in SEARCH_NEWTON_STEPS has left the branch (near its end, such solves ran
+    # to the iteration limit and cost most of the search)
+    snes.setTolerances(max_it=min(max_it, SEARCH_NEWTON_STEPS))
+    try:
+        searched, bracket = set(), [pts[k].approach, pts[k].approach]
+        for n, (side, step) in enumerate(zip(sides, (-1, 1))):
+            if side in ("stable", "edge", "turn"):
+                towards = pts[k + step].approach
+                searched.add((k, towards))
+                force, reached, nearest = _continue(problem, snap, pts[k], towards, xtol, max_solves, jump_tol)
+                found.append((force, reached))
+                bracket[n] = nearest
+        d_k = pts[k].approach
+        if (bracket[0] - d_k) * (bracket[1] - d_k) < 0 and all(f[0] == np.inf for f in found):
+            # nothing below the sampled minimum on either side: it lies between the nearest
+            # stable states on either side
+            found.append((_golden(problem, snap, bracket[0], bracket[1], xtol, max_solves), True))
+        for i, towards, edge_snap in path._edges:
+            if (i, towards) not in searched:
+                found.append(_continue(problem, edge_snap, pts[i], towards, xtol, max_solves, jump_tol)[:2])
+    finally:
+        snes.setTolerances(max_it=max_it)
+    # the sampled minimum itself: reached when the path brackets it (``Path._bracketed``);
+    # the states on either side of each jump (the end of the old branch, bisected)
+    found.append((pts[k].force, path._bracketed(k)))
+    found += [(f, True) for j in path.jumps for f in (j.force_before, j.force_after)]
+    problem.restore(end)
+    end.destroy()
+    force, reached = min(found, key=lambda f: (f[0], not f[1]))
+    path.refined_pull_off = force if reached else float("nan")
+    return path.refined_pull_off
+
+
+def _continue(problem, snap, start, towards, xtol, max_solves, jump_tol):
+    """(smallest force [N], reached, nearest) of the stable states connected to ``snap``
+    (the state of point ``start``) by continuation towards the approach ``towards`` [m]:
+    steps of a quarter of the way, halved where a solve fails, is unstable or jumps (its
+    force misses the tangent prediction by more than ``jump_tol`` of the force), down to
+    ``xtol`` -- there the stable segment ends (reached).  A smallest force between two
+    higher ones is refined by golden-section search (reached); one at ``start`` is not
+    reached here (inf).  ``nearest``: the approach [m] of the first state beyond ``start``
+    (``start``'s own without one)."""
+    problem.restore(snap)
+    cur = (start.approach, start.force, start.stiffness)
+    states = [(cur[0], cur[1], None)]          # (approach, force, snapshot or None)
+    h, solves, ended = (towards - start.approach) / 4.0, 0, False
+    while solves < max_solves and abs(towards - cur[0]) > 1e-12 * max(abs(towards), xtol):
+        d = towards if abs(towards - cur[0]) <= abs(h) * (1 + 1e-12) else cur[0] + h
+        here = problem.snapshot()
+        st = problem.solve(approach=d, raise_on_failure=False, fallback=False)
+        solves += 1
+        predicted = cur[1] + (cur[2] if np.isfinite(cur[2]) else 0.0) * (d - cur[0])
+        scale = max(abs(cur[1]), abs(st.force), np.finfo(float).tiny)
+        if good_state(st) and abs(st.force - predicted) <= max(jump_tol * scale, abs(predicted - cur[1])):
+            cur = (d, st.force, st.stiffness)
+            states.append((d, st.force, problem.snapshot()))
+            here.destroy()
+        else:
+            problem.restore(here)
+            here.destroy()
+            if abs(h) <= xtol:
+                ended = True
+                break
+            h *= 0.5
+    m = min(range(len(states)), key=lambda i: states[i][1])
+    nearest = states[min(1, len(states) - 1)][0]
+    force, reached = (states[m][1], m < len(states) - 1 or ended) if m else (np.inf, False)
+    if 0 < m < len(states) - 1:
+        force = min(force, _golden(problem, states[m][2], states[m - 1][0], states[m + 1][0], xtol, max_solves))
+    for state in states:
+        if state[2] is not None:
+            state[2].destroy()
+    return force, reached, nearest
+
+
+def _golden(problem, snap, lo, hi, xtol, max_solves) -> float:
+    """Golden-section search of the smallest force [N] on [lo, hi] [m], each solve by Newton
+    from ``snap`` (a stable state inside the bracket); an unstable or failed solve counts
+    as +inf."""
+    lo, hi = min(lo, hi), max(lo, hi)
+    best = np.inf
+
+    def force(delta):
+        nonlocal best
+        problem.restore(snap)
+        st = problem.solve(approach=delta, raise_on_failure=False, fallback=False)
+        if not good_state(st):
+            return np.inf
+        best = min(best, st.force)
+        return st.force
+
+    gr = (np.sqrt(5.0) - 1.0) / 2.0
+    c, d = hi - gr * (hi - lo), lo + gr * (hi - lo)
+    fc, fd = force(c), force(d)
+    for _ in range(max_solves):
+        if hi - lo <= xtol:
+            break
+        if fc < fd:
+            hi, d, fd = d, c, fc
+            c = hi - gr * (hi - lo)
+            fc = force(c)
+        else:
+            lo, c, fc = c, d, fd
+            d = lo + gr * (hi - lo)
+            fd = force(d)
+    return best
