@@ -215,6 +215,12 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps):
             # more than the predicted change itself: another branch
             if st.fallback or abs(st.force - predicted) > max(jump_tol * scale, abs(predicted - w0)):
                 jump = _locate_jump(problem, snap, prev, st, refine)
+                if problem.out_of_time():
+                    # the bisection's solves were cut short: neither the jump nor its absence
+                    # is known, so the step is not done (a restart solves it again)
+                    problem.restore(snap)
+                    st.converged, jump = False, None
+                    st.reason = problem.budget_reason + " (while locating a jump; the step is not kept)"
                 if jump is not None and abs(jump.force_after - jump.force_before) > jump_tol * scale:
                     jump.kind = "jump-on" if d > d0 else "jump-off"
                     path.jumps.append(jump)

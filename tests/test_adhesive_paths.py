@@ -122,3 +122,36 @@ def test_load_control_where_stable(coll):
     beyond = pb.solve_force(1.5 * pull, raise_on_failure=False)
     assert not beyond.converged
     assert "LOAD_CONTROL_UNSTABLE" in beyond.reason
+
+
+def test_a_budget_spent_while_a_jump_is_located_keeps_neither_step_nor_jump(coll, monkeypatch):
+    """The time budget runs out inside the jump's bisection: its solves were cut short, so the
+    step is not kept (not converged, the budget's reason), no jump is recorded, and the
+    problem is back at the last converged state -- the uninterrupted path's jump-on is found
+    when the path goes on from there."""
+    from contactpetsc import paths
+    r = 100.0
+    approaches = np.arange(-2.5, 0.01, 0.25)
+    reference = sweep(sphere_problem(1.0, law="lj", n=96, dx=1.0, radius=r), approaches)
+    (on,) = reference.jumps
+    pb = sphere_problem(1.0, law="lj", n=96, dx=1.0, radius=r)
+    locate = paths._locate_jump
+    spent = {"now": False}
+
+    def locate_then_spent(*args, **kw):
+        jump = locate(*args, **kw)
+        spent["now"] = True
+        return jump
+
+    monkeypatch.setattr(paths, "_locate_jump", locate_then_spent)
+    monkeypatch.setattr(pb, "out_of_time", lambda: spent["now"])
+    path = sweep(pb, approaches, stop_on_failure=True)
+    last = path.points[-1]
+    assert not last.converged and "WALL_TIME_BUDGET" in last.reason and not path.jumps
+    assert all(p.converged for p in path.points[:-1])
+    assert pb.approach == path.points[-2].approach            # back at the last converged state
+    monkeypatch.setattr(pb, "out_of_time", lambda: False)
+    rest = sweep(pb, approaches[len(path.points) - 1:], path=paths.Path(),
+                 previous=(path.points[-2].approach, path.points[-2].force, path.points[-2].stiffness))
+    assert [j.kind for j in rest.jumps] == ["jump-on"]
+    assert abs(rest.jumps[0].approach_before - on.approach_before) <= 1e-9
