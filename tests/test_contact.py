@@ -1,4 +1,4 @@
-"""Contact solver (issue 3): Hertz, Westergaard, rough surfaces, ranks, failures, histories.
+"""Contact solver: Hertz, Westergaard, rough surfaces, ranks, failures, histories.
 
 Runs serially and under ``mpirun -n 2/3``; every assertion is on a value
 reduced over COMM_WORLD, so all ranks reach the same verdict.  Each test uses

@@ -1,4 +1,4 @@
-"""Robustness (issue 8): extreme cases converge against an independent truth or fail with a clear
+"""Robustness: extreme cases converge against an independent truth or fail with a clear
 reason; bad input is reported on every rank, naming the field and the accepted range; outputs
 survive failures.
 
