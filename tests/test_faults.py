@@ -6,6 +6,7 @@ import sys
 import textwrap
 
 import pytest
+from scene_files import rough_scene
 
 SCRIPT = textwrap.dedent("""
     import sys, petsc4py; petsc4py.init(sys.argv)
@@ -61,26 +62,6 @@ CLI_FAULT = textwrap.dedent("""
     builder.build_heights = build_heights
     sys.exit(cli.main(sys.argv[1:]))
 """)
-
-
-def rough_scene(path, out, nx=32, values=(5e6, 1e7), ny=None):
-    path.write_text(textwrap.dedent(f"""
-        [geometry]
-        kind = "self-affine"
-        nx = {nx}
-        {f"ny = {ny}" if ny else ""}
-        dx = 1e-8
-        rms_slope = 0.1
-        seed = 3
-        [material]
-        e_star = 1e9
-        [protocol]
-        control = "mean_pressure"
-        values = {list(values)}
-        [output]
-        directory = "{out}"
-    """))
-    return str(path)
 
 
 def mpirun(n, args, timeout=120):

@@ -4,10 +4,10 @@ and --overwrite removes that run's files only."""
 import os
 import subprocess
 import sys
-import textwrap
 import time
 
 import pytest
+from scene_files import rough_scene
 from petsc4py import PETSc
 
 from contactpetsc.app import runner, scenes
@@ -18,22 +18,7 @@ CLI = [sys.executable, "-m", "contactpetsc"]
 
 
 def scene_file(path, out, values, nx=32):
-    path.write_text(textwrap.dedent(f"""
-        [geometry]
-        kind = "self-affine"
-        nx = {nx}
-        dx = 1e-8
-        rms_slope = 0.1
-        seed = 3
-        [material]
-        e_star = 1e9
-        [protocol]
-        control = "mean_pressure"
-        values = {list(values)}
-        [output]
-        directory = "{out}"
-    """))
-    return str(path)
+    return rough_scene(path, out, nx=nx, values=values)
 
 
 def run(args):
