@@ -10,7 +10,7 @@ py=/usr/bin/python3
 
 debs=(python3-petsc4py libpetsc-real3.18-dev python3-mpi4py python3-pyfftw
       python3-h5py-mpi python3-numpy python3-venv python3-pip python3-setuptools
-      openmpi-bin python3-pytest python3-mpmath python3-hypothesis python3-matplotlib)
+      openmpi-bin python3-pytest python3-mpmath python3-hypothesis python3-matplotlib python3-scipy)
 
 missing=()
 for p in "${debs[@]}"; do

@@ -24,7 +24,7 @@ case "$bits" in 32|64) ;; *) echo "INDEX_BITS must be 32 or 64, got $bits" >&2; 
 
 # the versions verified with this stack (docs/install.md); change them together
 pins=(numpy==2.4.6 mpi4py==4.1.2 h5py==3.16.0 pyFFTW==0.15.1 pytest==9.2.0 hypothesis==6.170.17
-      mpmath==1.4.1 matplotlib==3.11.2 cython==3.3.1 setuptools==84.2.1 wheel)
+      mpmath==1.4.1 matplotlib==3.11.2 scipy==1.17.1 cython==3.3.1 setuptools==84.2.1 wheel)
 stamp="$venv/.contactpetsc-stack"
 want="petsc=$petsc_version bits=$bits ${pins[*]}"
 if [ -x "$venv/bin/python" ] && [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ]; then
