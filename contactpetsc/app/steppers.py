@@ -46,7 +46,8 @@ class ContactSteps:
 
     def row(self, st) -> dict:
         return dict(adhesive_force_N=0.0, adhesive_load_ratio=0.0, adhesive_area_ratio=0.0, stable=True,
-                    load_error=st.load_error, solver="snes-vi+" + self.problem.preconditioner)
+                    load_error=st.load_error, interference_error=st.interference_error,
+                    solver="snes-vi+" + self.problem.preconditioner)
 
     def progress(self, st, row) -> str:
         line = (f"  {row['step']:4d} {st.approach:12.4e} {st.force:11.4e} {st.contact_fraction:8.4f} "
@@ -152,7 +153,7 @@ class AdhesiveSteps:
         return dict(adhesive_force_N=st.adhesive_force, adhesive_load_ratio=load_ratio,
                     adhesive_area_ratio=area_ratio, alpha_star=a_star, W_star=w_star,
                     central_gap_m=st.central_gap, stable=st.stable, adhesive_error=st.adhesive_error,
-                    total_error=st.total_error, solver=st.solver)
+                    total_error=st.total_error, pressure_error=st.pressure_error, solver=st.solver)
 
     def progress(self, st, row) -> str:
         err = max(st.complementarity_error, st.adhesive_error)
