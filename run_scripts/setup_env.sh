@@ -12,16 +12,8 @@ debs=(python3-petsc4py libpetsc-real3.18-dev python3-mpi4py python3-pyfftw
       python3-h5py-mpi python3-numpy python3-venv python3-pip python3-setuptools
       openmpi-bin python3-pytest python3-mpmath python3-hypothesis python3-matplotlib python3-scipy)
 
-missing=()
-for p in "${debs[@]}"; do
-    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-done
-if ((${#missing[@]})); then
-    echo "setup: installing Debian packages: ${missing[*]}"
-    sudo_cmd=""; [ "$(id -u)" -ne 0 ] && sudo_cmd="sudo"
-    $sudo_cmd apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive $sudo_cmd apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
-fi
+source "$here/run_scripts/debian_packages.sh"
+ensure_debs setup "${debs[@]}"
 
 stamp="$venv/.contactpetsc-setup"
 want="$(cat "$here/pyproject.toml" "$here/run_scripts/setup_env.sh" | sha256sum | cut -d' ' -f1)"

@@ -32,18 +32,9 @@ if [ -x "$venv/bin/python" ] && [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want"
 fi
 
 if command -v dpkg-query >/dev/null; then
-    debs=(build-essential gfortran libopenmpi-dev openmpi-bin libhdf5-openmpi-dev liblapack-dev
-          libblas-dev python3-venv python3-dev pkg-config patchelf)
-    missing=()
-    for p in "${debs[@]}"; do
-        dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-    done
-    if ((${#missing[@]})); then
-        echo "stack: installing Debian packages: ${missing[*]}"
-        sudo_cmd=""; [ "$(id -u)" -ne 0 ] && sudo_cmd="sudo"
-        $sudo_cmd apt-get update -qq
-        DEBIAN_FRONTEND=noninteractive $sudo_cmd apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
-    fi
+    source "$here/run_scripts/debian_packages.sh"
+    ensure_debs stack build-essential gfortran libopenmpi-dev openmpi-bin libhdf5-openmpi-dev liblapack-dev \
+        libblas-dev python3-venv python3-dev pkg-config patchelf
 fi
 
 echo "stack: building PETSc $petsc_version ($bits-bit indices) into $venv"
