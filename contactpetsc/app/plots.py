@@ -82,7 +82,7 @@ def read_csv(path: str, numeric: tuple = ()) -> dict:
                                   for w in words])
         except ValueError:
             if name in numeric:
-                n = next(k for k, w in enumerate(words, 1) if not _is_number(w))
+                n = next(k for k, w in enumerate(words, 1) if not is_number(w))
                 raise ValueError(f"{path}, row {n}: {name} = {words[n - 1]!r} is not a number: the file is "
                                  "damaged") from None
             out[name] = words
@@ -92,7 +92,8 @@ def read_csv(path: str, numeric: tuple = ()) -> dict:
     return out
 
 
-def _is_number(word: str) -> bool:
+def is_number(word: str) -> bool:
+    """Whether ``word`` reads as a float (nan and inf included)."""
     try:
         float(word)
     except ValueError:

@@ -26,6 +26,7 @@ from petsc4py import PETSc
 
 from ..collective import collective_call
 from .output import AXES, write_state, write_text_atomic
+from .plots import is_number
 
 CURVE_COLUMNS = ["step", "branch", "approach_m", "force_N", "mean_pressure_Pa", "contact_fraction",
                  "adhesive_force_N", "adhesive_load_ratio", "adhesive_area_ratio", "alpha_star", "W_star",
@@ -328,7 +329,7 @@ def _read_rows(path: str, required, notes: list, numeric=()) -> list[dict]:
     for n, line in enumerate(lines[1:], 1):
         words = next(csv.reader([line]), [])
         bad = (len(words) != len(header) or not line.endswith("\n")
-               or any(not _numeric(words[header.index(c)]) for c in numeric))
+               or any(not is_number(words[header.index(c)]) for c in numeric))
         if bad and n == len(lines) - 1:
             notes.append(f"{path}: dropped its partial last row {n} (written when the run was interrupted); "
                          "that step is solved again")
@@ -345,14 +346,6 @@ def _number(word, kind):
     did not record)."""
     value = float(word)
     return kind(value) if math.isfinite(value) else None
-
-
-def _numeric(word: str) -> bool:
-    try:
-        float(word)
-    except ValueError:
-        return False
-    return True
 
 
 def _drop_partial_line(path: str) -> None:

@@ -12,7 +12,6 @@ import os
 import warnings
 
 import numpy as np
-from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..collective import collective_call

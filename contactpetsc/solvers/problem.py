@@ -15,14 +15,9 @@ the default) or the multilevel MLMI cycle (``mlmi.py``).
 Controls: ``approach`` (displacement control, delta given) or a load
 (``mean_pressure``, or ``force`` for an isolated contact = mean_pressure *
 nx*dx * ny*dy).  Load control is a safeguarded Newton iteration on delta
-around displacement-controlled solves: the load W(delta) is increasing and
-convex, its slope dW/d delta = mean(z) comes from one reduced solve
-K_II z = 1 on the converged contact set, and z predicts the next pressure,
-so each outer step is one exact Newton step of the load-controlled problem
-on the current contact set.  Steps that leave the bracket [delta_lo, delta_hi]
-of known loads bisect instead; intermediate solves are inexact, and the
-first solve is nested (full multigrid): coarser grids first, their pressure
-and approach the fine grid's start.  On a periodic cell K has no mean mode, so
+around displacement-controlled solves, its slope dW/d delta from one reduced
+solve K_II z = 1 on the contact set (docs/formulation.md); the first solve is
+nested: coarser grids first.  On a periodic cell K has no mean mode, so
 delta is the approach to the mean plane of the deformed surface and full
 contact is singular under displacement control: load control handles it.
 
