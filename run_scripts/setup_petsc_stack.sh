@@ -50,9 +50,10 @@ export CC=mpicc
 export PETSC_CONFIGURE_OPTIONS="--with-debugging=0 COPTFLAGS=-O2 CXXOPTFLAGS=-O2 FOPTFLAGS=-O2 \
 --with-fortran-bindings=0 $( [ "$bits" = 64 ] && echo --with-64-bit-indices )"
 t0=$(date +%s)
-"$py" -m pip install -v --no-build-isolation "petsc==$petsc_version" > "$venv/petsc-build.log" 2>&1 || {
+# --no-cache-dir: pip would otherwise reuse a wheel built with other configure options
+"$py" -m pip install -v --no-cache-dir --no-build-isolation "petsc==$petsc_version" > "$venv/petsc-build.log" 2>&1 || {
     echo "stack: the PETSc build failed; the log is $venv/petsc-build.log" >&2; tail -30 "$venv/petsc-build.log" >&2; exit 1; }
-"$py" -m pip install -q --no-build-isolation "petsc4py==$petsc_version"
+"$py" -m pip install -q --no-cache-dir --no-build-isolation "petsc4py==$petsc_version"
 echo "stack: PETSc and petsc4py built in $(( $(date +%s) - t0 )) s"
 hdf5_dir="${HDF5_DIR:-}"
 if [ -z "$hdf5_dir" ] && [ -d /usr/lib/x86_64-linux-gnu/hdf5/openmpi ]; then
