@@ -18,6 +18,10 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from .stack import check_petsc
+
+check_petsc()   # a petsc4py of another PETSc, or complex scalars, refused before any use
+
 
 class GridError(ValueError):
     """Invalid grid parameters (raised identically on every rank)."""

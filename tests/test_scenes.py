@@ -121,6 +121,7 @@ def test_fields_hdf5_and_xdmf_equal_on_any_rank_count(coll, shared_tmp):
             assert set(a) == {"pressure", "gap", "displacement", "heights", "contact"}
             assert a["pressure"].shape == (24, 32) and a["pressure"].attrs["unit"] == "Pa"
             assert "test-rough" in a.attrs["scene"] and "PETSc" in a.attrs["versions"]
+            assert "doi:10.1016/j.ijsolstr.2014.03.033" in a.attrs["citation"]
             for k in a:
                 x, y = a[k][:], b[k][:]
                 assert np.all(np.isfinite(x))

@@ -1,5 +1,5 @@
 """Command line: ``contactpetsc run [SCENE] [PETSc options]``, ``contactpetsc plot DIR``,
-``contactpetsc --version``.
+``contactpetsc info [--check]``, ``contactpetsc --version``.
 
 This is an entry point: it calls ``petsc4py.init(sys.argv)`` before anything
 imports PETSc, so every PETSc option on the command line reaches the options
@@ -49,6 +49,11 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--plots", action="store_true",
                      help="also save load_approach.png, pressure_map.png and error_vs_time.png "
                           "(as output.plots = true; needs matplotlib)")
+    info = sub.add_parser("info", help="print the stack (PETSc, petsc4py, MPI, FFTW, h5py, index size, "
+                          "parallel HDF5, ranks); under mpirun too")
+    info.add_argument("--check", action="store_true",
+                      help="also solve a small Hertz sphere on the ranks of the job, write its step files "
+                           "to a temporary directory and compare the forces with Hertz")
     plot = sub.add_parser("plot", help="save the plots of a finished run's output directory")
     plot.add_argument("directory", help="a run's output directory (with curve.csv)")
     return p
@@ -108,15 +113,20 @@ def main(argv=None) -> int:
     petsc4py.init(argv)
     from petsc4py import PETSc
     args = _parser().parse_args(_without_petsc_options(argv[1:], PETSc.Options().getAll()))
-    if args.version:
-        from .output import versions
-        for k, v in versions().items():
-            PETSc.Sys.Print(f"{k}: {v}")
-        return 0
-    if args.command not in ("run", "plot"):
+    if args.command not in ("run", "plot", "info") and not args.version:
         _parser().print_help()
         return 2
     comm = PETSc.COMM_WORLD.tompi4py()
+    try:
+        from mpi4py import MPI
+
+        from ..stack import check_mpi, launcher_size
+        check_mpi(comm.Get_size(), MPI.COMM_WORLD.Get_size(), launcher_size())
+    except Exception as exc:  # noqa: BLE001 - every rank says it: they do not share a job
+        sys.stderr.write(f"contactpetsc: error: {exc}\n")
+        return 1
+    if args.version or args.command == "info":
+        return _info(args.version, getattr(args, "check", False), comm)
     if args.command == "plot":
         return _plot(args.directory, comm)
     try:
@@ -153,6 +163,47 @@ def _print_options_help(scene: dict) -> None:
     from .scenes import adhesive
     table, prefix = ("adhesion", ADHESION_PREFIX) if adhesive(scene) else ("contact", CONTACT_PREFIX)
     print_help(table, prefix)
+
+
+def _info(version_only: bool, check: bool, comm) -> int:
+    """``--version`` and ``info``: the stack, one ``key: value`` per line, and the citation;
+    ``--check`` also solves a small Hertz sphere on every rank of the job, step files included."""
+    from petsc4py import PETSc
+
+    from ..stack import CITATION, describe
+    stack = describe()
+    if version_only:
+        stack = {k: stack[k] for k in ("contactpetsc", "PETSc", "petsc4py", "PETSc index bits")}
+    for k, v in stack.items():
+        PETSc.Sys.Print(f"{k}: {v}")
+    PETSc.Sys.Print(f"cite: {CITATION}")
+    if not check:
+        return 0
+    import tempfile
+
+    from ..collective import collective_call
+    from . import runner, scenes
+    scene = scenes.validate({**scenes.DEFAULT_SCENE, "name": "info-check",
+                             "geometry": {**scenes.DEFAULT_SCENE["geometry"], "nx": 64, "dx": 1e-7}})
+    rank0 = comm.Get_rank() == 0
+    tmp = comm.bcast(collective_call(comm, OSError, "info --check: {error}",
+                                     lambda: tempfile.mkdtemp(prefix="contactpetsc-check-") if rank0 else None))
+    try:
+        states = runner.run(scene, output=tmp, comm=comm)
+        from ..physics.closed_forms import hertz_force
+        g = scene["geometry"]
+        worst = max(abs(st.force / float(hertz_force(scene["material"]["e_star"], g["radius"], st.approach)) - 1)
+                    for st in states)
+        ok = all(st.converged for st in states) and worst < 0.05
+        PETSc.Sys.Print(f"check: {'passed' if ok else 'FAILED'}: {len(states)} approaches on {comm.Get_size()} "
+                        f"rank(s), step files written"
+                        f"{' with MPI-IO' if comm.Get_size() > 1 else ''}, force within {100 * worst:.2f} % of Hertz")
+        return 0 if ok else 1
+    finally:
+        comm.Barrier()
+        if rank0:
+            import shutil
+            shutil.rmtree(tmp, ignore_errors=True)
 
 
 def _plot(directory: str, comm) -> int:

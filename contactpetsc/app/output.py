@@ -18,34 +18,13 @@ import numpy as np
 from mpi4py import MPI
 
 from ..collective import collective_call
+from ..stack import check_parallel_output
 
 FIELDS = ("pressure", "gap", "displacement", "heights", "contact")
 ADHESIVE_FIELDS = ("contact_pressure", "adhesive_pressure", "adhesive")
 AXES = "y,x"   #: the axis order of every stored field (slowest first), a file and dataset attribute
 UNITS = {"pressure": "Pa", "gap": "m", "displacement": "m", "heights": "m", "contact": "1",
          "contact_pressure": "Pa", "adhesive_pressure": "Pa", "adhesive": "1"}
-
-
-def versions() -> dict:
-    import numpy
-    import mpi4py
-    import pyfftw
-    import h5py
-    import petsc4py
-    from mpi4py import MPI
-    from petsc4py import PETSc
-    from .. import __version__
-    return {
-        "contactpetsc": __version__,
-        "PETSc": "%d.%d.%d" % PETSc.Sys.getVersion(),
-        "PETSc index bits": 8 * PETSc.IntType(0).itemsize,
-        "petsc4py": petsc4py.__version__,
-        "mpi4py": mpi4py.__version__,
-        "MPI": MPI.Get_library_version().replace("\x00", "").splitlines()[0].strip(),
-        "pyfftw": pyfftw.__version__,
-        "h5py": h5py.__version__,
-        "numpy": numpy.__version__,
-    }
 
 
 def write_text_atomic(path: str, text: str) -> None:
@@ -64,12 +43,6 @@ def write_text_atomic(path: str, text: str) -> None:
     os.replace(tmp, path)
 
 
-def _check_parallel_h5py() -> None:
-    if not h5py.get_config().mpi:
-        raise RuntimeError("parallel HDF5 output needs h5py built with MPI "
-                           "(Debian: python3-h5py-mpi, run under mpirun)")
-
-
 def _write_h5(path: str, comm, fill) -> None:
     """Create the HDF5 file ``path`` and ``fill(file)`` it.
 
@@ -79,7 +52,7 @@ def _write_h5(path: str, comm, fill) -> None:
     rows through MPI-IO.
     """
     if comm.Get_size() > 1:
-        _check_parallel_h5py()
+        check_parallel_output(comm.Get_size(), True)
         with h5py.File(path, "w", driver="mpio", comm=comm) as f:
             fill(f)
         return

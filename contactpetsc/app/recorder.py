@@ -90,8 +90,8 @@ class StepRecorder:
         self.history_written = self.unconverged = 0
         self.provenance = None
         if scene["output"]["fields"]:
-            from .output import versions
-            self.provenance = {"scene": scene, "versions": versions()}
+            from ..stack import CITATION, describe
+            self.provenance = {"scene": scene, "versions": describe(grid.comm), "citation": CITATION}
         self.path = lambda name: os.path.join(out_dir, name)
         PETSc.Sys.Print(header)
 

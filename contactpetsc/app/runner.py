@@ -16,6 +16,7 @@ from petsc4py import PETSc
 from . import builder, rundir
 from ..collective import collective_call
 from ..grid import SurfaceGrid
+from ..stack import check_parallel_output, describe
 from .output import ADHESIVE_FIELDS, FIELDS
 from .recorder import CURVE_COLUMNS, NAN, StepRecorder
 
@@ -43,7 +44,15 @@ def plan(scene: dict, grid: SurfaceGrid, law=None, out_dir: str | None = None) -
             chain,
             f"  protocol: {scene['protocol']['control']} x {len(scene['protocol']['values'])} steps",
             f"  memory estimate: {per_rank / 2**20:.0f} MiB per rank",
-            _outputs_line(scene, grid.nx * grid.ny, out_dir or scene["output"]["directory"])]
+            _outputs_line(scene, grid.nx * grid.ny, out_dir or scene["output"]["directory"]),
+            _stack_line(grid)]
+
+
+def _stack_line(grid: SurfaceGrid) -> str:
+    """The stack a run uses, in its log (``contactpetsc info`` has the whole list)."""
+    s = describe(grid.comm)
+    return (f"  stack: PETSc {s['PETSc']} ({s['PETSc index bits']}-bit indices), petsc4py {s['petsc4py']}, "
+            f"{s['MPI']}, parallel HDF5 {s['parallel HDF5'].split()[0]}")
 
 
 def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=None,
@@ -60,6 +69,8 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
     builder.resolution_nodes(scene, law)   # the one resolution check, a dry run's too
     for line in plan(scene, grid, law, output):
         PETSc.Sys.Print(line)
+    # a serial h5py under mpirun is refused now, not after the first solve (a dry run's check too)
+    check_parallel_output(grid.mpi_comm.Get_size(), bool(scene["output"]["fields"]))
     if dry_run:
         return []
     if scene["output"]["plots"]:   # before the run, not after it
