@@ -5,7 +5,7 @@
 # Debian, never from pip (ABI).  A second run checks and returns in seconds.
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-venv="${CONTACTPETSC_VENV:-$here/.venv}"
+venv="$here/.venv"
 py=/usr/bin/python3
 
 debs=(python3-petsc4py libpetsc-real3.18-dev python3-mpi4py python3-pyfftw
