@@ -34,8 +34,9 @@ def check_index_range(n_unknowns: int, what: str = "grid") -> None:
     if n_unknowns > limit:
         raise GridError(
             f"{what}: {n_unknowns} unknowns exceed the {bits}-bit PETSc index limit "
-            f"({limit}); use a smaller grid or a PETSc built with 64-bit indices "
-            f"(Debian: python3-petsc4py-64-real, PETSC_DIR=/usr/lib/petscdir/petsc64)")
+            f"({limit}); use a smaller grid or a PETSc built with 64-bit indices (docs/install.md: "
+            f"INDEX_BITS=64 bash run_scripts/setup_petsc_stack.sh, a site's 64-bit PETSc module, or "
+            f"Debian's python3-petsc4py-64-real with PETSC_DIR=/usr/lib/petscdir/petsc64)")
 
 
 def available_memory(comm) -> float:
