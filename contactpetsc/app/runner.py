@@ -39,7 +39,7 @@ def plan(scene: dict, grid: SurfaceGrid, law=None, out_dir: str | None = None) -
     per_rank = builder.memory_per_rank(scene, grid.mpi_comm.Get_size())
     heights = [] if g["kind"] != "file" else [
         f"  heights: {g['path']} ({g['format']}, {g['nx']} x {g['ny']} nodes, in "
-        f"{g['height_unit'] or 'the unit it states, or m'}), detrend {g['detrend']}, min h = 0, "
+        f"{g['height_unit'] or 'the unit it states'}), detrend {g['detrend']}, min h = 0, "
         + ("periodic" if g["periodic"] else "an isolated window (zero-padded, not tapered)")]
     return [f"scene {scene['name']}: {g['kind']} surface, E* = {scene['material']['e_star']:g} Pa, {law_text}",
             f"  {grid}", *heights,

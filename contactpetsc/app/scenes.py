@@ -14,6 +14,7 @@ each law's parameters, required and refused, come from the laws' own declaration
 from __future__ import annotations
 
 import math
+import os
 import tomllib
 
 from ..physics.interactions import LAWS, WORK_OF_ADHESION, adhesive_laws
@@ -355,6 +356,8 @@ def _read_height_file(g: dict, given: set) -> None:
     if topo.unit_stated and g["height_unit"] is not None and g["height_unit"] != topo.height_unit:
         raise SceneError(f"geometry.height_unit = {g['height_unit']!r}, but {g['path']!r} states its "
                          f"heights in {topo.height_unit!r}: remove the key")
+    if g["height_unit"] is None and topo.height_unit in HEIGHT_UNITS:
+        g["height_unit"] = topo.height_unit          # the file's own (or metres): for the plan
     for key, value in zip(("nx", "ny"), topo.shape):
         if value < 2:
             fail(f"{key} = {value}: a height map needs 2 or more nodes along x and y")
@@ -379,7 +382,8 @@ def adhesive(scene: dict) -> bool:
 
 
 def load(path: str) -> dict:
-    """Read and validate a TOML scene file."""
+    """Read and validate a TOML scene file; a relative ``geometry.path`` is taken from the scene
+    file's directory."""
     try:
         with open(path, "rb") as f:
             data = tomllib.load(f)
@@ -387,6 +391,9 @@ def load(path: str) -> dict:
         raise SceneError(f"cannot read scene {path}: {exc.strerror}") from None
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"scene {path} is not valid TOML: {exc}") from None
+    g = data.get("geometry")
+    if isinstance(g, dict) and isinstance(g.get("path"), str) and not os.path.isabs(g["path"]):
+        g["path"] = os.path.join(os.path.dirname(path), g["path"])   # next to the scene file
     return validate(data)
 
 
