@@ -116,8 +116,10 @@ def write_sur(path, dz=0.5, z0=1.25, comment=b"a comment"):
     values = np.rint(2 * grid_pattern()).astype("<i4")
     struct.pack_into("<iiiii", header, 100, int(values.min()), int(values.max()), NX, NY, NX * NY)
     struct.pack_into("<fff", header, 120, DX, DY, dz)
-    for offset, unit in ((180, "µm"), (196, "µm"), (212, "nm")):
-        struct.pack_into("<16s", header, offset, unit.encode("latin-1"))
+    for offset, text in ((132, "X"), (148, "Y"), (164, "Z"), (180, "µm"), (196, "µm"), (212, "nm"),
+                         (228, "µm"), (244, "µm"), (260, "nm")):   # axis names, step and length units
+        struct.pack_into("<16s", header, offset, text.encode("latin-1"))
+    struct.pack_into("<fff", header, 276, 1.0, 1.0, 1.0)        # unit ratios
     struct.pack_into("<hh", header, 334, len(comment), 0)
     struct.pack_into("<f", header, 474, z0)
     path.write_bytes(bytes(header) + comment + values.T.tobytes())   # lines of NX points, one per y
