@@ -306,17 +306,23 @@ def test_imported_files_are_read_with_nothing_restated(coll, shared_tmp):
 
 
 def test_a_step_file_scene_needs_only_its_path(coll, shared_tmp):
-    """contactpetsc's own step files carry dx, dy and the axes stamp: nothing to restate."""
+    """contactpetsc's own step files carry dx, dy, the axes stamp and their run's scene (hence
+    whether its cell was periodic): nothing to restate."""
+    import json
+
     import h5py
     path = shared_tmp / "step.h5"
 
-    def write():
+    def write(periodic):
         with h5py.File(path, "w") as f:
-            f.attrs.update(axes="y,x", dx=2e-9, dy=3e-9)
+            f.attrs.update(axes="y,x", dx=2e-9, dy=3e-9,
+                           scene=json.dumps({"geometry": {"kind": "self-affine", "periodic": periodic}}))
             f["heights"] = grid_pattern().T * 1e-9          # stored (ny, nx)
-    on_root(coll, write)
-    g = scenes.validate(file_scene(path))["geometry"]
-    assert (g["nx"], g["ny"], g["dx"], g["dy"], g["format"]) == (NX, NY, 2e-9, 3e-9, "hdf5")
+    for periodic in (True, False):
+        on_root(coll, lambda: write(periodic))
+        g = scenes.validate(file_scene(path))["geometry"]
+        assert (g["nx"], g["ny"], g["dx"], g["dy"], g["format"]) == (NX, NY, 2e-9, 3e-9, "hdf5")
+        assert g["periodic"] is periodic
 
 
 @pytest.mark.serial

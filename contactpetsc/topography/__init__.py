@@ -7,8 +7,8 @@ Heights of formats that state no unit (``.npy``, text, ``.xyz``) are in ``height
 (default metres).  The readers follow the formats' published specifications (each module's
 docstring); nothing here needs more than numpy (h5py for HDF5 files, imported when one is
 read), so the converter ``contactpetsc import`` runs in an environment without MPI or PETSc.
-Detrending: ``detrend``.  Files in the ~40 instrument formats of SurfaceTopography:
-``contactpetsc import`` (docs/topography.md).
+Detrending: ``detrend.trend`` (used by ``geometry.surfaces.detrended``).  Files in the ~40
+instrument formats of SurfaceTopography: ``contactpetsc import`` (docs/topography.md).
 """
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ from .detrend import DETREND, centred_coordinates, trend
 from .units import HEIGHT_UNITS, canonical, metres_per
 
 __all__ = ["Topography", "FormatError", "FORMATS", "read_topography", "format_of", "DETREND",
-           "HEIGHT_UNITS", "trend", "centred_coordinates", "detrended", "grid_mismatch"]
+           "HEIGHT_UNITS", "trend", "centred_coordinates", "grid_mismatch"]
 
 #: format name -> (reader, file extensions)
 FORMATS = {
@@ -104,16 +104,10 @@ def grid_mismatch(topo: Topography, shape: tuple, spacing: tuple) -> str | None:
             hint = {"npy": "; a .npy file holds (nx, ny): save the transpose",
                     "hdf5": "; if the dataset's rows are y, stamp it with the attribute axes = 'y,x'"
                     if stamp == "x,y" else ""}.get(topo.format, "")
-        held = f"heights of (nx, ny) = {tuple(topo.shape)}" + (f" (stored as {stamp})" if stamp else "")
+        held = f"heights of shape (nx, ny) = {tuple(topo.shape)}" + (f" (stored as {stamp})" if stamp else "")
         return f"{held}, the grid (geometry.nx, geometry.ny) is {tuple(shape)}{hint}"
     if topo.dx is not None:
         for key, got, want in (("dx", topo.dx, spacing[0]), ("dy", topo.dy, spacing[1])):
             if not np.isclose(got, want, rtol=1e-9, atol=0.0):
                 return f"the file's {key} = {got!r} m, the scene's geometry.{key} = {want!r} m"
     return None
-
-
-def detrended(heights: np.ndarray, mode: str) -> np.ndarray:
-    """A whole (nx, ny) map with its ``mode`` trend subtracted (``trend``)."""
-    u, v = centred_coordinates(*heights.shape)
-    return heights - trend(heights, u, v, mode)

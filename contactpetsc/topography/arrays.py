@@ -5,7 +5,7 @@ where h5py is missing) may give ``dx``, ``dy`` [m], ``unit`` and ``periodic``.  
 hold (nx, ny) unless the dataset, or else its file, carries the attribute ``axes``: "y,x"
 (stored (ny, nx), as contactpetsc's step files) or "x,y"; any other stamp is refused.
 Attributes ``dx``, ``dy`` [m] give the spacing, ``unit`` the heights' unit and ``periodic``
-whether the map is periodic.  Only the metadata is read unless heights are asked for, and
+whether the map is periodic (a step file: its run's scene, attribute ``scene``).  Only the metadata is read unless heights are asked for, and
 then only the rows asked for (each MPI rank its own).
 """
 from __future__ import annotations
@@ -92,13 +92,18 @@ def read_hdf5(path: str, rows=None, dataset: str = "heights", **_) -> Topography
             value = ds.attrs.get(name, f.attrs.get(name))
             return value.decode() if isinstance(value, bytes) else value
 
-        dx, dy = attr("dx"), attr("dy")
+        dx, dy, periodic = attr("dx"), attr("dy"), attr("periodic")
+        if periodic is None and attr("scene") is not None:   # a step file: its run's grid
+            try:
+                periodic = json.loads(attr("scene"))["geometry"]["periodic"]
+            except (ValueError, KeyError, TypeError):
+                periodic = None
         topo = Topography(shape=tuple(shape), dtype=ds.dtype, format="hdf5",
                           dx=None if dx is None else float(dx),
                           dy=None if dx is None else float(dx if dy is None else dy),
                           lateral_unit="m" if dx is not None else None,
                           height_unit=attr("unit"),
-                          periodic=None if attr("periodic") is None else bool(attr("periodic")),
+                          periodic=None if periodic is None else bool(periodic),
                           metadata={"axes": stamp, "dataset": dataset})
         for key in ("source", "source_format", "converter", "channel"):
             if attr(key) is not None:
