@@ -126,6 +126,40 @@ def write_sur(path, dz=0.5, z0=1.25, comment=b"a comment"):
     return values * dz + z0
 
 
+def gwy_object(name, components):
+    """A serialized object: type name, uint32 size, then (name, type character, value) items."""
+    body = b""
+    for key, (kind, value) in components.items():
+        body += key.encode() + b"\0" + kind.encode()
+        if kind == "i":
+            body += struct.pack("<i", value)
+        elif kind == "d":
+            body += struct.pack("<d", value)
+        elif kind == "s":
+            body += value.encode() + b"\0"
+        elif kind == "o":
+            body += value
+        elif kind == "D":
+            body += struct.pack("<I", len(value)) + np.asarray(value, "<f8").tobytes()
+    return name.encode() + b"\0" + struct.pack("<I", len(body)) + body
+
+
+def write_gwy(path):
+    """Two channels: 0 'Amplitude' (zeros), 1 'Height' (the pattern in nm, rows of xres values
+    one per y), lengths in um."""
+    def field(values, zunit):
+        return gwy_object("GwyDataField", {
+            "xres": ("i", NX), "yres": ("i", NY), "xreal": ("d", NX * DX), "yreal": ("d", NY * DY),
+            "si_unit_xy": ("o", gwy_object("GwySIUnit", {"unitstr": ("s", "µm")})),
+            "si_unit_z": ("o", gwy_object("GwySIUnit", {"unitstr": ("s", zunit)})),
+            "data": ("D", values.T.ravel())})
+    container = gwy_object("GwyContainer", {
+        "/0/data": ("o", field(np.zeros((NX, NY)), "V")), "/0/data/title": ("s", "Amplitude"),
+        "/1/data": ("o", field(grid_pattern(), "nm")), "/1/data/title": ("s", "Height"),
+        "/1/base/palette": ("s", "Gray")})
+    path.write_bytes(b"GWYP" + container)
+
+
 # -- readers -------------------------------------------------------------------------------------
 @pytest.mark.serial
 def test_text_matrix_lines_are_y_and_the_header_gives_extent_and_unit(tmp_path):
@@ -213,6 +247,22 @@ def test_sur_integer_lines_after_header_and_comment(tmp_path):
 
 
 @pytest.mark.serial
+def test_gwy_channels_by_title(tmp_path):
+    path = tmp_path / "scan.gwy"
+    write_gwy(path)
+    topo = read_topography(str(path), dataset="Height")
+    check(topo, 1e-9, 1e-6)
+    assert topo.metadata["channel"] == "Height" and topo.height_unit == "nm"
+    with pytest.raises(ValueError, match="in 'V', not a length.*'Amplitude'"):   # default: the first
+        read_topography(str(path))
+    with pytest.raises(KeyError, match="'Phase'.*Amplitude"):
+        read_topography(str(path), dataset="Phase")
+    path.write_bytes(path.read_bytes()[:-16])
+    with pytest.raises(FormatError, match="beyond the file's end"):
+        read_topography(str(path), dataset="Height")
+
+
+@pytest.mark.serial
 def test_the_reader_and_the_converter_run_without_mpi_or_petsc(tmp_path):
     """contactpetsc.topography and `contactpetsc import` with petsc4py and mpi4py unimportable:
     the converter's environment (SurfaceTopography's venv) has neither."""
@@ -254,7 +304,7 @@ def test_a_text_matrix_scene_takes_its_grid_from_the_file(coll, shared_tmp):
     for geometry, words in (({"nx": NY, "ny": NX}, ["geometry.path", "(7, 5)", "geometry.nx", "(5, 7)"]),
                             ({"dx": 2.5e-6}, ["the file's dx = 2e-06", "geometry.dx = 2.5e-06"]),
                             ({"height_unit": "um"}, ["geometry.height_unit = 'um'", "'nm'"]),
-                            ({"dataset": "h"}, ["geometry.dataset", "HDF5 files only"]),
+                            ({"dataset": "h"}, ["geometry.dataset", "HDF5 and .gwy files only"]),
                             ({"format": "gsf"}, ["geometry.path", "Gwyddion Simple Field"]),
                             ({"detrend": "plane"}, ["geometry.detrend = 'plane'", "mean-plane"])):
         coll.raises(scenes.SceneError, words, scenes.validate, file_scene(path, **geometry))

@@ -60,9 +60,10 @@ _SCHEMA = {
         "path": _k(str, None, "", "height file (kind = file; docs/topography.md): .npy or HDF5 (real heights, "
                   "shape (nx, ny); an HDF5 dataset or file with attribute axes = \"y,x\" is stored (ny, nx), "
                   "as step_NNNN.h5), a text matrix (lines are y, columns x), .xyz points, Gwyddion .gsf, ISO "
-                  "25178 .x3p, Digital Surf .sur; nx, ny and, where the file gives them, dx, dy are read from "
+                  "25178 .x3p, Digital Surf .sur, Gwyddion .gwy; nx, ny and, where the file gives them, dx, dy are read from "
                   "it (keys given must agree); heights are shifted so min h = 0"),
-        "dataset": _k(str, "heights", "", "HDF5 dataset name (kind = file)"),
+        "dataset": _k(str, "heights", "", "HDF5 dataset name, or .gwy channel title (default: its first "
+                      "channel) (kind = file)"),
         "format": _k(str, None, "", "height file format (kind = file; default: by the file's extension)",
                      choices=tuple(FORMATS)),
         "height_unit": _k(str, None, "", "unit of the file's heights (and of .xyz x, y) when the file states "
@@ -345,8 +346,8 @@ def _read_height_file(g: dict, given: set) -> None:
 
     try:
         g["format"] = format_of(g["path"], g["format"])
-        if "dataset" in given and g["format"] != "hdf5" and g["dataset"] != "heights":
-            raise SceneError(f"geometry.dataset = {g['dataset']!r} is used by HDF5 files only; "
+        if "dataset" in given and g["format"] not in ("hdf5", "gwy") and g["dataset"] != "heights":
+            raise SceneError(f"geometry.dataset = {g['dataset']!r} is used by HDF5 and .gwy files only; "
                              f"{g['path']!r} is {g['format']}")
         topo = read_topography(g["path"], format=g["format"], dataset=g["dataset"], metadata_only=True)
     except (OSError, ValueError, KeyError) as exc:

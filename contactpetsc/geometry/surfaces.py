@@ -59,8 +59,9 @@ def from_array(grid: SurfaceGrid, heights: np.ndarray) -> PETSc.Vec:
 def from_file(grid: SurfaceGrid, path: str, dataset: str = "heights", *, format: str | None = None,
               height_unit: str | None = None) -> PETSc.Vec:
     """Heights [m] from a file in any format of ``topography.FORMATS`` (``.npy``, HDF5
-    ``dataset``, text matrix, ``.xyz``, ``.gsf``, ``.x3p``, ``.sur``; ``format``: by extension
-    unless named), as the file holds them (no shift, no detrending).
+    ``dataset``, text matrix, ``.xyz``, ``.gsf``, ``.gwy`` channel ``dataset``, ``.x3p``,
+    ``.sur``; ``format``: by extension unless named), as the file holds them (no shift, no
+    detrending).
 
     The map must have the grid's (nx, ny) points and, where the file gives its spacing, the
     grid's dx, dy (1e-9 relative); ``height_unit`` for files that state no unit (default m).

@@ -16,7 +16,7 @@ import os
 
 import numpy as np
 
-from . import arrays, gsf, sur, text, x3p
+from . import arrays, gsf, gwy, sur, text, x3p
 from .base import FormatError, Topography
 from .detrend import DETREND, centred_coordinates, trend
 from .units import HEIGHT_UNITS, canonical, metres_per
@@ -31,6 +31,7 @@ FORMATS = {
     "text": (text.read_matrix, (".txt", ".asc", ".csv", ".dat")),
     "xyz": (text.read_xyz, (".xyz",)),
     "gsf": (gsf.read_gsf, (".gsf",)),
+    "gwy": (gwy.read_gwy, (".gwy",)),
     "x3p": (x3p.read_x3p, (".x3p",)),
     "sur": (sur.read_sur, (".sur",)),
 }
@@ -80,6 +81,11 @@ def read_topography(path: str, *, format: str | None = None, dataset: str = "hei
             metres_per(topo.height_unit) != metres_per(height_unit):
         raise ValueError(f"the file states its heights in {topo.height_unit!r}, not {height_unit!r}")
     unit = topo.height_unit or height_unit or "m"
+    try:
+        metres_per(unit)
+    except ValueError:
+        raise ValueError(f"the file's values are in {unit!r}, not a length: not a height map"
+                         + (f" (channel {topo.metadata['channel']!r})" if "channel" in topo.metadata else "")) from None
     lateral = topo.lateral_unit or unit
     scale = metres_per(unit)
     if topo.heights is not None:

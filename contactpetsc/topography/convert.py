@@ -33,6 +33,9 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
                    help="the source's format for contactpetsc's readers (default: by extension)")
     p.add_argument("--channel", type=int, default=None,
                    help="SurfaceTopography: the channel index (default: the file's default channel)")
+    p.add_argument("--dataset", default="heights",
+                   help="contactpetsc's readers: the HDF5 dataset or .gwy channel title (default: "
+                        "heights, a .gwy file's first channel)")
     p.add_argument("--height-unit", default=None,
                    help=f"the heights' unit where the file states none ({', '.join(HEIGHT_UNITS)})")
     p.add_argument("--dx", type=float, default=None, help="spacing along x [m] where the file gives none")
@@ -74,7 +77,7 @@ def read_with_surfacetopography(path: str, channel: int | None, height_unit: str
 
 
 def convert(source: str, destination: str, *, reader: str = "auto", format: str | None = None,
-            channel: int | None = None, height_unit: str | None = None, dx: float | None = None,
+            channel: int | None = None, dataset: str = "heights", height_unit: str | None = None, dx: float | None = None,
             dy: float | None = None) -> Topography:
     """Read ``source`` and write ``destination`` (module docstring); the map written."""
     if height_unit is not None:
@@ -88,7 +91,7 @@ def convert(source: str, destination: str, *, reader: str = "auto", format: str 
         except ValueError:
             native = False
     if native:
-        topo = read_topography(source, format=format, height_unit=height_unit)
+        topo = read_topography(source, format=format, dataset=dataset, height_unit=height_unit)
         if spacing is not None:
             if topo.dx is not None and not np.allclose((topo.dx, topo.dy), spacing, rtol=1e-9, atol=0):
                 raise ValueError(f"{source} gives its spacing ({topo.dx!r}, {topo.dy!r}) m, not "
@@ -128,7 +131,7 @@ def main(argv) -> int:
         "for a kind = \"file\" scene (docs/topography.md)")).parse_args(argv)
     try:
         topo = convert(args.source, args.destination, reader=args.reader, format=args.format,
-                       channel=args.channel, height_unit=args.height_unit, dx=args.dx, dy=args.dy)
+                       channel=args.channel, dataset=args.dataset, height_unit=args.height_unit, dx=args.dx, dy=args.dy)
     except (OSError, ValueError, KeyError) as exc:
         sys.stderr.write(f"contactpetsc import: error: {exc}\n")
         return 1

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # contactpetsc's own readers against SurfaceTopography's, through `contactpetsc import`: the
-# files of tests/test_topography.py (x3p, sur, text matrix; written from the formats'
+# files of tests/test_topography.py (x3p, sur, gwy, text matrix; written from the formats'
 # specifications, 7 x 5 nodes, dx != dy) converted by both, the HDF5 files compared (heights
 # less their minimum, dx, dy).  Needs SurfaceTopography in its own venv (docs/topography.md):
 #
@@ -16,14 +16,17 @@ cd "$WORK"
 PYTHONPATH="$ROOT:$ROOT/tests" "$PY" -c "
 import pathlib, test_topography as t
 p = pathlib.Path('.')
-t.write_x3p(p / 'scan.x3p', 'D'); t.write_sur(p / 'scan.sur'); t.write_matrix(p / 'scan.txt')"
+t.write_x3p(p / 'scan.x3p', 'D'); t.write_sur(p / 'scan.sur'); t.write_matrix(p / 'scan.txt')
+t.write_gwy(p / 'scan.gwy')"
 for f in scan.x3p scan.sur scan.txt; do
   PYTHONPATH="$ROOT" "$ST_PYTHON" -W ignore -m contactpetsc import "$f" "st_$f.h5" --reader surfacetopography
   PYTHONPATH="$ROOT" "$PY" -m contactpetsc import "$f" "native_$f.h5"
 done
+PYTHONPATH="$ROOT" "$ST_PYTHON" -W ignore -m contactpetsc import scan.gwy st_scan.gwy.h5 --reader surfacetopography
+PYTHONPATH="$ROOT" "$PY" -m contactpetsc import scan.gwy native_scan.gwy.h5 --dataset Height
 "$PY" - <<'PYEOF'
 import h5py, numpy as np
-for f in ("scan.x3p", "scan.sur", "scan.txt"):
+for f in ("scan.x3p", "scan.sur", "scan.txt", "scan.gwy"):
     with h5py.File(f"st_{f}.h5") as a, h5py.File(f"native_{f}.h5") as b:
         ha, hb = a["heights"][...], b["heights"][...]
         dh = np.abs((ha - ha.min()) - (hb - hb.min())).max() / np.ptp(hb)
