@@ -57,11 +57,11 @@ _SCHEMA = {
         "short_cutoff_wavelength": _k(float, None, "m", "short cut-off (default: 2 max(dx, dy); below "
                                       "the cell size)", POS),
         "seed": _k(int, 0, "", "random seed (self-affine, amorphous tip)", (0, 2**63 - 1, True, True)),
-        "path": _k(str, None, "", "height file (kind = file; docs/topography.md): .npy or HDF5 (real heights, "
-                  "shape (nx, ny); an HDF5 dataset or file with attribute axes = \"y,x\" is stored (ny, nx), "
-                  "as step_NNNN.h5), a text matrix (lines are y, columns x), .xyz points, Gwyddion .gsf, ISO "
-                  "25178 .x3p, Digital Surf .sur, Gwyddion .gwy; nx, ny and, where the file gives them, dx, dy are read from "
-                  "it (keys given must agree); heights are shifted so min h = 0"),
+        "path": _k(str, None, "", "height file (kind = file; docs/topography.md): .npy or HDF5 (real "
+                  "heights, shape (nx, ny); an HDF5 dataset or file with attribute axes = \"y,x\" is stored "
+                  "(ny, nx), as step_NNNN.h5), a text matrix (lines are y, columns x), .xyz points, Gwyddion "
+                  ".gsf or .gwy, ISO 25178 .x3p, Digital Surf .sur; nx, ny and, where the file gives them, dx, "
+                  "dy are read from it (keys given must agree); heights are shifted so min h = 0"),
         "dataset": _k(str, "heights", "", "HDF5 dataset name, or .gwy channel title (default: its first "
                       "channel) (kind = file)"),
         "format": _k(str, None, "", "height file format (kind = file; default: by the file's extension)",
@@ -250,7 +250,7 @@ def _check_geometry(g: dict, given: set) -> None:
         if users and kind not in users:
             raise SceneError(f"geometry.{key} is not used by geometry.kind = {kind!r} (only by "
                              f"kind = {', '.join(users)})")
-    for key in {"sphere": ("radius",), "tip": ("radius", "atom_spacing"), "file": ("path",)}.get(kind, ()):
+    for key in {"sphere": ("radius",), "tip": ("radius", "atom_spacing")}.get(kind, ()):
         if g[key] is None:
             raise SceneError(f"geometry.{key} is required for geometry.kind = {kind}")
     size = max(g["nx"] * g["dx"], g["ny"] * g["dy"])
@@ -346,13 +346,14 @@ def _read_height_file(g: dict, given: set) -> None:
 
     try:
         g["format"] = format_of(g["path"], g["format"])
-        if "dataset" in given and g["format"] not in ("hdf5", "gwy") and g["dataset"] != "heights":
-            raise SceneError(f"geometry.dataset = {g['dataset']!r} is used by HDF5 and .gwy files only; "
-                             f"{g['path']!r} is {g['format']}")
+    except ValueError as exc:
+        fail(exc)
+    if "dataset" in given and g["format"] not in ("hdf5", "gwy") and g["dataset"] != "heights":
+        raise SceneError(f"geometry.dataset = {g['dataset']!r} is used by HDF5 and .gwy files only; "
+                         f"{g['path']!r} is {g['format']}")
+    try:
         topo = read_topography(g["path"], format=g["format"], dataset=g["dataset"], metadata_only=True)
     except (OSError, ValueError, KeyError) as exc:
-        if isinstance(exc, SceneError):
-            raise
         fail(exc.args[0] if isinstance(exc, KeyError) and exc.args else exc)
     if topo.unit_stated and g["height_unit"] is not None and g["height_unit"] != topo.height_unit:
         raise SceneError(f"geometry.height_unit = {g['height_unit']!r}, but {g['path']!r} states its "
