@@ -84,8 +84,8 @@ def read_topography(path: str, *, format: str | None = None, dataset: str = "hei
     try:
         metres_per(unit)
     except ValueError:
-        raise ValueError(f"the file's values are in {unit!r}, not a length: not a height map"
-                         + (f" (channel {topo.metadata['channel']!r})" if "channel" in topo.metadata else "")) from None
+        channel = f" (channel {topo.metadata['channel']!r})" if "channel" in topo.metadata else ""
+        raise ValueError(f"the file's values are in {unit!r}, not a length: not a height map{channel}") from None
     lateral = topo.lateral_unit or unit
     scale = metres_per(unit)
     if topo.heights is not None:

@@ -5,8 +5,9 @@ where h5py is missing) may give ``dx``, ``dy`` [m], ``unit`` and ``periodic``.  
 hold (nx, ny) unless the dataset, or else its file, carries the attribute ``axes``: "y,x"
 (stored (ny, nx), as contactpetsc's step files) or "x,y"; any other stamp is refused.
 Attributes ``dx``, ``dy`` [m] give the spacing, ``unit`` the heights' unit and ``periodic``
-whether the map is periodic (a step file: its run's scene, attribute ``scene``).  Only the metadata is read unless heights are asked for, and
-then only the rows asked for (each MPI rank its own).
+whether the map is periodic (for a step file: its run's scene, attribute ``scene``).  Only
+the metadata is read unless heights are asked for, and then only the rows asked for (each
+MPI rank its own).
 """
 from __future__ import annotations
 
@@ -51,7 +52,8 @@ def sidecar(path: str) -> str:
 def read_npy(path: str, rows=None, **_) -> Topography:
     stored, _, dtype, offset = _npy_header(path)
     if len(stored) != 2:
-        raise FormatError(f"a {len(stored)}-D array of shape {tuple(stored)}; heights are a 2-D (nx, ny) array")
+        raise FormatError(f"a {len(stored)}-D array of shape {tuple(stored)}; heights are a 2-D "
+                          f"(nx, ny) array")
     need = offset + int(np.prod(stored)) * dtype.itemsize
     if os.path.getsize(path) < need:
         raise FormatError(f"truncated: {os.path.getsize(path)} bytes, its header announces {need}")

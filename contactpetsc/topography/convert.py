@@ -45,25 +45,24 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
 def read_with_surfacetopography(path: str, channel: int | None, height_unit: str | None,
                                 spacing: tuple | None) -> Topography:
-    """``path`` through SurfaceTopography's ``open_topography``: heights and spacing in m."""
+    """``path`` through SurfaceTopography's ``open_topography``: heights and spacing in m.
+    ``height_unit`` and ``spacing`` [m] are passed on only where the file lacks them."""
     import SurfaceTopography
     from SurfaceTopography import open_topography
     reader = open_topography(path)
     info = reader.default_channel if channel is None else reader.channels[channel]
     kw = {"channel_index": info.index}
-    if height_unit is not None:
-        kw["unit"] = height_unit
-    if spacing is not None:
+    unit = info.unit or height_unit or "m"
+    if info.unit is None:
+        kw["unit"] = unit
+    if spacing is not None and info.physical_sizes is None:
         nx, ny = info.nb_grid_pts
-        kw["physical_sizes"] = (nx * spacing[0] / metres_per(height_unit or "m"),
-                                ny * spacing[1] / metres_per(height_unit or "m"))
+        kw["physical_sizes"] = (nx * spacing[0] / metres_per(unit), ny * spacing[1] / metres_per(unit))
     topo = reader.topography(**kw)
     if topo.dim != 2:
         raise ValueError(f"{path}: channel {info.index} ({info.name}) is a {topo.dim}-D topography "
                          f"(a line scan); contact needs a 2-D map")
-    if topo.unit is None:
-        raise ValueError(f"{path}: the file states no unit for its heights; give --height-unit")
-    if getattr(topo, "has_undefined_data", False):
+    if topo.has_undefined_data:
         raise ValueError(f"{path}: some points are not measured; fill them first (interpolate them, "
                          f"e.g. in Gwyddion)")
     scale = metres_per(topo.unit)
@@ -77,8 +76,8 @@ def read_with_surfacetopography(path: str, channel: int | None, height_unit: str
 
 
 def convert(source: str, destination: str, *, reader: str = "auto", format: str | None = None,
-            channel: int | None = None, dataset: str = "heights", height_unit: str | None = None, dx: float | None = None,
-            dy: float | None = None) -> Topography:
+            channel: int | None = None, dataset: str = "heights", height_unit: str | None = None,
+            dx: float | None = None, dy: float | None = None) -> Topography:
     """Read ``source`` and write ``destination`` (module docstring); the map written."""
     if height_unit is not None:
         height_unit = canonical(height_unit)
@@ -92,11 +91,6 @@ def convert(source: str, destination: str, *, reader: str = "auto", format: str 
             native = False
     if native:
         topo = read_topography(source, format=format, dataset=dataset, height_unit=height_unit)
-        if spacing is not None:
-            if topo.dx is not None and not np.allclose((topo.dx, topo.dy), spacing, rtol=1e-9, atol=0):
-                raise ValueError(f"{source} gives its spacing ({topo.dx!r}, {topo.dy!r}) m, not "
-                                 f"--dx, --dy = {spacing}")
-            topo.dx, topo.dy = spacing
         topo.metadata["converter"] = "contactpetsc"
     else:
         try:
@@ -104,6 +98,11 @@ def convert(source: str, destination: str, *, reader: str = "auto", format: str 
         except ImportError:
             raise ValueError(f"{source}: not a format contactpetsc reads ({', '.join(FORMATS)}), and "
                              f"SurfaceTopography is not installed here (docs/topography.md)") from None
+    if spacing is not None:
+        if topo.dx is not None and not np.allclose((topo.dx, topo.dy), spacing, rtol=1e-9, atol=0):
+            raise ValueError(f"{source} gives its spacing ({topo.dx!r}, {topo.dy!r}) m, not "
+                             f"--dx, --dy = {spacing}")
+        topo.dx, topo.dy = spacing
     if topo.dx is None:
         raise ValueError(f"{source} does not give its spacing: give --dx (and --dy) in m")
     if not np.isfinite(topo.heights).all():
@@ -131,7 +130,8 @@ def main(argv) -> int:
         "for a kind = \"file\" scene (docs/topography.md)")).parse_args(argv)
     try:
         topo = convert(args.source, args.destination, reader=args.reader, format=args.format,
-                       channel=args.channel, dataset=args.dataset, height_unit=args.height_unit, dx=args.dx, dy=args.dy)
+                       channel=args.channel, dataset=args.dataset, height_unit=args.height_unit,
+                       dx=args.dx, dy=args.dy)
     except (OSError, ValueError, KeyError) as exc:
         sys.stderr.write(f"contactpetsc import: error: {exc}\n")
         return 1
