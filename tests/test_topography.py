@@ -177,6 +177,9 @@ def test_text_matrix_lines_are_y_and_the_header_gives_extent_and_unit(tmp_path):
     path.write_text("1 2 3\n4 5\n")
     with pytest.raises(FormatError, match="different lengths"):
         read_topography(str(path))
+    path.write_text("0 0 1\n0 1 2\n1 0 3\n1 1 4\n")
+    with pytest.raises(FormatError, match="x y z point list"):
+        read_topography(str(path))
 
 
 @pytest.mark.serial

@@ -53,6 +53,9 @@ def read_matrix(path: str, **_) -> Topography:
                           f"has the same number of columns (x) on every line (y)")
     matrix = np.array(rows, dtype=float)          # [j, i]: lines are y
     ny, nx = matrix.shape
+    if nx == 3 and ny > 3:
+        raise FormatError(f"3 columns on {ny} lines: an x y z point list? name the format xyz "
+                          f"(geometry.format); a text matrix has one column per x")
     topo = Topography(shape=(nx, ny), dtype=np.dtype(float), heights=matrix.T.copy(), format="text",
                       metadata={"layout": "lines are y, columns are x"})
     extent, units = {}, set()
