@@ -13,6 +13,7 @@ _PUBLIC = {
     "SurfaceGrid": "grid",
     "sphere": "geometry.surfaces", "self_affine": "geometry.surfaces", "from_array": "geometry.surfaces",
     "from_function": "geometry.surfaces", "from_file": "geometry.surfaces", "rough_sphere": "geometry.surfaces",
+    "from_topography": "geometry.surfaces", "read_topography": "topography",
     "composite": "geometry.surfaces", "scale_to_rms": "geometry.surfaces", "make_tip": "geometry.tips",
     "ContactProblem": "solvers.problem", "AdhesiveProblem": "solvers.adhesive",
     "RelaxationSolver": "solvers.relaxation", "make_problem": "solvers.factory",

@@ -184,8 +184,8 @@ def test_scene_file_checks_cover_missing_files_datasets_and_shapes(coll, shared_
                 scenes.validate, file_scene(h5, nx, ny))
     coll.raises(scenes.SceneError, ["geometry.path", "(6, 7)", "(7, 6)"], scenes.validate,
                 file_scene(h5, ny, nx, dataset="elevation"))
-    coll.raises(scenes.SceneError, ["geometry.path", "'.txt'", ".npy"], scenes.validate,
-                file_scene(shared_tmp / "h.txt", nx, ny))
+    coll.raises(scenes.SceneError, ["geometry.path", "'.tif'", ".npy", ".x3p"], scenes.validate,
+                file_scene(shared_tmp / "h.tif", nx, ny))
     assert scenes.validate(file_scene(h5, nx, ny, dataset="elevation"))["geometry"]["nx"] == nx
 
 

@@ -297,14 +297,3 @@ def test_rough_sphere_is_the_composite_surface(coll):
     ref -= ref.min()
     assert coll.max(np.abs(h - ref)) <= 1e-12 * ref.max() and coll.max(abs(h.min())) == 0.0
     coll.raises(GridError, "at least one", surfaces.composite, g)
-
-
-def test_topography_reader_names_the_extra_when_absent(coll):
-    """Measured topographies go through SurfaceTopography (optional); without it the error
-    names the extra to install."""
-    import importlib.util
-    if importlib.util.find_spec("SurfaceTopography") is not None:
-        pytest.skip("SurfaceTopography is installed")
-    g = SurfaceGrid(8, 8, 1.0)
-    coll.raises(ImportError, ["contactpetsc[topography]", "SurfaceTopography"],
-                surfaces.from_topography, g, "scan.sur")

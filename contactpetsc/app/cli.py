@@ -1,5 +1,6 @@
 """Command line: ``contactpetsc run [SCENE] [PETSc options]``, ``contactpetsc plot DIR``,
-``contactpetsc info [--check]``, ``contactpetsc --version``.
+``contactpetsc info [--check]``, ``contactpetsc import SRC DST`` (a measured topography to a
+height file; runs without PETSc), ``contactpetsc --version``.
 
 This is an entry point: it calls ``petsc4py.init(sys.argv)`` before anything
 imports PETSc, so every PETSc option on the command line reaches the options
@@ -56,6 +57,9 @@ def _parser() -> argparse.ArgumentParser:
                            "to a temporary directory and compare the forces with Hertz")
     plot = sub.add_parser("plot", help="save the plots of a finished run's output directory")
     plot.add_argument("directory", help="a run's output directory (with curve.csv)")
+    from ..topography.convert import add_arguments
+    add_arguments(sub.add_parser("import", help="convert a measured topography to a height file for a "
+                                                "kind = \"file\" scene (no PETSc needed)"))
     return p
 
 
@@ -109,6 +113,9 @@ def unused_options() -> list[str]:
 
 def main(argv=None) -> int:
     argv = sys.argv if argv is None else [sys.argv[0]] + list(argv)
+    if argv[1:2] == ["import"]:   # before PETSc: it runs where petsc4py is not installed
+        from ..topography.convert import main as import_main
+        return import_main(argv[2:])
     import petsc4py
     petsc4py.init(argv)
     from petsc4py import PETSc

@@ -38,8 +38,12 @@ def plan(scene: dict, grid: SurfaceGrid, law=None, out_dir: str | None = None) -
                             petsc_options={**sol["options"], "preconditioner": sol["preconditioner"]})
     chain = "\n".join("  solver: " + line if k == 0 else "          " + line for k, line in enumerate(stack))
     per_rank = builder.memory_per_rank(scene, grid.mpi_comm.Get_size())
+    heights = [] if g["kind"] != "file" else [
+        f"  heights: {g['path']} ({g['format']}, {g['nx']} x {g['ny']} nodes, in "
+        f"{g['height_unit'] or 'the unit it states'}), detrend {g['detrend']}, min h = 0, "
+        + ("periodic" if g["periodic"] else "an isolated window (zero-padded, not tapered)")]
     return [f"scene {scene['name']}: {g['kind']} surface, E* = {scene['material']['e_star']:g} Pa, {law_text}",
-            f"  {grid}",
+            f"  {grid}", *heights,
             f"  rows per rank {[b - a for a, b in grid.y_ranges]}",
             chain,
             f"  protocol: {scene['protocol']['control']} x {len(scene['protocol']['values'])} steps",

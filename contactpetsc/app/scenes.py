@@ -14,9 +14,11 @@ each law's parameters, required and refused, come from the laws' own declaration
 from __future__ import annotations
 
 import math
+import os
 import tomllib
 
 from ..physics.interactions import LAWS, WORK_OF_ADHESION, adhesive_laws
+from ..topography import DETREND, FORMATS, HEIGHT_UNITS
 
 POS = (0.0, math.inf, False, False)      # (low, high, low included?, high included?)
 NONNEG = (0.0, math.inf, True, False)
@@ -36,11 +38,12 @@ _SCHEMA = {
     "name": _k(str, "scene", "", "label used in outputs"),
     "geometry": {
         "kind": _k(str, "sphere", "", "composite surface", choices=("sphere", "self-affine", "file", "tip")),
-        "nx": _k(int, 128, "", "nodes along x", (2, 2**31 - 1, True, True)),
-        "ny": _k(int, None, "", "nodes along y (default nx)", (2, 2**31 - 1, True, True)),
-        "dx": _k(float, None, "m", "grid spacing along x (required)", POS),
+        "nx": _k(int, 128, "", "nodes along x (kind = file: the file's)", (2, 2**31 - 1, True, True)),
+        "ny": _k(int, None, "", "nodes along y (default nx; kind = file: the file's)", (2, 2**31 - 1, True, True)),
+        "dx": _k(float, None, "m", "grid spacing along x (required; kind = file: unless the file gives it)", POS),
         "dy": _k(float, None, "m", "grid spacing along y (default dx)", POS),
-        "periodic": _k(bool, None, "", "periodic cell (default: false for a sphere or tip, true otherwise)"),
+        "periodic": _k(bool, None, "", "periodic cell (default: true for self-affine; for a file, what the "
+                       "file says, else false: an isolated window, zero-padded, not tapered)"),
         "radius": _k(float, None, "m", "sphere or tip radius (kind = sphere, tip)", POS),
         "tip": _k(str, "bent-commensurate", "", "atomic tip of Luan & Robbins (kind = tip; docs/studies.md)",
                   choices=("bent-commensurate", "bent-incommensurate", "amorphous", "stepped")),
@@ -54,10 +57,19 @@ _SCHEMA = {
         "short_cutoff_wavelength": _k(float, None, "m", "short cut-off (default: 2 max(dx, dy); below "
                                       "the cell size)", POS),
         "seed": _k(int, 0, "", "random seed (self-affine, amorphous tip)", (0, 2**63 - 1, True, True)),
-        "path": _k(str, None, "", "height file, .npy or HDF5 (kind = file), real heights in m, shape "
-                  "(nx, ny); an HDF5 dataset (or file) with attribute axes = \"y,x\" is stored (ny, nx) "
-                  "(as step_NNNN.h5); attributes dx, dy (m) must match the grid's"),
-        "dataset": _k(str, "heights", "", "HDF5 dataset name (kind = file)"),
+        "path": _k(str, None, "", "height file (kind = file; docs/topography.md): .npy or HDF5 (real "
+                  "heights, shape (nx, ny); an HDF5 dataset or file with attribute axes = \"y,x\" is stored "
+                  "(ny, nx), as step_NNNN.h5), a text matrix (lines are y, columns x), .xyz points, Gwyddion "
+                  ".gsf or .gwy, ISO 25178 .x3p, Digital Surf .sur; nx, ny and, where the file gives them, dx, "
+                  "dy are read from it (keys given must agree); heights are shifted so min h = 0"),
+        "dataset": _k(str, "heights", "", "HDF5 dataset name, or .gwy channel title (default: its first "
+                      "channel) (kind = file)"),
+        "format": _k(str, None, "", "height file format (kind = file; default: by the file's extension)",
+                     choices=tuple(FORMATS)),
+        "height_unit": _k(str, None, "", "unit of the file's heights (and of .xyz x, y) when the file states "
+                          "none (kind = file; default m)", choices=tuple(HEIGHT_UNITS)),
+        "detrend": _k(str, "none", "", "least-squares trend subtracted from the file's heights before the "
+                      "min h = 0 shift (kind = file)", choices=DETREND),
     },
     "material": {
         "e_star": _k(float, None, "Pa", "effective modulus E* (required)", POS),
@@ -195,22 +207,24 @@ def validate(scene: dict) -> dict:
             value = given.get(sub, s["default"])
             section[sub] = None if value is None else _check_value(f"{key}.{sub}", s, value)
         out[key] = section
+    g = out["geometry"]
+    if g["kind"] == "file":
+        if g["path"] is None:
+            raise SceneError("geometry.path is required for geometry.kind = file")
+        _read_height_file(g, {k for k, v in scene.get("geometry", {}).items() if v is not None})
     for required in ("geometry.dx", "material.e_star", "protocol.values"):
         sec, sub = required.split(".")
         if out[sec][sub] is None:
             raise SceneError(f"{required} is required")
-    g = out["geometry"]
     g["ny"] = g["ny"] or g["nx"]
     g["dy"] = g["dy"] or g["dx"]
     if g["periodic"] is None:
-        g["periodic"] = g["kind"] not in ("sphere", "tip")
+        g["periodic"] = g["kind"] == "self-affine"
     _check_geometry(g, _given(scene, "geometry"))
     if out["output"]["atom_forces"] and g["kind"] != "tip":
         raise SceneError("output.atom_forces needs geometry.kind = tip (forces per atom of a tip)")
     _check_interaction(out, _given(scene, "interaction"))
     _check_protocol(out)
-    if g["kind"] == "file":
-        _check_height_file(g)
     return out
 
 
@@ -226,7 +240,7 @@ KIND_KEYS = {"sphere": ("radius",),
              "tip": ("radius", "tip", "atom_spacing", "atom_radius", "seed"),
              "self-affine": ("hurst", "rms_height", "rms_slope", "rolloff_wavelength",
                              "short_cutoff_wavelength", "seed"),
-             "file": ("path", "dataset")}
+             "file": ("path", "dataset", "format", "height_unit", "detrend")}
 
 
 def _check_geometry(g: dict, given: set) -> None:
@@ -236,7 +250,7 @@ def _check_geometry(g: dict, given: set) -> None:
         if users and kind not in users:
             raise SceneError(f"geometry.{key} is not used by geometry.kind = {kind!r} (only by "
                              f"kind = {', '.join(users)})")
-    for key in {"sphere": ("radius",), "tip": ("radius", "atom_spacing"), "file": ("path",)}.get(kind, ()):
+    for key in {"sphere": ("radius",), "tip": ("radius", "atom_spacing")}.get(kind, ()):
         if g[key] is None:
             raise SceneError(f"geometry.{key} is required for geometry.kind = {kind}")
     size = max(g["nx"] * g["dx"], g["ny"] * g["dy"])
@@ -320,15 +334,47 @@ def _check_protocol(out: dict) -> None:
                          f"{control.replace('_', ' ')}); accepted: [{smallest:.3g}, inf) {unit}")
 
 
-def _check_height_file(g: dict) -> None:
-    """The height file of a ``kind = file`` scene, from its metadata: the run (and a dry run)
-    must not start on a file that cannot be read into the grid."""
-    from ..geometry.surfaces import inspect_height_file
+def _read_height_file(g: dict, given: set) -> None:
+    """A ``kind = file`` scene's grid from its height file, read once here (the metadata only,
+    for .npy and HDF5) so that a run, and a dry run, start only on a file that fits: nx, ny
+    and, where the file gives them, dx, dy, periodic and the format are filled in; the keys
+    given must agree with the file."""
+    from ..topography import format_of, grid_mismatch, read_topography
+
+    def fail(message):
+        raise SceneError(f"geometry.path = {g['path']!r}: {message}")
+
     try:
-        inspect_height_file(g["path"], g["dataset"], (g["nx"], g["ny"]), (g["dx"], g["dy"]))
+        g["format"] = format_of(g["path"], g["format"])
+    except ValueError as exc:
+        fail(exc)
+    if "dataset" in given and g["format"] not in ("hdf5", "gwy") and g["dataset"] != "heights":
+        raise SceneError(f"geometry.dataset = {g['dataset']!r} is used by HDF5 and .gwy files only; "
+                         f"{g['path']!r} is {g['format']}")
+    try:
+        topo = read_topography(g["path"], format=g["format"], dataset=g["dataset"], metadata_only=True)
     except (OSError, ValueError, KeyError) as exc:
-        cause = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
-        raise SceneError(f"geometry.path = {g['path']!r}: {cause}") from None
+        fail(exc.args[0] if isinstance(exc, KeyError) and exc.args else exc)
+    if topo.unit_stated and g["height_unit"] is not None and g["height_unit"] != topo.height_unit:
+        raise SceneError(f"geometry.height_unit = {g['height_unit']!r}, but {g['path']!r} states its "
+                         f"heights in {topo.height_unit!r}: remove the key")
+    if g["height_unit"] is None and topo.height_unit in HEIGHT_UNITS:
+        g["height_unit"] = topo.height_unit          # the file's own (or metres): for the plan
+    for key, value in zip(("nx", "ny"), topo.shape):
+        if value < 2:
+            fail(f"{key} = {value}: a height map needs 2 or more nodes along x and y")
+        g[key] = g[key] if key in given else value
+    if topo.dx is None and "dx" not in given:
+        raise SceneError(f"geometry.dx is required: {g['path']!r} ({g['format']}) does not give its spacing")
+    if topo.dx is not None:
+        g["dx"] = g["dx"] if "dx" in given else topo.dx
+        g["dy"] = g["dy"] if "dy" in given else topo.dy
+    g["dy"] = g["dy"] or g["dx"]
+    problem = grid_mismatch(topo, (g["nx"], g["ny"]), (g["dx"], g["dy"]))
+    if problem:
+        fail(problem)
+    if g["periodic"] is None:
+        g["periodic"] = bool(topo.periodic)
 
 
 def adhesive(scene: dict) -> bool:
@@ -338,7 +384,8 @@ def adhesive(scene: dict) -> bool:
 
 
 def load(path: str) -> dict:
-    """Read and validate a TOML scene file."""
+    """Read and validate a TOML scene file; a relative ``geometry.path`` is taken from the scene
+    file's directory."""
     try:
         with open(path, "rb") as f:
             data = tomllib.load(f)
@@ -346,6 +393,9 @@ def load(path: str) -> dict:
         raise SceneError(f"cannot read scene {path}: {exc.strerror}") from None
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"scene {path} is not valid TOML: {exc}") from None
+    g = data.get("geometry")
+    if isinstance(g, dict) and isinstance(g.get("path"), str) and not os.path.isabs(g["path"]):
+        g["path"] = os.path.join(os.path.dirname(path), g["path"])   # next to the scene file
     return validate(data)
 
 

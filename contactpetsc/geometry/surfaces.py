@@ -8,7 +8,6 @@ by (seed, kx), so the draw does not depend on which rank owns the column.
 """
 from __future__ import annotations
 
-import os
 import warnings
 
 import numpy as np
@@ -17,6 +16,7 @@ from petsc4py import PETSc
 from ..collective import collective_call
 from ..fft import SlabRFFT
 from ..grid import GridError, SurfaceGrid
+from ..topography import centred_coordinates, grid_mismatch, read_topography, trend
 
 
 class HeightDtypeWarning(UserWarning):
@@ -56,112 +56,58 @@ def from_array(grid: SurfaceGrid, heights: np.ndarray) -> PETSc.Vec:
                          "heights array")
 
 
-HDF5_EXTENSIONS = (".h5", ".hdf5", ".hdf")
-AXES = {"x,y": False, "y,x": True}   #: the ``axes`` stamp -> stored transposed, (ny, nx)
+def from_file(grid: SurfaceGrid, path: str, dataset: str = "heights", *, format: str | None = None,
+              height_unit: str | None = None) -> PETSc.Vec:
+    """Heights [m] from a file in any format of ``topography.FORMATS`` (``.npy``, HDF5
+    ``dataset``, text matrix, ``.xyz``, ``.gsf``, ``.gwy`` channel ``dataset``, ``.x3p``,
+    ``.sur``; ``format``: by extension unless named), as the file holds them (no shift, no
+    detrending).
 
-
-def _attr_text(value) -> str:
-    if isinstance(value, bytes):
-        value = value.decode("utf-8", "replace")
-    return str(value).replace(" ", "").lower()
-
-
-def _npy_header(path: str):
-    """(shape, fortran_order, dtype, data offset) of a .npy file, without reading its data."""
-    with open(path, "rb") as f:
-        if f.read(6) != b"\x93NUMPY":
-            raise ValueError("empty or not a .npy file (no .npy header)")
-        f.seek(0)
-        try:
-            version = np.lib.format.read_magic(f)
-            read = (np.lib.format.read_array_header_1_0 if version == (1, 0)
-                    else np.lib.format.read_array_header_2_0)
-            shape, fortran, dtype = read(f)
-        except ValueError as exc:
-            raise ValueError(f"a damaged .npy header ({exc})") from None
-        return shape, fortran, dtype, f.tell()
-
-
-def inspect_height_file(path: str, dataset: str, shape: tuple, spacing: tuple) -> bool:
-    """Check a height file against a grid of ``shape`` (nx, ny) and ``spacing`` (dx, dy) [m]
-    from its metadata only (no height is read); True when it is stored transposed, (ny, nx).
-
-    ``.npy`` files hold (nx, ny).  HDF5 datasets hold (nx, ny) unless the dataset, or
-    else its file, carries the attribute ``axes``: "y,x" (stored (ny, nx), as contactpetsc's
-    step files) or "x,y"; any other stamp is refused.  A file with attributes ``dx``
-    and ``dy`` [m] must match the grid's spacing.  Raises ValueError, KeyError or OSError
-    with the cause.
+    The map must have the grid's (nx, ny) points and, where the file gives its spacing, the
+    grid's dx, dy (1e-9 relative); ``height_unit`` for files that state no unit (default m).
+    ``.npy`` and HDF5 files are read by rows, each rank its own; the others whole on every
+    rank (instrument files are small).  Errors (missing, unreadable, truncated, wrongly
+    shaped or stamped files, heights that are not real numbers) are raised on every rank.
     """
-    ext = os.path.splitext(path)[1].lower()
-    if ext == ".npy":
-        stored, _, dtype, offset = _npy_header(path)
-        need = offset + int(np.prod(stored)) * dtype.itemsize
-        if os.path.getsize(path) < need:
-            raise ValueError(f"truncated: {os.path.getsize(path)} bytes, its header announces {need}")
-        transposed, fspacing, stamp = False, None, "x,y"
-    elif ext in HDF5_EXTENSIONS:
-        import h5py
-        with h5py.File(path, "r") as f:
-            if dataset not in f or not isinstance(f[dataset], h5py.Dataset):
-                raise KeyError(f"no dataset {dataset!r} (geometry.dataset) in {path} "
-                               f"(has {sorted(f.keys())})")
-            ds = f[dataset]
-            stored, dtype = tuple(ds.shape), ds.dtype
-            raw = ds.attrs.get("axes", f.attrs.get("axes"))
-            if raw is None and "approach" in f.attrs and "complementarity_error" in f.attrs:
-                raise ValueError("a contactpetsc step file without an axes stamp: its fields are "
-                                 "stored (ny, nx); set the attribute axes = 'y,x' on the file to "
-                                 "read it")
-            stamp = "x,y" if raw is None else _attr_text(raw)
-            if stamp not in AXES:
-                raise ValueError(f"dataset {dataset!r} has axes = {raw!r}; accepted: 'x,y' (stored "
-                                 f"(nx, ny)) or 'y,x' (stored (ny, nx))")
-            transposed = AXES[stamp]
-            attrs = ds.attrs if "dx" in ds.attrs else f.attrs
-            fspacing = (float(attrs["dx"]), float(attrs.get("dy", attrs["dx"]))) if "dx" in attrs else None
-    else:
-        raise ValueError(f"unknown height file type {ext!r} (accepted: .npy, {', '.join(HDF5_EXTENSIONS)})")
-    check_height_dtype(dtype, path)
-    nx, ny = shape
-    want = (ny, nx) if transposed else (nx, ny)
-    if tuple(stored) != want:
-        hint = ""
-        if tuple(stored) == want[::-1] and not transposed:
-            hint = ("; a .npy file holds (nx, ny): save the transpose" if ext == ".npy" else
-                    "; if the dataset's rows are y, stamp it with the attribute axes = 'y,x'")
-        raise ValueError(f"heights have shape {tuple(stored)} stored as {stamp}, the grid (geometry.nx, "
-                         f"geometry.ny) = {(nx, ny)} needs {want}{hint}")
-    if fspacing is not None:
-        for key, got, grid_d in (("dx", fspacing[0], spacing[0]), ("dy", fspacing[1], spacing[1])):
-            if not np.isclose(got, grid_d, rtol=1e-9, atol=0.0):
-                raise ValueError(f"the file's {key} = {got!r} m, the scene's geometry.{key} = {grid_d!r} m")
-    return transposed
-
-
-def from_file(grid: SurfaceGrid, path: str, dataset: str = "heights") -> PETSc.Vec:
-    """Heights [m] from ``.npy`` (memory-mapped) or HDF5 (``dataset``), checked first by
-    ``inspect_height_file``: shape (nx, ny), or (ny, nx) when stamped axes = "y,x".
-
-    Each rank reads only its own rows.  Errors (missing, unreadable, truncated,
-    wrongly shaped or stamped files, heights that are not real numbers) are raised on
-    every rank.
-    """
-    ext = os.path.splitext(path)[1].lower()
-
     def read():
-        transposed = inspect_height_file(path, dataset, grid.shape, (grid.dx, grid.dy))
-        if ext == ".npy":
-            return np.asarray(np.load(path, mmap_mode="r")[:, grid.ys:grid.ye], dtype=float)
-        import h5py
-        with h5py.File(path, "r") as f:
-            if transposed:
-                return np.asarray(f[dataset][grid.ys:grid.ye, :], dtype=float).T
-            return np.asarray(f[dataset][:, grid.ys:grid.ye], dtype=float)
+        topo = read_topography(path, format=format, dataset=dataset, height_unit=height_unit,
+                               metadata_only=True)
+        problem = grid_mismatch(topo, grid.shape, (grid.dx, grid.dy))
+        if problem:
+            raise ValueError(problem)
+        check_height_dtype(topo.dtype, path)
+        topo = read_topography(path, format=format, dataset=dataset, height_unit=height_unit,
+                               rows=(grid.ys, grid.ye))
+        return np.asarray(topo.heights, dtype=float)
 
     v = grid.create_vec()
     local = collective_call(grid.mpi_comm, GridError, f"cannot read heights from {path}: {{error}}", read)
     grid.local_array(v)[...] = local
     return _check_finite(grid, v, path)
+
+
+def detrended(grid: SurfaceGrid, h: PETSc.Vec, mode: str = "none") -> PETSc.Vec:
+    """A new surface: ``h`` minus its least-squares ``mode`` trend ("none", "mean-plane" or
+    "curvature"; ``topography.detrend``), shifted so that min h = 0 (assumption 1: approach 0
+    is first touch).  The fit is made from every rank's rows (an all-reduce)."""
+    grid.check_vec(h, "heights")
+    local = grid.local_array(h, readonly=True)
+    u, v = centred_coordinates(grid.nx, grid.ny, slice(grid.ys, grid.ye))
+    fit = collective_call(grid.mpi_comm, GridError, "detrend: {error}", trend, local, u, v, mode,
+                          grid.mpi_comm.allreduce)
+    out = h.copy()
+    grid.local_array(out)[...] -= fit
+    out.shift(-out.min()[1])
+    return out
+
+
+def from_topography(grid: SurfaceGrid, path: str, dataset: str = "heights", *, format: str | None = None,
+                    height_unit: str | None = None, detrend: str = "none") -> PETSc.Vec:
+    """A measured topography as the composite surface: ``from_file`` (the same arguments), then
+    ``detrended`` (``detrend``: "none", "mean-plane" or "curvature"), min h = 0.  Files in
+    formats read only by SurfaceTopography: convert them with ``contactpetsc import``
+    (docs/topography.md)."""
+    return detrended(grid, from_file(grid, path, dataset, format=format, height_unit=height_unit), detrend)
 
 
 def from_function(grid: SurfaceGrid, func) -> PETSc.Vec:
@@ -316,70 +262,3 @@ def composite(grid: SurfaceGrid, *parts: PETSc.Vec) -> PETSc.Vec:
 def rough_sphere(grid: SurfaceGrid, radius: float, roughness: PETSc.Vec) -> PETSc.Vec:
     """A sphere of radius R [m] about the centre node plus ``roughness``, min h = 0 (Figs. 6-9)."""
     return composite(grid, sphere(grid, radius), roughness)
-
-
-TOPOGRAPHY_EXTRA = "contactpetsc[topography]"
-
-
-def _surface_topography():
-    try:
-        import SurfaceTopography
-    except ImportError as exc:
-        raise ImportError(
-            f"reading measured topographies needs the optional package SurfaceTopography: "
-            f"pip install '{TOPOGRAPHY_EXTRA}' (or pip install SurfaceTopography); "
-            f".npy and HDF5 heights need nothing (surfaces.from_file)") from exc
-    return SurfaceTopography
-
-
-def read_topography_array(path: str, channel: int | None = None, *, physical_sizes=None,
-                          unit: str | None = None) -> tuple[np.ndarray, tuple[float, float]]:
-    """(heights [m] of shape (nx, ny), physical sizes (Lx, Ly) [m]) of a measured topography.
-
-    Any instrument format that SurfaceTopography reads (Gwyddion, NanoScope,
-    Keyence, Mitutoyo, plain text matrices, ...), converted to metres from the
-    file's length unit.  Files that do not store them need ``physical_sizes``
-    (in ``unit``) and ``unit`` (e.g. "um").  Needs the optional extra
-    ``contactpetsc[topography]``.
-    """
-    _surface_topography()
-    from SurfaceTopography import open_topography
-    from SurfaceTopography.Support.UnitConversion import get_unit_conversion_factor
-    reader = open_topography(path)
-    kw = {k: v for k, v in (("channel_index", channel), ("physical_sizes", physical_sizes),
-                            ("unit", unit)) if v is not None}
-    topo = reader.topography(**kw)
-    if topo.dim != 2:
-        raise GridError(f"{path}: a {topo.dim}-D topography (a line scan); contact needs a 2-D map")
-    if topo.unit is None:
-        raise GridError(f"{path}: the file gives no length unit; pass unit= (e.g. 'um')")
-    factor = get_unit_conversion_factor(topo.unit, "m")
-    heights = np.asarray(topo.heights(), dtype=float) * factor
-    sizes = tuple(float(s) * factor for s in topo.physical_sizes)
-    return heights, sizes
-
-
-def from_topography(grid: SurfaceGrid, path: str, channel: int | None = None, **kw) -> PETSc.Vec:
-    """Heights [m] of a measured topography (``read_topography_array``) on ``grid``, min h = 0.
-
-    The file's map must have the grid's (nx, ny) points; the grid spacing is
-    checked against the file's physical size (1e-6 relative); ``kw``: ``physical_sizes``
-    and ``unit`` for files that lack them (``read_topography_array``).  Every rank reads
-    the file (instrument files are small); errors are raised on every rank.
-    """
-    def read():
-        heights, (lx, ly) = read_topography_array(path, channel, **kw)
-        if heights.shape != grid.shape:
-            raise GridError(f"{path}: {heights.shape} points, the grid has {grid.shape}")
-        if not np.allclose((lx / grid.nx, ly / grid.ny), (grid.dx, grid.dy), rtol=1e-6, atol=0.0):
-            raise GridError(f"{path}: spacing ({lx / grid.nx:.6e}, {ly / grid.ny:.6e}) m, "
-                            f"the grid has ({grid.dx:.6e}, {grid.dy:.6e}) m")
-        return heights[:, grid.ys:grid.ye]
-
-    _surface_topography()   # the same installation on every rank: an ImportError everywhere
-    local = collective_call(grid.mpi_comm, GridError, f"cannot read topography {path}: {{error}}", read)
-    v = grid.create_vec()
-    grid.local_array(v)[...] = local
-    v.shift(-v.min()[1])
-    return _check_finite(grid, v, path)
-

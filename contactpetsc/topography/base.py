@@ -1,0 +1,36 @@
+"""What a format reader returns: the file's numbers and what the file says about them."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class Topography:
+    """A height map on a uniform grid, indexed [i, j] = h(x_i, y_j) with x_i = i dx, y_j = j dy.
+
+    From a format reader, ``heights`` are the file's numbers in ``height_unit`` and ``dx``,
+    ``dy`` are in ``lateral_unit``; ``read_topography`` returns them in metres.  ``heights`` is
+    None when only the metadata was read, or holds the rows j in [ys, ye) asked for.
+    """
+    shape: tuple                       #: (nx, ny)
+    dtype: np.dtype                    #: the file's height dtype
+    heights: np.ndarray | None = None  #: (nx, ny) or (nx, ye - ys)
+    height_unit: str | None = None     #: the unit the file states for its heights; None: it states none
+    dx: float | None = None            #: spacing along x; None: the file does not say
+    dy: float | None = None
+    lateral_unit: str | None = None    #: the unit of dx, dy; None: the heights' unit
+    unit_stated: bool = False          #: read_topography: the file stated height_unit
+    periodic: bool | None = None       #: the file says its map is periodic, or not; None: it says nothing
+    format: str = ""
+    metadata: dict = field(default_factory=dict)   #: what else the file says (title, instrument, ...)
+
+
+class FormatError(ValueError):
+    """A file that does not follow its format's specification (the message says where)."""
+
+
+def header_text(raw: bytes) -> str:
+    """Bytes of a header (NUL-padded, maybe Windows-1252: "µm") as text."""
+    return raw.split(b"\0", 1)[0].decode("latin-1").strip()
