@@ -104,11 +104,17 @@ def unused_options() -> list[str]:
     names, values = ctypes.POINTER(ctypes.c_char_p)(), ctypes.POINTER(ctypes.c_char_p)()
     if fn(None, ctypes.byref(n), ctypes.byref(names), ctypes.byref(values)) != 0:
         return []
-    # words like --output are this command's own (argparse): PETSc stores them as "-output"
-    out = [f"-{names[i].decode()}" + (f" {values[i].decode()}" if values[i] else "")
-           for i in range(n.value) if not names[i].startswith(b"-")]
+    out = [f"-{names[i].decode()}" + (f" {values[i].decode()}" if values[i] else "") for i in range(n.value)]
     restore(None, ctypes.byref(n), ctypes.byref(names), ctypes.byref(values))
     return out
+
+
+def _forget_own_words(opts, words) -> None:
+    """Remove this command's own ``--words`` (argparse's) from PETSc's options database: PETSc
+    stores them as options too, and newer PETSc lists unused options at exit."""
+    for word in words:
+        if word.startswith("--") and len(word) > 2:
+            opts.delValue(word.split("=", 1)[0])
 
 
 def main(argv=None) -> int:
@@ -120,6 +126,7 @@ def main(argv=None) -> int:
     petsc4py.init(argv)
     from petsc4py import PETSc
     args = _parser().parse_args(_without_petsc_options(argv[1:], PETSc.Options().getAll()))
+    _forget_own_words(PETSc.Options(), argv[1:])
     if args.command not in ("run", "plot", "info") and not args.version:
         _parser().print_help()
         return 2
