@@ -285,6 +285,25 @@ class AxisymmetricSphere:
         return self.solve_approach(float(res.x), start=states[k])
 
 
+    def on_branch(self, states, approach: float, load_of, target: float) -> State | None:
+        """The state at ``approach`` [m] on the piece of the traced curve (monotone in the
+        approach) whose load ``load_of(state)`` [N], interpolated there, is nearest ``target``
+        [N]: Newton from that piece's traced state nearest in approach.  None where no piece
+        spans the approach."""
+        alpha = np.array([st.approach for st in states])
+        loads = np.array([load_of(st) for st in states])
+        best = None
+        for i, j in branches(alpha):
+            a_b, W_b = alpha[i:j + 1], loads[i:j + 1]
+            if not a_b.min() <= approach <= a_b.max():
+                continue
+            order = np.argsort(a_b)
+            d = abs(np.interp(approach, a_b[order], W_b[order]) - target)
+            if best is None or d < best[0]:
+                best = (d, i + int(np.argmin(np.abs(a_b - approach))))
+        return None if best is None else self.solve_approach(approach, start=states[best[1]])
+
+
 # -- what the curve says --------------------------------------------------------------
 
 def curve(states, radius, work_of_adhesion, z0):
@@ -295,25 +314,11 @@ def curve(states, radius, work_of_adhesion, z0):
     return a, W, gc
 
 
-def branches(alpha, W):
-    """The curve cut where alpha turns back: a list of (alpha, W) pieces monotone in alpha."""
+def branches(alpha):
+    """Index ranges (i, j) of the pieces of a curve monotone in alpha (cut where it turns)."""
     turns = np.nonzero(np.diff(np.sign(np.diff(alpha))))[0] + 1
     cuts = [0, *turns.tolist(), len(alpha) - 1]
-    return [(alpha[i:j + 1], W[i:j + 1]) for i, j in zip(cuts[:-1], cuts[1:])]
-
-
-def distance_to_curve(alpha, W, a_pts, W_pts):
-    """For each point (a_pts, W_pts): |W - W_curve(a)| on the nearest branch of the curve
-    that spans a (NaN where none does)."""
-    out = np.full(len(a_pts), np.nan)
-    for a_b, W_b in branches(alpha, W):
-        order = np.argsort(a_b)
-        a_s, W_s = a_b[order], W_b[order]
-        inside = (a_pts >= a_s[0]) & (a_pts <= a_s[-1])
-        if inside.any():
-            d = np.abs(np.interp(a_pts[inside], a_s, W_s) - W_pts[inside])
-            out[inside] = np.fmin(out[inside], d)
-    return out
+    return list(zip(cuts[:-1], cuts[1:]))
 
 
 def jkr_contact_radius(radius, work_of_adhesion, e_star, approach):
@@ -330,13 +335,13 @@ def jkr_contact_radius(radius, work_of_adhesion, e_star, approach):
 def default_mesh(radius, work_of_adhesion, e_star, z0, max_approach, refine: float = 1.0,
                  r_out_factor: float = 60.0):
     """Ring edges for a curve up to ``max_approach`` [m]: uniform spacing, the smaller of a
-    eighth of the cohesive length 0.75 E* z0^2/w and of sqrt(2 R z0)/8, divided by ``refine``,
+    eighth of the cohesive length 0.75 E* z0^2/w and a sixteenth of sqrt(2 R z0), divided by ``refine``,
     over 1.3 times JKR's contact radius at that approach plus twice sqrt(2 R z0) (the
     adhesive zone at small Tabor parameters); then growing by 4 %/``refine`` per ring to
     r_out = r_out_factor sqrt(2 R z0) (the tail beyond it carries a load of about
     (4/3) 2 pi R w / r_out_factor^4 by Derjaguin's estimate)."""
     l_coh = 0.75 * e_star * z0 ** 2 / work_of_adhesion
     l_geo = np.sqrt(2 * radius * z0)
-    spacing = min(l_coh, l_geo) / 8.0 / refine
+    spacing = min(l_coh / 8.0, l_geo / 16.0) / refine
     r_fine = 1.3 * jkr_contact_radius(radius, work_of_adhesion, e_star, max_approach) + 2 * l_geo
     return ring_mesh(spacing, r_fine, r_out_factor * l_geo, growth=1.0 + 0.04 / refine)
