@@ -306,14 +306,6 @@ class AxisymmetricSphere:
 
 # -- what the curve says --------------------------------------------------------------
 
-def curve(states, radius, work_of_adhesion, z0):
-    """(alpha*, W*, g(0)/z0) arrays of a traced curve (Greenwood's scaling)."""
-    a = np.array([s.approach for s in states]) / z0
-    W = np.array([s.load for s in states]) / (2 * np.pi * radius * work_of_adhesion)
-    gc = np.array([s.central_gap for s in states]) / z0
-    return a, W, gc
-
-
 def branches(alpha):
     """Index ranges (i, j) of the pieces of a curve monotone in alpha (cut where it turns)."""
     turns = np.nonzero(np.diff(np.sign(np.diff(alpha))))[0] + 1
