@@ -95,9 +95,10 @@ def test_3d_sphere_matches_the_axisymmetric_solution(coll):
     """mu = 1, 96^2 window of 96 z0 at dx = z0: load-approach points of loading and unloading,
     the jumps and the pull-off against the axisymmetric solution (its load inside the same
     square window).  Tolerances from the mesh-convergence study
-    (run_scripts/checks/axisymmetric_comparison.py, docs/validation.md): at dx = z0 the
-    pull-off differs by 1e-4 (2e-4 between dx = z0 and z0/2), the curve by < 1e-3 W*; the
-    jumps are bisected to 0.004 z0."""
+    (run_scripts/checks/axisymmetric_comparison.py, docs/validation.md): the 3-D pull-off moves
+    by 2.2e-4 between dx = z0 and z0/2 (this case: 1.6e-4 from the axisymmetric one), the
+    curve's largest difference halves from 8.8e-4 W* at dx = z0 (this case: 6.9e-4); the
+    jumps are bisected to 0.004 z0 and the folds move by ~0.002 z0 with the grid."""
     from contactpetsc.geometry.surfaces import sphere
     from contactpetsc.grid import SurfaceGrid
     from contactpetsc.paths import good_state, sweep
@@ -118,14 +119,14 @@ def test_3d_sphere_matches_the_axisymmetric_solution(coll):
     pull = refine_pull_off(problem, path, xtol=1e-3) / ws
     problem.destroy()
     window_pull = load(sph.pull_off(states))
-    assert coll.max(abs(pull / window_pull - 1.0)) < 1e-3, (pull, window_pull, ref)
+    assert coll.max(abs(pull / window_pull - 1.0)) < 5e-4, (pull, window_pull, ref)
 
     good = [p for p in path.points if good_state(p)]
     diffs = []
     for p in good:
         st = sph.on_branch(states, p.approach, load, p.force / ws)
         diffs.append(abs(load(st) - p.force / ws))
-    assert len(good) >= 15 and coll.max(diffs) < 3e-3, max(diffs)
+    assert len(good) >= 15 and coll.max(diffs) < 2e-3, max(diffs)
 
     alpha = np.array([s.approach for s in states])
     folds = sorted(alpha[i] for i, _ in axi.branches(alpha)[1:])     # jump-off, jump-on

@@ -79,6 +79,8 @@ def main(argv=None):
                          "cohesive length and sqrt(2 R z0)); the last is the reference")
     ap.add_argument("--step", type=float, default=0.1, help="3-D approach step / z0")
     ap.add_argument("--top", type=float, default=None, help="approach / z0 at the end of loading")
+    ap.add_argument("--element-integration", action="store_true",
+                    help="the 3-D traction integrated over elements (the paper's Fig. 3) instead of nodal")
     ap.add_argument("--no-3d", action="store_true", help="the axisymmetric tool only")
     ap.add_argument("--markdown", action="store_true")
     args, petsc_args = ap.parse_known_args(argv)
@@ -119,7 +121,7 @@ def main(argv=None):
             half = n * dx / 2
             grid = SurfaceGrid(n, n, dx, periodic=False)
             pb = AdhesiveProblem(grid, sphere(grid, R), 1.0, make_law("lj", work_of_adhesion=w, z0=1.0),
-                                 prefix=f"cmp{len(rows)}_")
+                                 element_integration=args.element_integration, prefix=f"cmp{len(rows)}_")
             loading = np.arange(-2.0, top + 1e-9, args.step)
             approaches = np.concatenate([loading, np.arange(loading[-1] - args.step, down - 1e-9, -args.step)])
             t0 = time.perf_counter()
@@ -137,6 +139,7 @@ def main(argv=None):
             window_ref = (richardson(refs[-2]["window_pull_off"][half], ref["window_pull_off"][half])
                           if len(refs) > 1 else ref["window_pull_off"][half])
             row = dict(axi_row, dx=dx, n=n, window=2 * half, zone_nodes=pb.zone_nodes,
+                       element_integration=args.element_integration,
                        axi_pull_off=pull_ref, axi_window_pull_off=window_ref,
                        pull_off_3d=pull / ws, rel_diff=pull / ws / window_ref - 1,
                        max_curve_diff=float(np.nanmax(dist[tensile])),
