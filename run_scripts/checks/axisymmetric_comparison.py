@@ -10,10 +10,10 @@ W* = W / (2 pi R w) against alpha* = delta / z0 (Greenwood's scaling; units E* =
 The 3-D window leaves out the law's tail outside it; the axisymmetric load is therefore also
 given inside the same square ("window"), and the differences are taken against that.  The
 curve difference is |W*_3D - W*_axi(alpha*)| at the 3-D path's converged, stable states,
-against the nearest branch of the axisymmetric curve (window loads; Richardson's extrapolation of the two finest ring meshes,
-solved at the 3-D approaches): its largest
-value over the states in tension (W* <= 0), and its largest value relative to W* over the
-states in compression with W* >= 1.
+against the nearest branch of the axisymmetric curve (window loads, solved at the 3-D
+approaches; Richardson's extrapolation of the two finest ring meshes): its largest value
+over the states in tension (W* <= 0), and its largest value relative to W* over the states
+in compression with W* >= 1.
 
     .venv/bin/python run_scripts/checks/axisymmetric_comparison.py --mu 0.1,0.5,1,2 --dx 1,0.5 --markdown
 
@@ -60,7 +60,8 @@ def curve_at(ref, a3, W3, half, ws):
     """The axisymmetric window load W* at the 3-D states' approaches a3, on the branch nearest
     their loads W3 (NaN where the traced curve does not span an approach)."""
     sph, states = ref["sphere"], ref["states"]
-    load = lambda st: sph.rings.load_in_square(st.pressure, half) / ws
+    def load(st):
+        return sph.rings.load_in_square(st.pressure, half) / ws
     out = []
     for a, W in zip(a3, W3):
         st = sph.on_branch(states, a, load, W)
@@ -75,8 +76,8 @@ def main(argv=None):
     ap.add_argument("--window", type=float, default=128.0, help="3-D window side / z0")
     ap.add_argument("--dx", default="1,0.5", help="3-D grid spacings / z0")
     ap.add_argument("--axi-refine", default="1,2",
-                    help="axisymmetric mesh refinements (1: ring width an eighth of the smaller of the "
-                         "cohesive length and sqrt(2 R z0)); the last is the reference")
+                    help="axisymmetric mesh refinements (1: ring width the smaller of an eighth of the "
+                         "cohesive length and a sixteenth of sqrt(2 R z0)); the last two give the reference")
     ap.add_argument("--step", type=float, default=0.1, help="3-D approach step / z0")
     ap.add_argument("--top", type=float, default=None, help="approach / z0 at the end of loading")
     ap.add_argument("--element-integration", action="store_true",
