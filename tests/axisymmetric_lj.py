@@ -20,10 +20,10 @@ Model (units are the caller's, consistent: lengths [m], pressures and E* [Pa], w
   for r > a (complete elliptic integrals of modulus k), an annulus the difference of two disks.
 
 The full-LJ equilibrium curve (every state, stable or not: the whole S-curve) is traced by
-pseudo-arclength continuation in the plane of (approach, load, central gap), which reduces to
-Greenwood's central-gap control wherever the central gap is monotone along the curve and passes
-its turning points as well.  The unknowns are the ring gaps and the approach; Newton with the
-dense Jacobian.
+pseudo-arclength continuation, its steps measured in (alpha*, W*, central gap / z0):
+Greenwood's central-gap control (the approach an unknown), generalised so that it also passes
+the points where the central gap, the approach or the load turn back.  The unknowns are the
+ring gaps and the approach; Newton with the dense Jacobian.
 """
 from __future__ import annotations
 
@@ -226,8 +226,8 @@ class AxisymmetricSphere:
         the approach exceeds ``end_approach`` [m], by pseudo-arclength continuation with
         steps ``step`` (in the dimensionless (alpha*, W*, g(0)/z0) plane; adapted, at most
         ``max_step``)."""
-        if self.law_name != "lj":
-            raise ValueError("trace: the whole curve is for the full LJ law (eq. 8)")
+        if self.law_name != "lj" or self.w <= 0:
+            raise ValueError("trace: the whole curve is for the full LJ law (eq. 8) with w > 0")
         max_step = max_step or 4 * step
         st = self.solve_approach(start_approach)
         states = [st]
