@@ -34,7 +34,7 @@ from petsc4py import PETSc
 from ..collective import collective_guard
 from ..grid import SurfaceGrid
 from ..lifetime import destroy_at_exit
-from ..operators.elastic import HalfSpaceOperator, half_space
+from ..operators.elastic import HalfSpaceOperator
 from ..geometry.surfaces import rms_height
 from .base import (ContactSolveError, VIProblem, check_tolerance, convergence_verdict, reason_name,
                    weighted_pairs, with_options)
@@ -333,7 +333,7 @@ class ContactProblem(ContactLoadControl, VIProblem):
         else:
             gc = halved(grid)
             # FFTW_MEASURE planning would cost more than the coarse solves themselves
-            op = half_space(gc, self.e_star, prefix=self.prefix, planner="estimate")
+            op = self.op.on_grid(gc, prefix=self.prefix, planner="estimate")
         hc = gc.create_vec()
         gc.rows(hc)[...] = restrict(grid.rows(self.heights, readonly=True))
         d = dict(self._defaults, preconditioner=self.preconditioner, fmg=True)
