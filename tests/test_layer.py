@@ -177,3 +177,27 @@ def test_partial_contact_on_a_thick_layer_is_the_half_space_one(coll):
     thin = ContactProblem(g, h, E_STAR, operator=PeriodicLayer(g, E_STAR, Layer(0.01, "bonded", 0.3)),
                           prefix=prefix("thin"), **kw).solve(mean_pressure=load)
     assert coll.all(thin.converged) and thin.contact_fraction < ref.contact_fraction
+
+
+def test_adhesive_contact_on_a_layer(coll):
+    """With adhesion too: a layer 30 cells deep gives the half-space's adhesive state; a thin
+    bonded layer, stiffer, converges to a stable state with less contact at the same approach."""
+    from contactpetsc.physics.interactions import make_law
+    from contactpetsc.solvers.adhesive import AdhesiveProblem
+    n = 32
+    g = SurfaceGrid(n, n, 1.0)
+    h = surfaces.self_affine(g, hurst=0.8, rms_height=1.0, seed=7)
+    law = make_law("hardwall-lj", work_of_adhesion=0.05, z0=1.0)
+    delta = h.min()[1] + 0.8
+    states = []
+    for name, op in (("half", None), ("deep", PeriodicLayer(g, 1.0, Layer(30.0 * n, "bonded", 0.3))),
+                     ("thin", PeriodicLayer(g, 1.0, Layer(2.0, "bonded", 0.3)))):
+        pb = AdhesiveProblem(g, h, 1.0, law, operator=op, prefix=prefix("adh" + name))
+        st = pb.solve(approach=delta)
+        assert coll.all(st.converged and st.stable)
+        assert coll.max(max(st.complementarity_error, st.adhesive_error)) <= 1e-8
+        states.append(st)
+    half, deep, thin = states
+    assert coll.max(abs(deep.force - half.force)) <= 1e-7 * abs(half.force)
+    assert coll.max(np.abs(g.rows(deep.gap, readonly=True) - g.rows(half.gap, readonly=True))) <= 1e-6
+    assert thin.contact_fraction < half.contact_fraction and thin.force > half.force

@@ -37,13 +37,25 @@ def plan(scene: dict, grid: SurfaceGrid, law=None, out_dir: str | None = None) -
                             petsc_options={**sol["options"], "preconditioner": sol["preconditioner"]})
     chain = "\n".join("  solver: " + line if k == 0 else "          " + line for k, line in enumerate(stack))
     per_rank = builder.memory_per_rank(scene, grid.mpi_comm.Get_size())
-    return [f"scene {scene['name']}: {g['kind']} surface, E* = {scene['material']['e_star']:g} Pa, {law_text}",
+    return [f"scene {scene['name']}: {g['kind']} surface, {_body_text(scene)}, {law_text}",
             f"  {grid}",
             f"  rows per rank {[b - a for a, b in grid.y_ranges]}",
             chain,
             f"  protocol: {scene['protocol']['control']} x {len(scene['protocol']['values'])} steps",
             f"  memory estimate: {per_rank / 2**20:.0f} MiB per rank",
             _outputs_line(scene, grid.nx * grid.ny, out_dir or scene["output"]["directory"])]
+
+
+def _body_text(scene: dict) -> str:
+    """E*, and the layer and hardness where the scene has them, for the plan."""
+    from .scenes import e_star
+    m = scene["material"]
+    text = f"E* = {e_star(scene):g} Pa"
+    if m["layer_thickness"] is not None:
+        text += f", {m['layer_interface']} layer t = {m['layer_thickness']:g} m"
+    if m["hardness"] is not None:
+        text += f", hardness H = {m['hardness']:g} Pa"
+    return text
 
 
 def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=None,
