@@ -298,9 +298,11 @@ def layer(scene: dict):
 
 def _check_material(out: dict, given: set) -> None:
     m = out["material"]
-    if (m["e_star"] is None) == (m["youngs_modulus"] is None):
+    if m["e_star"] is None and m["youngs_modulus"] is None:
+        raise SceneError("material.e_star is required (or material.youngs_modulus with material.poisson_ratio)")
+    if m["e_star"] is not None and m["youngs_modulus"] is not None:
         raise SceneError("give exactly one of material.e_star or material.youngs_modulus (with "
-                         "material.poisson_ratio)" + (": both are given" if m["e_star"] is not None else ""))
+                         "material.poisson_ratio): both are given")
     if m["youngs_modulus"] is not None and m["poisson_ratio"] is None:
         raise SceneError(f"material.youngs_modulus needs material.poisson_ratio, in {range_text(POISSON)}")
     if m["e_star"] is not None and m["poisson_ratio"] is not None:
