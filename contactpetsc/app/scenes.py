@@ -72,8 +72,8 @@ _SCHEMA = {
                        "asperities; default none; without adhesion; docs/formulation.md)", POS),
         "layer_thickness": _k(float, None, "m", "the elastic body is a layer of this thickness on a rigid base "
                               "(periodic cells; default: a half-space)", POS),
-        "layer_interface": _k(str, "bonded", "", "the layer's contact with its base: bonded (no slip; needs "
-                              "poisson_ratio) or frictionless", choices=INTERFACES),
+        "layer_interface": _k(str, None, "", "the layer's contact with its base: bonded (no slip; the default "
+                              "with a layer; needs poisson_ratio) or frictionless", choices=INTERFACES),
     },
     "interaction": {   # law choices and law parameters: filled in from the registry (schema())
         "law": _k(str, "none", "", "interaction law (docs/formulation.md; the registered laws are listed "
@@ -312,6 +312,7 @@ def _check_material(out: dict, given: set) -> None:
         if "layer_interface" in given:
             raise SceneError("material.layer_interface needs material.layer_thickness (a layer on a rigid base)")
         return
+    m["layer_interface"] = m["layer_interface"] or "bonded"
     if not out["geometry"]["periodic"]:
         raise SceneError(f"material.layer_thickness = {m['layer_thickness']!r} needs a periodic cell "
                          f"(geometry.periodic = true): the layer's kernel is a Fourier kernel")
