@@ -104,3 +104,27 @@ def test_a_scene_solves_what_the_api_solves(coll, shared_tmp):
         assert float(row["plastic_volume_m3"]) == pytest.approx(st.plastic_volume, rel=1e-12)
         assert float(row["max_plastic_displacement_m"]) == pytest.approx(st.max_plastic_displacement, rel=1e-12)
     assert np.isclose(api.e_star, e_star, rtol=1e-15)
+
+
+def test_an_adhesive_scene_on_a_layer_solves_what_the_api_solves(coll, shared_tmp):
+    """Adhesion on a bonded layer, E and nu given: the scene's states are the API's."""
+    from contactpetsc.physics.interactions import make_law
+    from contactpetsc.solvers.adhesive import AdhesiveProblem
+    e, nu, t, z0 = 1e9, 0.3, 4e-9, 1e-9
+    e_star = e / (1 - nu ** 2)
+    w = 0.05 * e_star * z0
+    scene = scenes.validate({
+        "geometry": {"kind": "self-affine", "nx": 32, "dx": 1e-9, "rms_height": 1e-9, "seed": 7},
+        "material": {"youngs_modulus": e, "poisson_ratio": nu, "layer_thickness": t},
+        "interaction": {"law": "hardwall-lj", "work_of_adhesion": w, "z0": z0},
+        "protocol": {"values": [0.5e-9, 0.8e-9], "refine_pull_off": False},
+        "output": {"directory": str(shared_tmp / "adh"), "fields": False}})
+    states = runner.run(scene)
+    grid = builder.build_grid(scene)
+    h = builder.build_heights(scene, grid)
+    api = AdhesiveProblem(grid, h, e_star, make_law("hardwall-lj", work_of_adhesion=w, z0=z0),
+                          operator=PeriodicLayer(grid, e_star, Layer(t, "bonded", nu)), prefix="api_adh_layer_")
+    for value, st in zip((0.5e-9, 0.8e-9), states):
+        ref = api.solve(approach=value)
+        assert coll.all(st.converged and ref.converged)
+        assert coll.max(abs(st.force - ref.force)) <= 1e-6 * abs(ref.force)
