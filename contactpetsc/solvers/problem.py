@@ -9,9 +9,10 @@ the residual is the gap
 and the VI "p >= 0, g >= 0, p g = 0" is exactly the Signorini condition,
 eq. (4).  A hardness H (perfectly plastic asperities) is the upper bound p <= H
 of the same VI: p = 0 => g >= 0, 0 < p < H => g = 0, p = H => g <= 0, the
-overlap -g of a node at p = H its plastic displacement.  Its Jacobian is K itself, applied matrix-free by FFT; the
-reduced-space Newton method (``vinewtonrsls``) solves K_II dp_I = -g_I on the
-inactive set by CG, preconditioned by the Fourier inverse (``SpectralPC``,
+overlap -g of a node at p = H its plastic displacement (``plasticity.py``).
+Its Jacobian is K itself, applied matrix-free by FFT; the reduced-space Newton
+method (``vinewtonrsls``) solves K_II dp_I = -g_I on the inactive set by CG,
+preconditioned by the Fourier inverse (``SpectralPC``,
 the default) or the multilevel MLMI cycle (``mlmi.py``).
 
 Controls: ``approach`` (displacement control, delta given) or a load
