@@ -16,7 +16,7 @@ from ..collective import petsc_error_message
 from ..grid import SurfaceGrid
 from ..physics.interactions import InteractionLaw, make_law
 from ..physics.resolution import UnderResolvedWarning, check_resolution
-from .scenes import adhesive, law_keys
+from .scenes import adhesive, e_star, law_keys, layer
 
 #: the options prefixes of the scene's problems (docs/formulation.md)
 CONTACT_PREFIX, ADHESION_PREFIX = "contact_", "adhesion_"
@@ -86,7 +86,7 @@ def resolution_nodes(scene: dict, law: InteractionLaw | None) -> float | None:
     if law is None:
         return None
     g = scene["geometry"]
-    return check_resolution(law, scene["material"]["e_star"], max(g["dx"], g["dy"]),
+    return check_resolution(law, e_star(scene), max(g["dx"], g["dy"]),
                             radius=g["radius"] if g["kind"] in ("sphere", "tip") else None,
                             rms_slope=g["rms_slope"] if g["kind"] == "self-affine" else None)
 
@@ -98,14 +98,15 @@ def build_problem(scene: dict, grid: SurfaceGrid, heights: PETSc.Vec, law: Inter
     to the problem's ``petsc_options``.  The resolution is checked by ``resolution_nodes``,
     not again here."""
     from ..solvers.factory import make_problem
-    sol, e_star = scene["solver"], scene["material"]["e_star"]
+    sol, modulus, body = scene["solver"], e_star(scene), layer(scene)
     options = dict(sol["options"])
     if law is None:
         g, control = scene["geometry"], scene["protocol"]["control"]
         # a Hertz sphere in displacement control: errors relative to the largest approach
         hertz = (g["kind"] == "sphere" and not g["periodic"] and scene["interaction"]["law"] == "none"
                  and control == "approach")
-        problem = make_problem(grid, heights, e_star, prefix=CONTACT_PREFIX, petsc_options=options,
+        problem = make_problem(grid, heights, modulus, prefix=CONTACT_PREFIX, petsc_options=options, layer=body,
+                               hardness=scene["material"]["hardness"],
                                tol=sol["tol"] or 1e-10, preconditioner=sol["preconditioner"],
                                length_scale=max(scene["protocol"]["values"]) if hertz else None)
         return problem, None
@@ -113,7 +114,7 @@ def build_problem(scene: dict, grid: SurfaceGrid, heights: PETSc.Vec, law: Inter
     tol = sol["tol"] if sol["tol"] is not None else (1e-4 if relax else None)
     with warnings.catch_warnings():   # the scene's criterion was checked (resolution_nodes)
         warnings.simplefilter("ignore", UnderResolvedWarning)
-        built = make_problem(grid, heights, e_star, law, method=sol["method"], prefix=ADHESION_PREFIX,
-                             petsc_options=options, tol=tol, preconditioner=sol["preconditioner"],
+        built = make_problem(grid, heights, modulus, law, method=sol["method"], prefix=ADHESION_PREFIX,
+                             petsc_options=options, layer=body, tol=tol, preconditioner=sol["preconditioner"],
                              element_integration=scene["interaction"]["element_integration"])
     return (built.problem, built) if relax else (built, None)

@@ -206,7 +206,7 @@ def _info(version_only: bool, check: bool, comm) -> int:
         states = runner.run(scene, output=tmp, comm=comm)
         from ..physics.closed_forms import hertz_force
         g = scene["geometry"]
-        worst = max(abs(st.force / float(hertz_force(scene["material"]["e_star"], g["radius"], st.approach)) - 1)
+        worst = max(abs(st.force / float(hertz_force(scenes.e_star(scene), g["radius"], st.approach)) - 1)
                     for st in states)
         ok = all(st.converged for st in states) and worst < 0.05
         PETSc.Sys.Print(f"check: {'passed' if ok else 'FAILED'}: {len(states)} approaches on {comm.Get_size()} "

@@ -42,7 +42,7 @@ def plan(scene: dict, grid: SurfaceGrid, law=None, out_dir: str | None = None) -
         f"  heights: {g['path']} ({g['format']}, {g['nx']} x {g['ny']} nodes, in "
         f"{g['height_unit'] or 'the unit it states'}), detrend {g['detrend']}, min h = 0, "
         + ("periodic" if g["periodic"] else "an isolated window (zero-padded, not tapered)")]
-    return [f"scene {scene['name']}: {g['kind']} surface, E* = {scene['material']['e_star']:g} Pa, {law_text}",
+    return [f"scene {scene['name']}: {g['kind']} surface, {_body_text(scene)}, {law_text}",
             f"  {grid}", *heights,
             f"  rows per rank {[b - a for a, b in grid.y_ranges]}",
             chain,
@@ -57,6 +57,18 @@ def _stack_line(grid: SurfaceGrid) -> str:
     s = describe(grid.comm)
     return (f"  stack: PETSc {s['PETSc']} ({s['PETSc index bits']}-bit indices), petsc4py {s['petsc4py']}, "
             f"{s['MPI']}, parallel HDF5 {s['parallel HDF5'].split()[0]}")
+
+
+def _body_text(scene: dict) -> str:
+    """E*, and the layer and hardness where the scene has them, for the plan."""
+    from .scenes import e_star
+    m = scene["material"]
+    text = f"E* = {e_star(scene):g} Pa"
+    if m["layer_thickness"] is not None:
+        text += f", {m['layer_interface']} layer t = {m['layer_thickness']:g} m"
+    if m["hardness"] is not None:
+        text += f", hardness H = {m['hardness']:g} Pa"
+    return text
 
 
 def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=None,

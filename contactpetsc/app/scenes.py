@@ -17,12 +17,14 @@ import math
 import os
 import tomllib
 
+from ..operators.layer import INTERFACES
 from ..physics.interactions import LAWS, WORK_OF_ADHESION, adhesive_laws
 from ..topography import DETREND, FORMATS, HEIGHT_UNITS
 
 POS = (0.0, math.inf, False, False)      # (low, high, low included?, high included?)
 NONNEG = (0.0, math.inf, True, False)
 TOL = (0.0, 1e-2, False, True)           # a tolerance: above 1e-2 a solve is not a solution
+POISSON = (-1.0, 0.5, False, True)       # Poisson's ratio of an isotropic solid (0.5: incompressible)
 LOAD_RESOLUTION = 1e-12   #: smallest non-zero load or approach, relative to E* or the grid spacing
 
 
@@ -72,7 +74,18 @@ _SCHEMA = {
                       "min h = 0 shift (kind = file)", choices=DETREND),
     },
     "material": {
-        "e_star": _k(float, None, "Pa", "effective modulus E* (required)", POS),
+        "e_star": _k(float, None, "Pa", "effective modulus E*, 1/E* = (1-nu1^2)/E1 + (1-nu2^2)/E2 (or "
+                     "youngs_modulus and poisson_ratio)", POS),
+        "youngs_modulus": _k(float, None, "Pa", "Young's modulus E of the elastic body against a rigid one "
+                             "(with poisson_ratio; E* = E / (1 - nu^2)), instead of e_star", POS),
+        "poisson_ratio": _k(float, None, "", "Poisson's ratio nu of the elastic body (with youngs_modulus)",
+                            POISSON),
+        "hardness": _k(float, None, "Pa", "hardness H: no node carries more pressure (perfectly plastic "
+                       "asperities; default none; without adhesion; docs/formulation.md)", POS),
+        "layer_thickness": _k(float, None, "m", "the elastic body is a layer of this thickness on a rigid base "
+                              "(periodic cells; default: a half-space)", POS),
+        "layer_interface": _k(str, None, "", "the layer's contact with its base: bonded (no slip; the default "
+                              "with a layer; needs poisson_ratio) or frictionless", choices=INTERFACES),
     },
     "interaction": {   # law choices and law parameters: filled in from the registry (schema())
         "law": _k(str, "none", "", "interaction law (docs/formulation.md; the registered laws are listed "
@@ -212,7 +225,7 @@ def validate(scene: dict) -> dict:
         if g["path"] is None:
             raise SceneError("geometry.path is required for geometry.kind = file")
         _read_height_file(g, {k for k, v in scene.get("geometry", {}).items() if v is not None})
-    for required in ("geometry.dx", "material.e_star", "protocol.values"):
+    for required in ("geometry.dx", "protocol.values"):
         sec, sub = required.split(".")
         if out[sec][sub] is None:
             raise SceneError(f"{required} is required")
@@ -221,10 +234,12 @@ def validate(scene: dict) -> dict:
     if g["periodic"] is None:
         g["periodic"] = g["kind"] == "self-affine"
     _check_geometry(g, _given(scene, "geometry"))
+    _check_material(out, _given(scene, "material"))
     if out["output"]["atom_forces"] and g["kind"] != "tip":
         raise SceneError("output.atom_forces needs geometry.kind = tip (forces per atom of a tip)")
     _check_interaction(out, _given(scene, "interaction"))
     _check_protocol(out)
+    _check_hardness(out)
     return out
 
 
@@ -277,6 +292,69 @@ def _check_geometry(g: dict, given: set) -> None:
                              f"be wider than the grid")
 
 
+def e_star(scene: dict) -> float:
+    """E* [Pa] of a validated scene: material.e_star, or E / (1 - nu^2) from youngs_modulus and
+    poisson_ratio (the elastic body against a rigid one)."""
+    m = scene["material"]
+    if m["e_star"] is not None:
+        return m["e_star"]
+    return m["youngs_modulus"] / (1.0 - m["poisson_ratio"] ** 2)
+
+
+def layer(scene: dict):
+    """The scene's ``operators.Layer`` (material.layer_thickness), or None for a half-space."""
+    from ..operators.layer import Layer
+    m = scene["material"]
+    if m["layer_thickness"] is None:
+        return None
+    return Layer(m["layer_thickness"], m["layer_interface"], m["poisson_ratio"])
+
+
+def _check_material(out: dict, given: set) -> None:
+    m = out["material"]
+    if m["e_star"] is None and m["youngs_modulus"] is None:
+        raise SceneError("material.e_star is required (or material.youngs_modulus with material.poisson_ratio)")
+    if m["e_star"] is not None and m["youngs_modulus"] is not None:
+        raise SceneError("give exactly one of material.e_star or material.youngs_modulus (with "
+                         "material.poisson_ratio): both are given")
+    if m["youngs_modulus"] is not None and m["poisson_ratio"] is None:
+        raise SceneError(f"material.youngs_modulus needs material.poisson_ratio, in {range_text(POISSON)}")
+    if m["e_star"] is not None and m["poisson_ratio"] is not None:
+        raise SceneError("material.poisson_ratio goes with material.youngs_modulus, not with material.e_star "
+                         "(E* = E / (1 - nu^2)); give youngs_modulus and poisson_ratio instead of e_star")
+    if m["layer_thickness"] is None:
+        if "layer_interface" in given:
+            raise SceneError("material.layer_interface needs material.layer_thickness (a layer on a rigid base)")
+        return
+    m["layer_interface"] = m["layer_interface"] or "bonded"
+    if not out["geometry"]["periodic"]:
+        raise SceneError(f"material.layer_thickness = {m['layer_thickness']!r} needs a periodic cell "
+                         f"(geometry.periodic = true): the layer's kernel is a Fourier kernel")
+    if m["layer_interface"] == "bonded" and m["poisson_ratio"] is None:
+        raise SceneError("material.layer_interface = 'bonded' needs Poisson's ratio: give material.youngs_modulus "
+                         "and material.poisson_ratio instead of material.e_star (or layer_interface = "
+                         "'frictionless', which does not depend on it)")
+
+
+def _check_hardness(out: dict) -> None:
+    """A hardness is an upper bound of the non-adhesive problem; a load must stay below it."""
+    hardness = out["material"]["hardness"]
+    if hardness is None:
+        return
+    if adhesive(out):
+        raise SceneError("material.hardness with adhesion (interaction.law and interaction.work_of_adhesion > 0) "
+                         "is not supported: the hardness caps the pressure of the non-adhesive problem")
+    control, values, g = out["protocol"]["control"], out["protocol"]["values"], out["geometry"]
+    if control in ("mean_pressure", "force"):
+        high, unit = ((hardness, "Pa") if control == "mean_pressure"
+                      else (hardness * g["nx"] * g["dx"] * g["ny"] * g["dy"], "N"))
+        above = [v for v in values if v >= high]
+        if above:
+            raise SceneError(f"protocol.values: {above[0]!r} {unit} is not below material.hardness = {hardness!r} Pa"
+                             + (" times the window area nx dx ny dy" if control == "force" else "")
+                             + f" (no node carries more than H); accepted: (0, {high:.6g}) {unit}")
+
+
 def _check_interaction(out: dict, given: set) -> None:
     it, law = out["interaction"], out["interaction"]["law"]
     if not LAWS[law].parameters and it["work_of_adhesion"] > 0:
@@ -321,10 +399,10 @@ def _check_protocol(out: dict) -> None:
         raise SceneError(f"protocol.values = {values!r}: a non-empty list of finite numbers")
     if control in ("mean_pressure", "force") and min(values) <= 0:
         raise SceneError(f"protocol.values = {values!r}: loads must be > 0 without adhesion")
-    g, e_star = out["geometry"], out["material"]["e_star"]
+    g, e_star_value = out["geometry"], e_star(out)
     smallest, unit, what = {
-        "mean_pressure": (e_star, "Pa", "1e-12 material.e_star"),
-        "force": (e_star * g["nx"] * g["dx"] * g["ny"] * g["dy"], "N",
+        "mean_pressure": (e_star_value, "Pa", "1e-12 material.e_star"),
+        "force": (e_star_value * g["nx"] * g["dx"] * g["ny"] * g["dy"], "N",
                   "1e-12 material.e_star times the window area nx dx ny dy"),
     }.get(control, (0.0, "m", ""))   # an approach or gap of round-off size is just zero
     smallest *= LOAD_RESOLUTION

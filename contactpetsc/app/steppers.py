@@ -30,12 +30,15 @@ class ContactSteps:
     def __init__(self, scene: dict, grid, problem, relax=None):
         g = scene["geometry"]
         self.grid, self.control, self.problem = grid, scene["protocol"]["control"], problem
-        self.e_star = scene["material"]["e_star"]
-        self.hertz = g["kind"] == "sphere" and not g["periodic"] and scene["interaction"]["law"] == "none"
+        from .scenes import e_star
+        self.e_star = e_star(scene)
+        self.hertz = (g["kind"] == "sphere" and not g["periodic"] and scene["interaction"]["law"] == "none"
+                      and scene["material"]["hardness"] is None)
         self.radius = g["radius"]
+        self.plastic = scene["material"]["hardness"] is not None
         self.header = (f"  {'step':>4} {'approach [m]':>12} {'force [N]':>11} {'contact':>8} {'error':>9} "
                        f"{'Newton':>6} {'time [s]':>8}" + (f" {'F/F_Hertz':>9} {'a/a_Hertz':>9}" if self.hertz
-                                                             else ""))
+                                                             else "") + (f" {'plastic':>8}" if self.plastic else ""))
 
     def resume(self, recorder) -> None:
         (p,), approach = recorder.read_step(len(recorder.rows), self.fields)
@@ -47,7 +50,8 @@ class ContactSteps:
     def row(self, st) -> dict:
         return dict(adhesive_force_N=0.0, adhesive_load_ratio=0.0, adhesive_area_ratio=0.0, stable=True,
                     load_error=st.load_error, interference_error=st.interference_error,
-                    solver="snes-vi+" + self.problem.preconditioner)
+                    solver="snes-vi+" + self.problem.preconditioner, plastic_fraction=st.plastic_fraction,
+                    plastic_volume_m3=st.plastic_volume, max_plastic_displacement_m=st.max_plastic_displacement)
 
     def progress(self, st, row) -> str:
         line = (f"  {row['step']:4d} {st.approach:12.4e} {st.force:11.4e} {st.contact_fraction:8.4f} "
@@ -58,6 +62,8 @@ class ContactSteps:
             a_num = np.sqrt(st.contact_fraction * self.grid.lengths[0] * self.grid.lengths[1] / np.pi)
             a_h = float(hertz_contact_radius(self.radius, st.approach))
             line += f" {st.force / f_h:9.5f} {a_num / a_h:9.4f}" if f_h > 0 else ""
+        if self.plastic:
+            line += f" {st.plastic_fraction:8.4f}"
         return line
 
     def results(self) -> dict:

@@ -16,6 +16,10 @@ Periodic cell (``PeriodicHalfSpace``)
     K^-1 = E* |q| / 2 is the inverse on zero-mean fields and returns zero-mean
     pressures.
 
+Finite layer on a rigid base (``PeriodicLayer``, periodic cells only)
+    K(q) = 2 f(|q| t) / (E* |q|), f the layer's factor (``layer.py``; bonded or frictionless
+    base), f -> 1 for |q| t -> inf.  The mean mode is treated as for the half-space.
+
 Isolated contact (``IsolatedHalfSpace``)
     Love's influence coefficients (``love.py``) for the physical nx x ny
     window, convolved linearly by zero padding to 2nx x 2ny (a circulant of
@@ -38,6 +42,7 @@ from ..log_events import log_event
 from ..collective import collective_guard
 from ..grid import SurfaceGrid
 from ..lifetime import destroy_at_exit
+from .layer import Layer
 from .love import love_displacement
 
 
@@ -60,6 +65,11 @@ class HalfSpaceOperator:
         self.fft = SlabRFFT(grid.mpi_comm, grid.nx, grid.ny, grid.y_ranges, pad=pad,
                             threads=threads, planner=planner)
 
+    def on_grid(self, grid: SurfaceGrid, **kw) -> "HalfSpaceOperator":
+        """The same elastic body discretised on another grid (the coarse grids of the nested
+        iteration and of MLMI); ``kw`` as for the constructor."""
+        return type(self)(grid, self.e_star, **kw)
+
     def _set_pairs(self):
         self._kernel_pairs = self.as_pairs(self.kernel)
         self._inverse_pairs = None  # built on first use of K^-1
@@ -70,8 +80,8 @@ class HalfSpaceOperator:
         return self.fft.fft_pairs
 
     def lowest_mode_stiffness(self) -> float:
-        """min over modes of 1/K_hat [Pa/m]: E*|q_min|/2 on a periodic cell, 1/K_hat(0) when
-        isolated; collective."""
+        """min over modes of 1/K_hat [Pa/m] (the mean mode of a periodic cell left out):
+        E*|q_min|/2 on a periodic half-space, 1/K_hat(0) when isolated; collective."""
         norm = 1.0 / (self.fft.Nx * self.fft.Ny)
         inv = self.inverse_kernel
         local = float(inv[inv > 0].min()) if (inv > 0).any() else np.inf
@@ -149,18 +159,41 @@ class PeriodicHalfSpace(HalfSpaceOperator):
 
     def __init__(self, grid: SurfaceGrid, e_star: float, **kw):
         if not grid.periodic:
-            raise ValueError("PeriodicHalfSpace needs a periodic grid")
+            raise ValueError(f"{type(self).__name__} needs a periodic grid")
         super().__init__(grid, e_star, pad=False, **kw)
         lx, ly = grid.lengths
         qx, qy = self.fft.wavevectors(lx, ly)
         q = np.hypot(qx, qy)
         norm = 1.0 / (self.fft.Nx * self.fft.Ny)
-        with np.errstate(divide="ignore"):
-            k_hat = np.where(q > 0, 2.0 / (self.e_star * q), 0.0)
+        depth = self.depth_factor(q)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            k_hat = np.where(q > 0, 2.0 / (self.e_star * q) * depth, 0.0)
+            self.inverse_kernel = np.where(q > 0, 0.5 * self.e_star * q / depth, 0.0) * norm
         self.kernel = k_hat * norm
-        self.inverse_kernel = 0.5 * self.e_star * q * norm
         self._set_pairs()
         self.self_influence = self.spectral_sum(k_hat)
+
+    def depth_factor(self, q: np.ndarray):
+        """f(|q| t) of a body of finite depth (``PeriodicLayer``); 1 for the half-space."""
+        return 1.0
+
+
+class PeriodicLayer(PeriodicHalfSpace):
+    """Periodic elastic layer of thickness t on a rigid base (``layer.py``):
+    K_hat(q) = 2 f(|q| t) / (E* |q|), mean mode -> 0 as for the half-space (the layer's uniform
+    compression by the mean pressure is a rigid shift, taken up by the approach)."""
+
+    def __init__(self, grid: SurfaceGrid, e_star: float, layer: Layer, **kw):
+        if not isinstance(layer, Layer):
+            raise ValueError(f"layer must be a contactpetsc.operators.Layer, got {layer!r}")
+        self.layer = layer
+        super().__init__(grid, e_star, **kw)
+
+    def depth_factor(self, q):
+        return self.layer.factor(q)
+
+    def on_grid(self, grid: SurfaceGrid, **kw) -> "PeriodicLayer":
+        return PeriodicLayer(grid, self.e_star, self.layer, **kw)
 
 
 class IsolatedHalfSpace(HalfSpaceOperator):
@@ -193,6 +226,12 @@ class IsolatedHalfSpace(HalfSpaceOperator):
         self.min_eigenvalue = k_min
 
 
-def half_space(grid: SurfaceGrid, e_star: float, **kw) -> HalfSpaceOperator:
-    """The elastic operator that fits the grid: periodic cell or isolated window."""
+def half_space(grid: SurfaceGrid, e_star: float, layer: Layer | None = None, **kw) -> HalfSpaceOperator:
+    """The elastic operator that fits the grid: periodic cell or isolated window, or with
+    ``layer`` a finite layer on a rigid base (periodic cells only)."""
+    if layer is not None:
+        if not grid.periodic:
+            raise ValueError("a finite elastic layer (layer thickness) needs a periodic cell: its kernel "
+                             "is a Fourier kernel; set periodic = true")
+        return PeriodicLayer(grid, e_star, layer, **kw)
     return (PeriodicHalfSpace if grid.periodic else IsolatedHalfSpace)(grid, e_star, **kw)

@@ -24,12 +24,22 @@ class ContactLoadControl:
         preconditioned like the Newton steps.
         """
         grid = self.grid
-        inactive = (grid.rows(self._x, readonly=True) > 0) | (grid.rows(self._f, readonly=True) <= 0)
+        p, gap = grid.rows(self._x, readonly=True), grid.rows(self._f, readonly=True)
+        inactive = (p > 0) | (gap <= 0)
+        if np.isfinite(self.hardness):
+            inactive &= (p < self.hardness) | (gap >= 0)   # nodes at the cap stay there: dp = 0
         cached = self._slope_cache
         if cached is not None:
             same = cached[0].shape == inactive.shape and np.array_equal(cached[0], inactive)
             if grid.mpi_comm.allreduce(bool(same), op=MPI.LAND):
                 return cached[1], cached[2]   # same set, same K_II: same z
+        if self._dp is None:
+            self._dp = grid.create_vec()
+        if grid.mpi_comm.allreduce(int(np.count_nonzero(inactive))) == 0:
+            # every node open or at the cap (a hardness): the load does not move with delta here
+            self._dp.set(0.0)
+            self._slope_cache = (inactive, 0.0, self._dp)
+            return 0.0, self._dp
         local = (np.flatnonzero(inactive) + grid.nx * grid.ys).astype(PETSc.IntType)
         index_set = PETSc.IS().createGeneral(local, comm=grid.comm)
         J = self._snes.getJacobian()[0]
@@ -49,8 +59,6 @@ class ContactLoadControl:
         ksp.setInitialGuessNonzero(guess is not None)
         ksp.solve(b, z)
         self._linear += ksp.getIterationNumber()
-        if self._dp is None:
-            self._dp = grid.create_vec()
         dp = self._dp   # overwritten in place: the warm start z was read above
         dp.set(0.0)
         ctx.to_full(z, grid.rows(dp))
@@ -78,7 +86,16 @@ class ContactLoadControl:
         ``bound``, and delta = mean(h) means full contact, where mean p is set
         by the initial guess (the reduced Jacobian keeps the mean of the step at
         zero): a step beyond ``bound`` tries full contact once, with the
-        initial pressure's mean set to the target.
+        initial pressure's mean set to the target.  With a hardness H, gaps
+        at p = H may be negative and delta may pass mean(h), up to max(h)
+        (there p = H everywhere, above any admissible target): ``ceiling``.
+        With a hardness W(delta) is a staircase where most contact nodes sit at
+        H (each node reaching H adds H/n; between, only the few elastic nodes
+        move, with a slope far above the staircase's mean one), and it need not
+        be convex: every solve is then exact (a loose solve's load may be
+        out of order on a steep stair and spoil the bracket), and the step uses
+        the secant through the last evaluated state where the Newton step is
+        shorter or undefined (no elastic node: zero slope).
         """
         grid = self.grid
         n = grid.nx * grid.ny
@@ -86,16 +103,19 @@ class ContactLoadControl:
         lo_exact = hi_exact = True
         hi = np.inf                         # smallest evaluated approach with a load above the target
         bound = self.heights.sum() / n if grid.periodic else np.inf
+        capped = np.isfinite(self.hardness)
+        ceiling = float(self.heights.max()[1]) if capped and grid.periodic else (np.inf if capped else bound)
         tried_full = False
         delta = self._approach if self._approach is not None else lo
         p = self._pressure.copy()
-        inner = max(self.tol, self.inner_tol0)
+        inner = self.tol if capped else max(self.tol, self.inner_tol0)
+        last = None                         # (delta, load) of the last evaluated state
         slope = 0.0
         reason = "no iteration"
         for _ in range(self.max_outer):
             ok, reason = self._solve_at(delta, p, inner)
             if not ok:
-                if delta < bound:
+                if not (tried_full and delta == bound):
                     return False, reason   # a real failure of the inner solve: report it
                 # full contact tried below the full-contact load: no equilibrium there
                 hi = min(hi, delta)
@@ -108,7 +128,7 @@ class ContactLoadControl:
             load_err = abs(w - target) / target
             # the load error that a complementarity error tol (a gap error of tol * L,
             # i.e. an approach error of that size) allows: a tighter load_tol cannot be met
-            load_tol = max(self.load_tol, 2.0 * slope * self.tol * self.length_scale / target)
+            load_tol = max(self.load_tol, 2.0 * slope * self.tol * self._gap_scale() / target)
             if load_err <= load_tol and load_err > MAX_TOL and self._root is self:
                 # a coarse level's state is only a start; the reported one must carry its load
                 return False, (f"LOAD_ERROR_UNCONTROLLED (relative load error {load_err:.3e}: at this load the "
@@ -126,28 +146,34 @@ class ContactLoadControl:
             else:
                 hi, hi_exact = min(hi, delta), exact
             slope, dp = self._approach_slope()
+            if capped and last is not None and last[0] != delta:
+                secant = (w - last[1]) / (delta - last[0])
+                if secant > 0 and not 0 < slope <= secant:
+                    slope = secant
+            last = (delta, w)
             new = delta + (target - w) / slope if slope > 0 else np.inf
             if np.isfinite(new):
                 if new >= hi and not hi_exact:
                     hi = np.inf
                 if new <= lo and not lo_exact:
                     lo = lo0
-            upper = min(hi, bound)
-            if lo < new < upper:
-                p.axpy(new - delta, dp)  # Newton predictor on the current contact set
-                rows = grid.rows(p)
-                np.maximum(rows, 0.0, out=rows)
-            elif new >= bound and hi > bound and not tried_full:
+            upper = min(hi, ceiling)
+            if new >= bound and hi > bound and not tried_full:
                 tried_full = True  # full contact: delta = mean h, mean p from the guess
                 new = bound
                 p.axpy(new - delta, dp)
                 p.shift(target - p.sum() / n)
                 rows = grid.rows(p)
-                np.maximum(rows, 0.0, out=rows)
+                np.clip(rows, 0.0, self.hardness, out=rows)
+            elif lo < new < upper:
+                p.axpy(new - delta, dp)  # Newton predictor on the current contact set
+                rows = grid.rows(p)
+                np.clip(rows, 0.0, self.hardness, out=rows)
             elif np.isfinite(upper):
                 new = 0.5 * (lo + upper)
             else:
                 new = lo + 2.0 * max(delta - lo, self.length_scale)
-            inner = max(self.tol, min(self.inner_tol0, self.inner_eta * abs(new - delta) / self.length_scale))
+            if not capped:
+                inner = max(self.tol, min(self.inner_tol0, self.inner_eta * abs(new - delta) / self.length_scale))
             delta = new
         return False, f"DIVERGED_LOAD_ITERATION ({self.max_outer} approach updates; last SNES {reason})"

@@ -10,7 +10,6 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..operators.elastic import half_space
 from ..physics.resolution import UnderResolvedWarning
 from .base import AdhesiveSolveError, ContactSolveError, reason_name
 from .problem import ContactProblem
@@ -51,7 +50,7 @@ class Continuation:
         hc = gc.create_vec()
         gc.rows(hc)[...] = restrict(grid.rows(self.heights, readonly=True))
         # FFTW_MEASURE planning would cost more than the coarse solves themselves
-        op = half_space(gc, self.e_star, prefix=self.prefix, planner="estimate")
+        op = self.op.on_grid(gc, prefix=self.prefix, planner="estimate")
         with warnings.catch_warnings():
             # a coarse grid of the nested iteration resolves less than the fine one by design
             warnings.simplefilter("ignore", UnderResolvedWarning)

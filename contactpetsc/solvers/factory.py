@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from petsc4py import PETSc
 
+from ..operators.elastic import half_space
+from ..operators.layer import Layer
 from ..physics.interactions import adhesive_laws
 from .adhesive import PTC_LINESEARCH, AdhesiveProblem, newton_ksp_type, newton_linesearch
 from .base import VIProblem
@@ -30,17 +32,25 @@ def _check_method(law, method: str) -> None:
 
 
 def make_problem(grid, heights, e_star: float, law=None, *, method: str = "newton", prefix: str | None = None,
-                 petsc_options: dict | None = None, **defaults):
+                 petsc_options: dict | None = None, layer: Layer | None = None, **defaults):
     """``ContactProblem`` (``law`` None or ``none``), ``AdhesiveProblem`` (method ``newton``) or a
     ``RelaxationSolver`` on an ``AdhesiveProblem`` (method ``relaxation``; its ``tol``,
     ``contact_tol`` and ``max_cycles`` go to the relaxation).  ``prefix`` defaults to
-    ``contact_`` / ``adhesion_``; ``defaults`` are the problems' keyword code defaults."""
+    ``contact_`` / ``adhesion_``; ``layer`` (``operators.Layer``) makes the body a finite layer
+    on a rigid base (periodic cells); ``defaults`` are the problems' keyword code defaults
+    (``hardness`` without adhesion only)."""
     _check_method(law, method)
+    prefix = prefix or ("contact_" if _no_adhesion(law) else "adhesion_")
+    if defaults.get("hardness") is not None and not _no_adhesion(law):
+        raise ValueError(f"hardness = {defaults['hardness']!r} Pa with adhesion (law {law.name!r}) is not "
+                         f"supported: the hardness caps the pressure of the non-adhesive problem")
+    if layer is not None:
+        with _Options(prefix, petsc_options).inserted_options():   # -<prefix>fft_* reach the operator
+            defaults["operator"] = half_space(grid, e_star, layer=layer, prefix=prefix)
     if _no_adhesion(law):
-        return ContactProblem(grid, heights, e_star, prefix=prefix or "contact_", petsc_options=petsc_options,
-                              **defaults)
+        return ContactProblem(grid, heights, e_star, prefix=prefix, petsc_options=petsc_options, **defaults)
     relax = {k: defaults.pop(k) for k in RELAXATION_DEFAULTS if method == "relaxation" and k in defaults}
-    problem = AdhesiveProblem(grid, heights, e_star, law, prefix=prefix or "adhesion_",
+    problem = AdhesiveProblem(grid, heights, e_star, law, prefix=prefix,
                               petsc_options=petsc_options, **defaults)
     return RelaxationSolver(problem, **relax) if method == "relaxation" else problem
 

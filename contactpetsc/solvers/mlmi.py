@@ -46,7 +46,6 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..log_events import log_event
-from ..operators.elastic import half_space
 from .preconditioners import ReducedPreconditioner
 from .transfer import can_halve, halved, prolong_constant, restrict
 
@@ -170,7 +169,7 @@ def build_levels(fine_op, max_levels: int = 8, min_size: int = 8) -> list[Level]
         if not can_halve(g) or g.nx // 2 < min_size or g.ny // 2 < min_size:
             break
         gc = halved(g)
-        op = half_space(gc, fine_op.e_star, planner="estimate", prefix=fine_op.prefix)
+        op = fine_op.on_grid(gc, planner="estimate", prefix=fine_op.prefix)
         levels.append(Level(op))
         g = gc
     return levels

@@ -7,9 +7,12 @@ the residual is the gap
     F(p) = g = h + K p - delta          (reference paper, eq. 5)
 
 and the VI "p >= 0, g >= 0, p g = 0" is exactly the Signorini condition,
-eq. (4).  Its Jacobian is K itself, applied matrix-free by FFT; the
-reduced-space Newton method (``vinewtonrsls``) solves K_II dp_I = -g_I on the
-inactive set by CG, preconditioned by the Fourier inverse (``SpectralPC``,
+eq. (4).  A hardness H (perfectly plastic asperities) is the upper bound p <= H
+of the same VI: p = 0 => g >= 0, 0 < p < H => g = 0, p = H => g <= 0, the
+overlap -g of a node at p = H its plastic displacement (``plasticity.py``).
+Its Jacobian is K itself, applied matrix-free by FFT; the reduced-space Newton
+method (``vinewtonrsls``) solves K_II dp_I = -g_I on the inactive set by CG,
+preconditioned by the Fourier inverse (``SpectralPC``,
 the default) or the multilevel MLMI cycle (``mlmi.py``).
 
 Controls: ``approach`` (displacement control, delta given) or a load
@@ -34,7 +37,7 @@ from petsc4py import PETSc
 from ..collective import collective_guard
 from ..grid import SurfaceGrid
 from ..lifetime import destroy_at_exit
-from ..operators.elastic import HalfSpaceOperator, half_space
+from ..operators.elastic import HalfSpaceOperator
 from ..geometry.surfaces import rms_height
 from .base import (ContactSolveError, VIProblem, check_tolerance, convergence_verdict, reason_name,
                    weighted_pairs, with_options)
@@ -43,6 +46,7 @@ from .history import SolveHistory
 from .options import code_default, print_help
 from .pc_registry import PRECONDITIONERS, preconditioner_name
 from .reduced import ContactJacobian
+from .plasticity import check_hardness, plastic_measures
 from .states import ContactState
 from .transfer import can_halve, halved, prolong_bilinear, prolong_constant, restrict
 
@@ -76,6 +80,9 @@ class ContactProblem(ContactLoadControl, VIProblem):
         Code default of ``-<prefix>preconditioner``: spectral, mlmi or none.
     fmg : bool, optional
         Code default of ``-<prefix>fmg`` (nested iteration on the first solve, on).
+    hardness : float, optional
+        H [Pa], the largest pressure a node carries (perfectly plastic asperities);
+        None (default) or inf: elastic.
     petsc_options : dict, optional
         PETSc options under ``prefix`` while the problem builds and solves (``VIProblem``).
     Options given on the command line override these code defaults.
@@ -85,11 +92,12 @@ class ContactProblem(ContactLoadControl, VIProblem):
                  prefix: str = "contact_", length_scale: float | None = None,
                  operator: HalfSpaceOperator | None = None, tol: float | None = None,
                  load_tol: float | None = None, preconditioner: str | None = None,
-                 fmg: bool | None = None, petsc_options: dict | None = None,
+                 fmg: bool | None = None, hardness: float | None = None, petsc_options: dict | None = None,
                  _root: "ContactProblem | None" = None):
         for name, value in (("tol", tol), ("load_tol", load_tol)):
             if value is not None:
                 check_tolerance(value, name)
+        self.hardness = check_hardness(hardness)
         super().__init__(grid, heights, e_star, prefix=prefix, operator=operator, petsc_options=petsc_options)
         self._defaults = dict(tol=tol, load_tol=load_tol, preconditioner=preconditioner, fmg=fmg)
         self._root = _root if _root is not None else self
@@ -110,6 +118,7 @@ class ContactProblem(ContactLoadControl, VIProblem):
         self._z_guess = None      # initial guess of the next slope solve (full grid)
         self._dp = None           # dp/d delta of the last slope solve (one Vec, reused)
         self._work = None         # grid-sized scratch of the convergence measures
+        self._work2 = None        # and a second one, with a hardness
         self._pressure = grid.create_vec(0.0)   # last converged pressure: the next warm start
         self._approach = None
         self._target = None
@@ -136,7 +145,8 @@ class ContactProblem(ContactLoadControl, VIProblem):
         J.setUp()
         self._x, self._f = grid.create_vec(0.0), grid.create_vec(0.0)
         self._x_best = grid.create_vec(0.0)   # the iterate of smallest error of the running solve
-        snes = self.make_vi_snes(self.prefix, (grid.create_vec(0.0), grid.create_vec(PETSc.INFINITY)),
+        upper = self.hardness if np.isfinite(self.hardness) else PETSc.INFINITY
+        snes = self.make_vi_snes(self.prefix, (grid.create_vec(0.0), grid.create_vec(upper)),
                                  code_default("contact", "snes_max_it"))
         self.set_default("snes_linesearch_type", NEWTON_LINESEARCH)
         self.set_default("snes_linesearch_maxstep", "1e300")   # PETSc's 1e8 is in Pa here
@@ -205,14 +215,26 @@ class ContactProblem(ContactLoadControl, VIProblem):
 
     def _measures(self, x, f):
         """(complementarity error relative to the length scale and to ``_gap_scale``,
-        mean pressure, contact fraction)."""
+        mean pressure, contact fraction).
+
+        The error is the VI's natural residual with the pressure turned into a length by K_ii:
+        max |mid(K_ii (p - H), g, K_ii p)|, i.e. max |min(K_ii p, g)| without a hardness."""
         grid = self.grid
         comm = grid.mpi_comm
         p = grid.rows(x, readonly=True)
         if self._work is None:
             self._work = np.empty_like(p)   # one buffer for every evaluation: no per-iteration allocation
-        nat = np.multiply(p, self.kappa, out=self._work)
-        np.minimum(nat, grid.rows(f, readonly=True), out=nat)
+        nat = self._work
+        if np.isfinite(self.hardness):
+            np.subtract(p, self.hardness, out=nat)
+            nat *= self.kappa
+            np.maximum(nat, grid.rows(f, readonly=True), out=nat)
+            if self._work2 is None:
+                self._work2 = np.empty_like(p)
+            np.minimum(nat, np.multiply(p, self.kappa, out=self._work2), out=nat)
+        else:
+            np.multiply(p, self.kappa, out=nat)
+            np.minimum(nat, grid.rows(f, readonly=True), out=nat)
         # max |min(K_ii p, g)| without an |.| temporary: the larger of max and -min
         local = max(float(nat.max()), -float(nat.min()))
         err = comm.allreduce(local, op=MPI.MAX)
@@ -224,13 +246,18 @@ class ContactProblem(ContactLoadControl, VIProblem):
         """The length [m] the convergence test measures gaps in: the length scale, or under
         displacement control the interference delta - min(h) where that is smaller (a small
         interference gives small pressures, whose gap errors K_ii p are below any tolerance
-        of the length scale; under load control the relative load error sees them)."""
-        if self._target is not None or self._approach is None:
-            return self.length_scale
-        if self._h_min is None:
-            self._h_min = float(self.heights.min()[1])
-        interference = self._approach - self._h_min
-        return min(self.length_scale, interference) if interference > 0 else self.length_scale
+        of the length scale; under load control the relative load error sees them).  With a
+        hardness, at most K_ii H: a node at the wrong bound (open where g < 0, at H where
+        g > 0) adds only K_ii H to the natural residual, which a tolerance of a larger
+        length would pass (floored at 1e-6 of the length: gap errors of tol times less
+        would be round-off of the heights)."""
+        scale = self.length_scale
+        if self._target is None and self._approach is not None:
+            if self._h_min is None:
+                self._h_min = float(self.heights.min()[1])
+            interference = self._approach - self._h_min
+            scale = min(scale, interference) if interference > 0 else scale
+        return min(scale, max(self.kappa * self.hardness, 1e-6 * scale))
 
     @collective_guard
     def _converged(self, snes, it, norms):
@@ -333,12 +360,13 @@ class ContactProblem(ContactLoadControl, VIProblem):
         else:
             gc = halved(grid)
             # FFTW_MEASURE planning would cost more than the coarse solves themselves
-            op = half_space(gc, self.e_star, prefix=self.prefix, planner="estimate")
+            op = self.op.on_grid(gc, prefix=self.prefix, planner="estimate")
         hc = gc.create_vec()
         gc.rows(hc)[...] = restrict(grid.rows(self.heights, readonly=True))
         d = dict(self._defaults, preconditioner=self.preconditioner, fmg=True)
         coarse = ContactProblem(gc, hc, self.e_star, prefix=self.prefix, length_scale=self.length_scale,
-                                operator=op, petsc_options=self.petsc_options, _root=self._root, **d)
+                                operator=op, hardness=self.hardness, petsc_options=self.petsc_options,
+                                _root=self._root, **d)
         coarse._levels = levels[1:] if levels and len(levels) > 1 else None
         coarse._build()
         coarse.tol, coarse.load_tol = max(self.fmg_tol, self.tol), max(1e-6, self.load_tol)
@@ -403,6 +431,13 @@ class ContactProblem(ContactLoadControl, VIProblem):
                 raise ValueError(f"{name} must be finite, got {v!r}")
         if mean_pressure is not None and mean_pressure <= 0:
             raise ValueError(f"mean_pressure / force must be > 0 without adhesion, got {mean_pressure!r}")
+        if mean_pressure is not None and mean_pressure >= self.hardness:
+            # every node carries at most H: a mean pressure H is full plastic contact at any
+            # approach past max(h), a larger one has no solution
+            name, value, unit, high = (("force", force, "N", self.hardness * area) if force is not None
+                                       else ("mean_pressure", mean_pressure, "Pa", self.hardness))
+            raise ValueError(f"{name} = {value!r} {unit}: accepted range (0, {high:.6g}) {unit} below the "
+                             f"hardness H = {self.hardness:.6g} Pa (no node carries more than H)")
         if mean_pressure is not None and mean_pressure < MIN_LOAD * self.e_star:
             # far below any load a contact can carry measurably: the approach that gives it
             # is lost in the round-off of the heights, so its load error cannot be controlled
@@ -429,12 +464,13 @@ class ContactProblem(ContactLoadControl, VIProblem):
         self.gap(grid.rows(p, readonly=True), grid.rows(gap), displacement=grid.rows(v))
         err, err_gap, mean_p, frac = self._measures(p, gap)
         load_err = abs(mean_p - mean_pressure) / mean_pressure if mean_pressure else float("nan")
+        plastic = plastic_measures(grid, p, gap, self.hardness)
         state = ContactState(
             pressure=p, gap=gap, displacement=v, approach=self._approach, mean_pressure=mean_p,
             force=mean_p * area, contact_fraction=frac, complementarity_error=err,
             interference_error=err_gap, load_error=load_err, converged=converged, reason=reason,
             newton_iterations=self._newton, linear_iterations=self._linear,
-            fft_pairs=self.fft_pairs() - pairs0, wall_time=self.history.elapsed() - t0)
+            fft_pairs=self.fft_pairs() - pairs0, wall_time=self.history.elapsed() - t0, **plastic)
         # free the parallel temporaries petsc4py parked in PETSc's garbage (collective)
         PETSc.garbage_cleanup(grid.comm)
         if not converged and raise_on_failure:

@@ -27,6 +27,9 @@ class ContactState:
     linear_iterations: int
     fft_pairs: float          #: fine-grid FFT pairs of this solve (coarse levels weighted)
     wall_time: float          #: [s]
+    plastic_fraction: float = 0.0          #: fraction of nodes at the hardness, p = H (0 without one)
+    plastic_volume: float = 0.0            #: [m^3] sum of -g over the nodes at p = H times dx dy
+    max_plastic_displacement: float = 0.0  #: [m] max of -g over the nodes at p = H
 
 
 @dataclass
