@@ -51,6 +51,9 @@ def _parser() -> argparse.ArgumentParser:
                           "(as output.plots = true; needs matplotlib)")
     plot = sub.add_parser("plot", help="save the plots of a finished run's output directory")
     plot.add_argument("directory", help="a run's output directory (with curve.csv)")
+    plot.add_argument("--step", type=int, default=None,
+                      help="the step whose pressure map and distributions are plotted (default: the scene's "
+                           "output.plot_step, else the step at the largest force)")
     return p
 
 
@@ -118,7 +121,7 @@ def main(argv=None) -> int:
         return 2
     comm = PETSc.COMM_WORLD.tompi4py()
     if args.command == "plot":
-        return _plot(args.directory, comm)
+        return _plot(args.directory, comm, args.step)
     try:
         from . import runner, scenes
         scene = scenes.load(args.scene) if args.scene else scenes.validate(scenes.DEFAULT_SCENE)
@@ -155,13 +158,13 @@ def _print_options_help(scene: dict) -> None:
     print_help(table, prefix)
 
 
-def _plot(directory: str, comm) -> int:
+def _plot(directory: str, comm, step: int | None = None) -> int:
     """``contactpetsc plot DIR``: the plots of a finished run, drawn on rank 0."""
     if comm.Get_rank() != 0:
         return 0
     try:
         from .plots import plot_run
-        for path in plot_run(directory):
+        for path in plot_run(directory, step=step):
             print(f"wrote {path}")
         return 0
     except Exception as exc:  # noqa: BLE001 - a damaged file is reported, not a traceback
