@@ -6,6 +6,8 @@ import numpy as np
 
 from .common import figure, prefix, save
 
+ROUND_OFF = 1e-10   #: psd.png leaves out rings whose C(q) is below this share of the peak
+
 
 def pressure_map(pressure: np.ndarray, dx: float, dy: float, path: str | None = None, title: str = ""):
     """A (ny, nx) pressure field [Pa] on a diverging scale centred at zero; returns the Figure."""
@@ -93,7 +95,11 @@ def psd(heights: np.ndarray, dx: float, dy: float, periodic: bool = True, hurst:
     ``cutoffs`` (q_r, q_s) [1/m] for reference; returns the Figure."""
     fig, ax = figure()
     q, c = radial_psd(heights, dx, dy, periodic)
-    ax.loglog(q, c, "o-", ms=3, color="C0", label="C(q) of the heights (rings of |q|)")
+    floor = ROUND_OFF * (c.max() if c.size else 0.0)   # beyond a generator's cut-off: round-off
+    label = "C(q) of the heights (rings of |q|)" + (", rings below 1e-10 of the peak left out"
+                                                    if np.any(c < floor) else "")
+    q, c = q[c >= floor], c[c >= floor]
+    ax.loglog(q, c, "o-", ms=3, color="C0", label=label)
     if hurst is not None and cutoffs is not None:
         q_r, q_s = cutoffs
         band = (q >= q_r) & (q <= q_s) & (c > 0)

@@ -40,6 +40,8 @@ def error_vs_time(history: dict, path: str | None = None, title: str = ""):
                 ax.plot(x[seg], e[seg], marker=marker, ms=3, lw=0.7, color=colour(step[seg[0]]),
                         mfc="none" if marker in "o^s" else None)
             ax.plot([], [], marker=marker, ls="none", color="k", mfc="none", label=name.replace("_", " "))
+    if np.any(np.isnan(step)) and steps.size:
+        top.plot([], [], color="0.6", label="after the last step (pull-off refinement)")
     for ax, label in ((top, "wall time [s]"), (bottom, "FFT pairs (cumulative; coarse levels weighted)")):
         ax.set_yscale("log")
         ax.set_xlabel(label)
