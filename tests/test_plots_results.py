@@ -199,9 +199,10 @@ def test_plots_of_a_rough_run_with_and_without_field_files(coll, shared_tmp):
 
 
 @pytest.mark.serial
-def test_plot_step_is_the_largest_force_unless_asked():
+def test_plot_step_is_the_most_pressed_unless_asked():
     assert plots.plot_step([1.0, 3.0, 2.0], [1, 1, 1]) == 2
     assert plots.plot_step([1.0, 3.0, 2.0], [1, 0, 1]) == 3
+    assert plots.plot_step([-3.0, 1.0, 1.0, -3.0], [1, 1, 1, 1]) == 3   # loading, unloading: the last on ties
     assert plots.plot_step([1.0, 3.0, 2.0], [1, 1, 1], requested=1) == 1
     with pytest.raises(ValueError, match=r"output.plot_step = 4: the run has steps 1 to 3"):
         plots.plot_step([1.0, 3.0, 2.0], [1, 1, 1], requested=4)

@@ -53,7 +53,7 @@ def _parser() -> argparse.ArgumentParser:
     plot.add_argument("directory", help="a run's output directory (with curve.csv)")
     plot.add_argument("--step", type=int, default=None,
                       help="the step whose pressure map and distributions are plotted (default: the scene's "
-                           "output.plot_step, else the step at the largest force)")
+                           "output.plot_step, else the step at the largest approach)")
     return p
 
 

@@ -146,7 +146,7 @@ def _save_plots(scene: dict, grid: SurfaceGrid, out_dir: str, states: list, heig
     from .plots import plot_step, plot_run
     fields = None
     if not scene["output"]["fields"] and states:   # no field file: gather the plotted step's fields
-        step = collective_call(grid.mpi_comm, ValueError, "{error}", plot_step, [st.force for st in states],
+        step = collective_call(grid.mpi_comm, ValueError, "{error}", plot_step, [st.approach for st in states],
                                [st.converged for st in states], scene["output"]["plot_step"])
         st = states[step - 1]
         got = {name: grid.gather(vec, root=0) for name, vec in

@@ -102,7 +102,7 @@ _SCHEMA = {
                     "cells), pressure_map.png and histograms.png (the plotted step), psd.png (rough "
                     "surfaces), error_vs_time.png"),
         "plot_step": _k(int, None, "", "the step whose pressure map and distributions are plotted "
-                        "(default: the step at the largest force)", (1, 2**31 - 1, True, True)),
+                        "(default: the step at the largest approach, the most pressed)", (1, 2**31 - 1, True, True)),
         "atom_forces": _k(bool, False, "", "write atom_forces.csv: the force on each atom of a tip "
                           "(nodal pressure over its footprint) at every step (kind = tip)"),
     },

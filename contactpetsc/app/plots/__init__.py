@@ -12,7 +12,7 @@ saves, in the same directory (docs/outputs.md, "Plots"):
   small-load laws of Persson and Bush-Gibson-Thomas, and the mean gap against log p/E*.
 - ``pressure_map.png`` and ``histograms.png``: the pressure, and the pressure and gap
   distributions, of the plotted step: ``output.plot_step``, by default the step at the largest
-  force (``fields``).
+  approach (``fields``).
 - ``psd.png`` (rough surfaces: self-affine or from a file): the radially averaged power
   spectrum of the heights, with the generator's slope -2(1 + H) for a self-affine one.
 - ``error_vs_time.png``: the error of every iteration against run time and FFT pairs, one colour
@@ -45,19 +45,20 @@ PLOTS = ("load_approach.png", "contact_area.png", "mean_gap.png", "pressure_map.
          "psd.png", "error_vs_time.png")
 
 
-def plot_step(force, converged, requested: int | None = None) -> int:
+def plot_step(approach, converged, requested: int | None = None) -> int:
     """The step whose fields are plotted (1, 2, ...): ``requested`` (``output.plot_step``), else
-    the converged step of the largest force (the last on ties), else the last step.  A
-    requested step beyond the run's steps is a ValueError naming the key."""
-    force = np.asarray(force, float)
+    the converged step of the largest approach (the last on ties): the most pressed state, the
+    one of the largest load without adhesion; else the last step.  A requested step beyond the
+    run's steps is a ValueError naming the key."""
+    approach = np.asarray(approach, float)
     if requested is not None:
-        if not 1 <= requested <= force.size:
-            raise ValueError(f"output.plot_step = {requested}: the run has steps 1 to {force.size}")
+        if not 1 <= requested <= approach.size:
+            raise ValueError(f"output.plot_step = {requested}: the run has steps 1 to {approach.size}")
         return int(requested)
-    ok = (np.asarray(converged, float) == 1) & np.isfinite(force)
+    ok = (np.asarray(converged, float) == 1) & np.isfinite(approach)
     if not np.any(ok):
-        return int(force.size)
-    best = np.where(ok, force, -np.inf)
+        return int(approach.size)
+    best = np.where(ok, approach, -np.inf)
     return int(np.flatnonzero(best == best.max())[-1]) + 1
 
 
@@ -87,7 +88,7 @@ def plot_run(directory: str, fields: dict | None = None, step: int | None = None
     ``fields``: the plotted step's ``pressure``, ``gap``, ``heights`` (ny, nx) with ``dx``, ``dy``
     (``hdx``, ``hdy`` for the heights) and its ``step``, for runs without field files; by
     default they are read from its ``step_NNNN.h5``.  ``step``: the step to plot (default
-    ``output.plot_step`` of the run's scene, else the step at the largest force).
+    ``output.plot_step`` of the run's scene, else the step at the largest approach).
     """
     path = lambda name: os.path.join(directory, name)  # noqa: E731
     if not os.path.exists(path("curve.csv")):
@@ -108,7 +109,7 @@ def plot_run(directory: str, fields: dict | None = None, step: int | None = None
         chosen = fields["step"]
     else:
         requested = step if step is not None else (scene or {}).get("output", {}).get("plot_step")
-        chosen = plot_step(curve["force_N"], curve.get("converged", np.ones(len(curve["step"]))), requested)
+        chosen = plot_step(curve["approach_m"], curve.get("converged", np.ones(len(curve["step"]))), requested)
         fields = read_fields(directory, int(curve["step"][chosen - 1]))
     name = scene["name"] if scene else os.path.basename(os.path.normpath(directory))
     written = []

@@ -29,11 +29,12 @@ def pressure_map(pressure: np.ndarray, dx: float, dy: float, path: str | None = 
 def histograms(pressure: np.ndarray, gap: np.ndarray, path: str | None = None, title: str = ""):
     """Two panels: the distribution of the nodal pressure over the nodes that carry any (p != 0),
     and of the gap over the nodes out of contact (p <= 0), each a density normalised by the
-    number of all nodes (its integral is the share of the nodes drawn); returns the Figure."""
+    number of all nodes (its integral is the share of the nodes drawn), on a log axis for the
+    gap and for a pressure with tension (its long adhesive tail); returns the Figure."""
     fig, (left, right) = figure(1, 2, size=(10.0, 4.2))
     p, g = np.ravel(pressure), np.ravel(gap)
     n = max(p.size, 1)
-    for ax, values, unit, what, log in ((left, p[p != 0], "Pa", "pressure p, nodes with p ≠ 0", False),
+    for ax, values, unit, what, log in ((left, p[p != 0], "Pa", "pressure p, nodes with p ≠ 0", np.any(p < 0)),
                                         (right, g[(p <= 0) & np.isfinite(g)], "m", "gap g, nodes with p ≤ 0", True)):
         if values.size == 0:
             ax.text(0.5, 0.5, "no such node", ha="center", va="center", transform=ax.transAxes)
