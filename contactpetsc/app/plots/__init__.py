@@ -123,11 +123,12 @@ def plot_run(directory: str, fields: dict | None = None, step: int | None = None
     g = scene["geometry"] if scene else {}
     heights = fields.get("heights") if fields else None
     slope = rms_slope(heights, fields["hdx"], fields["hdy"]) if heights is not None else g.get("rms_slope")
-    if g.get("periodic") and "mean_gap_m" in curve and np.any(curve["mean_pressure_Pa"] > 0):
+    if g.get("periodic") and np.any(curve["mean_pressure_Pa"] > 0):
         e_star = scene["material"]["e_star"]
         draw("contact_area.png", contact_area, curve, e_star, slope, title=f"{name}: contact area against load")
-        h_rms = float(np.std(heights)) if heights is not None else g.get("rms_height")
-        draw("mean_gap.png", mean_gap, curve, e_star, h_rms, title=f"{name}: mean gap against load")
+        if np.any(np.isfinite(curve.get("mean_gap_m", np.nan))):   # not in runs of older versions
+            h_rms = float(np.std(heights)) if heights is not None else g.get("rms_height")
+            draw("mean_gap.png", mean_gap, curve, e_star, h_rms, title=f"{name}: mean gap against load")
     if fields is not None:
         row = chosen - 1
         what = (f"{name}, step {int(curve['step'][row])}: δ = {curve['approach_m'][row]:.4g} m, "
