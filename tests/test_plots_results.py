@@ -208,8 +208,12 @@ def test_plots_of_a_rough_run_without_field_files(coll, shared_tmp):
     names = {"load_approach.png", "contact_area.png", "mean_gap.png", "pressure_map.png", "histograms.png",
              "psd.png", "error_vs_time.png"}
     out = shared_tmp / "plots"
-    runner.run(rough(out, plots=True, fields=False, plot_step=2), comm=PETSc.COMM_WORLD)
-    assert coll.all(names <= set(os.listdir(out)))
+    scene = rough(out, plots=True, fields=False, plot_step=2)
+    runner.run(scene, comm=PETSc.COMM_WORLD)
+    assert coll.all(names == {f for f in os.listdir(out) if f.endswith(".png")} == set(plots.planned(scene)))
+    sphere = scenes.validate({"geometry": {"kind": "sphere", "radius": 1e-4, "nx": 32, "dx": 5e-8},
+                              "material": {"e_star": 50e9}, "protocol": {"values": [1e-9]}})
+    assert set(plots.planned(sphere)) == names - {"contact_area.png", "mean_gap.png", "psd.png"}
     from matplotlib.image import imread
     for name in names:
         image = imread(out / name)
@@ -222,7 +226,7 @@ def test_plot_step_is_the_most_pressed_unless_asked():
     assert plots.plot_step([1.0, 3.0, 2.0], [1, 0, 1]) == 3
     assert plots.plot_step([-3.0, 1.0, 1.0, -3.0], [1, 1, 1, 1]) == 3   # loading, unloading: the last on ties
     assert plots.plot_step([1.0, 3.0, 2.0], [1, 1, 1], requested=1) == 1
-    with pytest.raises(ValueError, match=r"output.plot_step = 4: the run has steps 1 to 3"):
+    with pytest.raises(ValueError, match=r"plot step 4 \(output.plot_step, or plot --step\): the run has steps 1 to 3"):
         plots.plot_step([1.0, 3.0, 2.0], [1, 1, 1], requested=4)
     with pytest.raises(scenes.SceneError, match=r"output.plot_step = 5: accepted range \[1, 3\]"):
         rough("x", plot_step=5)

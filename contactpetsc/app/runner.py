@@ -133,7 +133,8 @@ def _outputs_line(scene: dict, n: int, out_dir: str) -> str:
     if out["atom_forces"] and scene["geometry"]["kind"] == "tip":
         files.append("atom_forces.csv")
     if out["plots"]:
-        files.append("plots (load_approach.png, ...; docs/outputs.md)")
+        from .plots import planned
+        files.append(", ".join(planned(scene)))
     return f"  outputs in {out_dir}: " + ", ".join(files)
 
 

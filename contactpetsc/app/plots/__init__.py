@@ -35,7 +35,7 @@ from .history import ERRORS, error_vs_time
 
 __all__ = ["plot_run", "plot_step", "require", "read_csv", "is_number", "prefix", "load_approach",
            "contact_area", "mean_gap", "sphere_overlays", "pressure_map", "histograms", "psd",
-           "radial_psd", "rms_slope", "error_vs_time", "BRANCH_STYLE", "ERRORS", "PLOTS"]
+           "radial_psd", "rms_slope", "error_vs_time", "BRANCH_STYLE", "ERRORS", "PLOTS", "planned"]
 
 MAP_PIXELS = 2048      #: a larger field is read every k-th node for the map and the histograms
 HEIGHT_NODES = 8192    #: the heights (spectrum, rms slope) are read whole up to this many per side
@@ -43,6 +43,17 @@ JUMP_NUMBERS = ("approach_before_m", "approach_after_m", "force_before_N", "forc
 #: every file ``plot_run`` may write (the run directory's own files, docs/outputs.md)
 PLOTS = ("load_approach.png", "contact_area.png", "mean_gap.png", "pressure_map.png", "histograms.png",
          "psd.png", "error_vs_time.png")
+
+
+def planned(scene: dict | None) -> tuple:
+    """The plots a run of ``scene`` draws (those whose data it writes: ``plot_run`` leaves out a
+    plot whose data a directory lacks); all of them when the scene is not known."""
+    if scene is None:
+        return PLOTS
+    g = scene["geometry"]
+    return tuple(name for name in PLOTS if not (
+        name in ("contact_area.png", "mean_gap.png") and not g["periodic"]
+        or name == "psd.png" and g["kind"] not in ("self-affine", "file")))
 
 
 def plot_step(approach, converged, requested: int | None = None) -> int:
@@ -53,7 +64,8 @@ def plot_step(approach, converged, requested: int | None = None) -> int:
     approach = np.asarray(approach, float)
     if requested is not None:
         if not 1 <= requested <= approach.size:
-            raise ValueError(f"output.plot_step = {requested}: the run has steps 1 to {approach.size}")
+            raise ValueError(f"plot step {requested} (output.plot_step, or plot --step): the run has steps 1 "
+                             f"to {approach.size}")
         return int(requested)
     ok = (np.asarray(converged, float) == 1) & np.isfinite(approach)
     if not np.any(ok):
@@ -118,12 +130,13 @@ def plot_run(directory: str, fields: dict | None = None, step: int | None = None
         written.append(path(file))
         plot(*args, path=written[-1], **kw)
 
+    wanted = planned(scene)
     draw("load_approach.png", load_approach, curve, jumps, pull_off, title=f"{name}: load against approach",
          overlays=sphere_overlays(scene, curve["approach_m"]) if scene else [])
     g = scene["geometry"] if scene else {}
     heights = fields.get("heights") if fields else None
     slope = rms_slope(heights, fields["hdx"], fields["hdy"]) if heights is not None else g.get("rms_slope")
-    if g.get("periodic") and np.any(curve["mean_pressure_Pa"] > 0):
+    if "contact_area.png" in wanted and scene and np.any(curve["mean_pressure_Pa"] > 0):
         e_star = scene["material"]["e_star"]
         draw("contact_area.png", contact_area, curve, e_star, slope, title=f"{name}: contact area against load")
         if np.any(np.isfinite(curve.get("mean_gap_m", np.nan))):   # not in runs of older versions
@@ -136,7 +149,7 @@ def plot_run(directory: str, fields: dict | None = None, step: int | None = None
         draw("pressure_map.png", pressure_map, fields["pressure"], fields["dx"], fields["dy"], title=what)
         if fields.get("gap") is not None:
             draw("histograms.png", histograms, fields["pressure"], fields["gap"], title=what)
-    if heights is not None and g.get("kind") in ("self-affine", "file"):
+    if "psd.png" in wanted and heights is not None and scene:
         generated = g["kind"] == "self-affine"
         draw("psd.png", psd, heights, fields["hdx"], fields["hdy"], bool(g.get("periodic")),
              hurst=g["hurst"] if generated else None, cutoffs=_band(g) if generated else None,
