@@ -47,8 +47,8 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--dry-run", action="store_true",
                      help="print the plan (grid, decomposition, solver, memory, outputs) and exit")
     run.add_argument("--plots", action="store_true",
-                     help="also save load_approach.png, pressure_map.png and error_vs_time.png "
-                          "(as output.plots = true; needs matplotlib)")
+                     help="also save the plots (load_approach.png, contact_area.png, mean_gap.png, ...: "
+                          "docs/outputs.md; as output.plots = true; needs matplotlib)")
     plot = sub.add_parser("plot", help="save the plots of a finished run's output directory")
     plot.add_argument("directory", help="a run's output directory (with curve.csv)")
     plot.add_argument("--step", type=int, default=None,
