@@ -205,6 +205,7 @@ def test_plots_of_a_rough_run_without_field_files(coll, shared_tmp):
     """With plots on, a rough periodic run without field files writes every plot of a rough
     surface, from the plotted step's fields gathered to rank 0 (the plot command draws them
     from step files, below)."""
+    pytest.importorskip("matplotlib")
     names = {"load_approach.png", "contact_area.png", "mean_gap.png", "pressure_map.png", "histograms.png",
              "psd.png", "error_vs_time.png"}
     out = shared_tmp / "plots"
@@ -237,6 +238,7 @@ def test_new_plots_draw_the_data_and_the_references_they_are_given():
     """contact_area: the data and kappa p / (E* h'rms) for both kappas; mean_gap: the column on a
     log pressure axis; histograms: densities integrating to the share of the nodes drawn;
     error_vs_time: one colour per step; the sphere overlays: Hertz, and JKR's pull-off."""
+    pytest.importorskip("matplotlib")
     e_star, slope = 1e9, 0.1
     p = np.array([1e6, 1e7, 1e8])
     curve = {"mean_pressure_Pa": p, "contact_fraction": 2.0 * p / (e_star * slope), "converged": np.ones(3),
@@ -284,6 +286,7 @@ def test_new_plots_draw_the_data_and_the_references_they_are_given():
 
 @pytest.mark.serial
 def test_plot_command_draws_a_chosen_step(tmp_path):
+    pytest.importorskip("matplotlib")
     out = tmp_path / "run"
     runner.run(rough(out), comm=PETSc.COMM_SELF)
     env = dict(os.environ, OMP_NUM_THREADS="1")
