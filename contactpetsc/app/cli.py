@@ -48,8 +48,8 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--dry-run", action="store_true",
                      help="print the plan (grid, decomposition, solver, memory, outputs) and exit")
     run.add_argument("--plots", action="store_true",
-                     help="also save load_approach.png, pressure_map.png and error_vs_time.png "
-                          "(as output.plots = true; needs matplotlib)")
+                     help="also save the plots (load_approach.png, contact_area.png, mean_gap.png, ...: "
+                          "docs/outputs.md; as output.plots = true; needs matplotlib)")
     info = sub.add_parser("info", help="print the stack (PETSc, petsc4py, MPI, FFTW, h5py, index size, "
                           "parallel HDF5, ranks); under mpirun too")
     info.add_argument("--check", action="store_true",
@@ -57,6 +57,9 @@ def _parser() -> argparse.ArgumentParser:
                            "to a temporary directory and compare the forces with Hertz")
     plot = sub.add_parser("plot", help="save the plots of a finished run's output directory")
     plot.add_argument("directory", help="a run's output directory (with curve.csv)")
+    plot.add_argument("--step", type=int, default=None,
+                      help="the step whose pressure map and distributions are plotted (default: the scene's "
+                           "output.plot_step, else the step at the largest approach)")
     from ..topography.convert import add_arguments
     add_arguments(sub.add_parser("import", help="convert a measured topography to a height file for a "
                                                 "kind = \"file\" scene (no PETSc needed)"))
@@ -142,7 +145,7 @@ def main(argv=None) -> int:
     if args.version or args.command == "info":
         return _info(args.version, getattr(args, "check", False), comm)
     if args.command == "plot":
-        return _plot(args.directory, comm)
+        return _plot(args.directory, comm, args.step)
     try:
         from . import runner, scenes
         scene = scenes.load(args.scene) if args.scene else scenes.validate(scenes.DEFAULT_SCENE)
@@ -220,13 +223,13 @@ def _info(version_only: bool, check: bool, comm) -> int:
             shutil.rmtree(tmp, ignore_errors=True)
 
 
-def _plot(directory: str, comm) -> int:
+def _plot(directory: str, comm, step: int | None = None) -> int:
     """``contactpetsc plot DIR``: the plots of a finished run, drawn on rank 0."""
     if comm.Get_rank() != 0:
         return 0
     try:
         from .plots import plot_run
-        for path in plot_run(directory):
+        for path in plot_run(directory, step=step):
             print(f"wrote {path}")
         return 0
     except Exception as exc:  # noqa: BLE001 - a damaged file is reported, not a traceback

@@ -33,7 +33,8 @@ CURVE_COLUMNS = ["step", "branch", "approach_m", "force_N", "mean_pressure_Pa", 
                  "central_gap_m", "stable", "complementarity_error", "adhesive_error", "total_error",
                  "load_error", "converged", "reason", "solver", "newton_iterations",
                  "krylov_iterations", "fft_pairs", "wall_time_s", "window_reach", "pressure_error",
-                 "interference_error", "plastic_fraction", "plastic_volume_m3", "max_plastic_displacement_m"]
+                 "interference_error", "plastic_fraction", "plastic_volume_m3", "max_plastic_displacement_m",
+                 "mean_gap_m", "mean_gap_error_m"]
 JUMP_COLUMNS = ["step", "kind", "approach_before_m", "approach_after_m", "force_before_N", "force_after_N"]
 ATOM_COLUMNS = ["step", "approach_m", "atom", "x_m", "y_m", "radius_m", "force_N"]
 NAN = float("nan")
@@ -129,6 +130,7 @@ class StepRecorder:
             if atoms is not None:
                 write_text_atomic(self.path("atom_forces.csv"), csv_lines([ATOM_COLUMNS] + atoms))
             _drop_partial_line(self.path("history.csv"))
+            _add_step_column(self.path("history.csv"))
 
         collective_call(comm, OSError, f"cannot rewrite the files of {self.out_dir}: {{error}}",
                         lambda: rewrite() if self.rank0 else None)
@@ -212,7 +214,7 @@ class StepRecorder:
             if jumps:
                 append_text(self.path("jumps.csv"), csv_lines([[j[c] for c in JUMP_COLUMNS] for j in jumps]))
             append_text(self.path("curve.csv"), csv_lines([[row[c] for c in CURVE_COLUMNS]]))
-            self._append_history(problem)
+            self._append_history(problem, step)
 
         # rank 0 writes; a failure (a full disk) is raised on every rank
         collective_call(self.grid.mpi_comm, OSError, f"cannot write step {step} to {self.out_dir}: {{error}}",
@@ -253,12 +255,13 @@ class StepRecorder:
         collective_call(self.grid.mpi_comm, OSError, f"cannot write {self.path('history.csv')}: {{error}}",
                         lambda: self._append_history(problem) if self.rank0 else None)
 
-    def _append_history(self, problem) -> None:
+    def _append_history(self, problem, step: float = NAN) -> None:
+        """The iterations since the last call, labelled ``step`` (nan: after the path's last step)."""
         from ..solvers.history import SolveHistory
         new = problem.history.records[self.history_written:]
         self.history_written += len(new)
         path = self.path("history.csv")
-        append_text(path, SolveHistory(records=new).csv_text(header=not os.path.exists(path)))
+        append_text(path, SolveHistory(records=new).csv_text(header=not os.path.exists(path), step=step))
 
     def _atom_rows(self, step: int, st) -> list:
         from ..metrics import atom_forces
@@ -346,6 +349,17 @@ def _number(word, kind):
     did not record)."""
     value = float(word)
     return kind(value) if math.isfinite(value) else None
+
+
+def _add_step_column(path: str) -> None:
+    """A history.csv of an older version, without the step column, given one (nan)."""
+    if not os.path.exists(path):
+        return
+    with open(path, newline="") as f:
+        lines = f.read().splitlines(keepends=True)
+    if lines and "step" not in next(csv.reader([lines[0]])):
+        write_text_atomic(path, "".join(line.rstrip("\r\n") + (",step" if k == 0 else ",nan") + "\r\n"
+                                        for k, line in enumerate(lines)))
 
 
 def _drop_partial_line(path: str) -> None:

@@ -29,10 +29,10 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..collective import collective_call
+from .plots import PLOTS
 
 LOCK = ".contactpetsc.lock"
 SCENE = "scene.json"
-PLOTS = ("load_approach.png", "pressure_map.png", "error_vs_time.png")
 RUN_FILES = ("curve.csv", "history.csv", "jumps.csv", "summary.json", "atom_forces.csv", SCENE) + PLOTS
 STEP_FILE = re.compile(r"step_\d{4,}\.(h5|xdmf)$")
 #: scene keys that may differ on a restart (they change the outputs or the numerics, not the problem)

@@ -116,7 +116,7 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
             PETSc.Sys.Print(f"  warning: in {len(recorder.edge_steps)} step(s) the pressure-carrying zone reached "
                             "the window's edge (curve.csv window_reach = 1): those forces are not the isolated "
                             "contact's")
-        _save_plots(scene, grid, out_dir, states)
+        _save_plots(scene, grid, out_dir, states, h)
         grid.mpi_comm.Barrier()   # the outputs are complete when run() returns, on every rank
         PETSc.Sys.Print(f"  wrote {out_dir}/curve.csv, history.csv, summary.json")
         return states
@@ -160,26 +160,31 @@ def _outputs_line(scene: dict, n: int, out_dir: str) -> str:
     if out["atom_forces"] and scene["geometry"]["kind"] == "tip":
         files.append("atom_forces.csv")
     if out["plots"]:
-        files.append("load_approach.png, pressure_map.png, error_vs_time.png")
+        from .plots import planned
+        files.append(", ".join(planned(scene)))
     return f"  outputs in {out_dir}: " + ", ".join(files)
 
 
-def _save_plots(scene: dict, grid: SurfaceGrid, out_dir: str, states: list) -> None:
-    """``output.plots``: ``plots.plot_run`` on rank 0 from the files just written; collective (a
-    plotting error is raised on every rank)."""
+def _save_plots(scene: dict, grid: SurfaceGrid, out_dir: str, states: list, heights) -> None:
+    """``output.plots``: ``plots.plot_run`` on rank 0 from the files just written, and without
+    field files from the plotted step's pressure, gap and the heights gathered to rank 0 (only
+    then); collective (a plotting error is raised on every rank)."""
     if not scene["output"]["plots"]:
         return
-    from .plots import plot_run
-    pressure = None
-    if not scene["output"]["fields"] and states:   # no field file: gather the last pressure
-        last = states[-1]
-        field = grid.gather(last.pressure, root=0)
-        if field is not None:
-            pressure = (field.T, grid.dx, grid.dy,
-                        f"last step: δ = {last.approach:.4g} m, F = {last.force:.4g} N")
+    from .plots import plot_step, plot_run
+    fields = None
+    if not scene["output"]["fields"] and states:   # no field file: gather the plotted step's fields
+        step = collective_call(grid.mpi_comm, ValueError, "{error}", plot_step, [st.approach for st in states],
+                               [st.converged for st in states], scene["output"]["plot_step"])
+        st = states[step - 1]
+        got = {name: grid.gather(vec, root=0) for name, vec in
+               (("pressure", st.pressure), ("gap", st.gap), ("heights", heights))}
+        if got["pressure"] is not None:
+            fields = {name: a.T for name, a in got.items()}
+            fields.update(step=step, dx=grid.dx, dy=grid.dy, hdx=grid.dx, hdy=grid.dy)
     rank0 = grid.mpi_comm.Get_rank() == 0
     written = collective_call(grid.mpi_comm, RuntimeError, "plots failed: {error}",
-                              lambda: plot_run(out_dir, pressure) if rank0 else [])
+                              lambda: plot_run(out_dir, fields) if rank0 else [])
     if rank0:
         PETSc.Sys.Print("  plots: " + ", ".join(written), comm=PETSc.COMM_SELF)
 

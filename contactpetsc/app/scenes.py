@@ -122,9 +122,12 @@ _SCHEMA = {
         "directory": _k(str, "contactpetsc-output", "", "where curve.csv, history.csv and the fields go"),
         "fields": _k(bool, True, "", "write step_NNNN.h5 (pressure, gap, displacement, heights, "
                      "contact mask) and step_NNNN.xdmf for ParaView, per step"),
-        "plots": _k(bool, False, "", "save load_approach.png (loading and unloading marked, jumps and "
-                    "pull-off with adhesion), pressure_map.png (the last step) and error_vs_time.png "
-                    "(needs matplotlib)"),
+        "plots": _k(bool, False, "", "save the plots (needs matplotlib; docs/outputs.md): load_approach.png "
+                    "(jumps, pull-off, closed forms on spheres), contact_area.png and mean_gap.png (periodic "
+                    "cells), pressure_map.png and histograms.png (the plotted step), psd.png (rough "
+                    "surfaces), error_vs_time.png"),
+        "plot_step": _k(int, None, "", "the step whose pressure map and distributions are plotted "
+                        "(default: the step at the largest approach, the most pressed)", (1, 2**31 - 1, True, True)),
         "atom_forces": _k(bool, False, "", "write atom_forces.csv: the force on each atom of a tip "
                           "(nodal pressure over its footprint) at every step (kind = tip)"),
     },
@@ -240,6 +243,10 @@ def validate(scene: dict) -> dict:
     _check_interaction(out, _given(scene, "interaction"))
     _check_protocol(out)
     _check_hardness(out)
+    steps = len(out["protocol"]["values"])
+    if out["output"]["plot_step"] is not None and out["output"]["plot_step"] > steps:
+        raise SceneError(f"output.plot_step = {out['output']['plot_step']}: accepted range [1, {steps}] "
+                         "(the steps of protocol.values)")
     return out
 
 

@@ -20,6 +20,16 @@ from petsc4py import PETSc
 NAN = float("nan")
 
 
+def mean_gap(grid, st, error_scale: float) -> dict:
+    """``mean_gap_m``: the mean of the gap g = h + v - delta over the grid's nodes [m] (the
+    nominal area; on an isolated window the window, not the contact); ``mean_gap_error_m``:
+    ``error_scale`` [m], the state's largest nodal violation of its contact conditions in
+    metres.  Read as the exact solution for a surface moved by at most that much at each node,
+    the state's gaps are off by at most as much (the obstacle problem's comparison principle),
+    and so is their mean (docs/outputs.md).  Collective."""
+    return dict(mean_gap_m=float(st.gap.sum()) / (grid.nx * grid.ny), mean_gap_error_m=error_scale)
+
+
 class ContactSteps:
     """Signorini contact (no adhesion); a failed step is written and the path goes on."""
     stop_on_failure = False
@@ -51,7 +61,8 @@ class ContactSteps:
         return dict(adhesive_force_N=0.0, adhesive_load_ratio=0.0, adhesive_area_ratio=0.0, stable=True,
                     load_error=st.load_error, interference_error=st.interference_error,
                     solver="snes-vi+" + self.problem.preconditioner, plastic_fraction=st.plastic_fraction,
-                    plastic_volume_m3=st.plastic_volume, max_plastic_displacement_m=st.max_plastic_displacement)
+                    plastic_volume_m3=st.plastic_volume, max_plastic_displacement_m=st.max_plastic_displacement,
+                    **mean_gap(self.grid, st, st.complementarity_error * self.problem.length_scale))
 
     def progress(self, st, row) -> str:
         line = (f"  {row['step']:4d} {st.approach:12.4e} {st.force:11.4e} {st.contact_fraction:8.4f} "
@@ -159,7 +170,9 @@ class AdhesiveSteps:
         return dict(adhesive_force_N=st.adhesive_force, adhesive_load_ratio=load_ratio,
                     adhesive_area_ratio=area_ratio, alpha_star=a_star, W_star=w_star,
                     central_gap_m=st.central_gap, stable=st.stable, adhesive_error=st.adhesive_error,
-                    total_error=st.total_error, pressure_error=st.pressure_error, solver=st.solver)
+                    total_error=st.total_error, pressure_error=st.pressure_error, solver=st.solver,
+                    **mean_gap(self.grid, st, self.z0 * np.nanmax([st.complementarity_error, st.adhesive_error,
+                                                                   st.total_error])))
 
     def progress(self, st, row) -> str:
         err = max(st.complementarity_error, st.adhesive_error)

@@ -133,6 +133,15 @@ def sphere(grid: SurfaceGrid, radius: float) -> PETSc.Vec:
 
 
 
+def self_affine_band(lx: float, ly: float, dx: float, dy: float, rolloff_wavelength: float | None = None,
+                     short_cutoff_wavelength: float | None = None) -> tuple[float, float]:
+    """(q_r, q_s) [1/m]: the roll-off and short cut-off wavevectors of ``self_affine`` on a cell
+    lx x ly [m] of spacing dx, dy [m], the defaults filled in (the cell size; 2 max(dx, dy))."""
+    rolloff = max(lx, ly) if rolloff_wavelength is None else rolloff_wavelength
+    cutoff = 2 * max(dx, dy) if short_cutoff_wavelength is None else short_cutoff_wavelength
+    return 2 * np.pi / rolloff, 2 * np.pi / cutoff
+
+
 def self_affine(grid: SurfaceGrid, *, hurst: float, seed: int,
                 rms_height: float | None = None, rms_slope: float | None = None,
                 rolloff_wavelength: float | None = None,
@@ -154,10 +163,7 @@ def self_affine(grid: SurfaceGrid, *, hurst: float, seed: int,
     scale_to = rms_height if rms_height is not None else rms_slope
     if not (np.isfinite(scale_to) and scale_to >= 0):
         raise GridError(f"rms_height / rms_slope must be finite and >= 0, got {scale_to!r}")
-    lx, ly = grid.lengths
-    rolloff_wavelength = max(lx, ly) if rolloff_wavelength is None else rolloff_wavelength
-    short_cutoff_wavelength = 2 * max(grid.dx, grid.dy) if short_cutoff_wavelength is None else short_cutoff_wavelength
-    q_r, q_s = 2 * np.pi / rolloff_wavelength, 2 * np.pi / short_cutoff_wavelength
+    q_r, q_s = self_affine_band(*grid.lengths, grid.dx, grid.dy, rolloff_wavelength, short_cutoff_wavelength)
 
     def psd_amplitude(q):
         with np.errstate(divide="ignore"):

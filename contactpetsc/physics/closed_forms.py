@@ -6,7 +6,12 @@ P_bar = P / (pi w R), lambda = 2 sigma0 (R / (pi w K^2))^(1/3), m = c / a:
 
     lambda A^2 / 2 [sqrt(m^2-1) + (m^2-2) arctan sqrt(m^2-1)]
       + 4 lambda^2 A / 3 [sqrt(m^2-1) arctan sqrt(m^2-1) - m + 1] = 1,
-    P_bar = A^3 - lambda A^2 [sqrt(m^2-1) + m^2 arctan sqrt(m^2-1)].
+    P_bar = A^3 - lambda A^2 [sqrt(m^2-1) + m^2 arctan sqrt(m^2-1)],
+    Delta = A^2 - 4 lambda A sqrt(m^2-1) / 3,
+
+Delta = delta (K^2 / (pi^2 w^2 R))^(1/3) the approach.  Its limits: JKR
+(lambda -> infinity) P_bar = A^3 - sqrt(6 A^3), Delta = A^2 - 2 sqrt(6 A) / 3;
+DMT (lambda -> 0) P_bar = A^3 - 2, Delta = A^2; Hertz P_bar = A^3, Delta = A^2.
 
 The Lennard-Jones law corresponds to lambda = 1.16 mu (Johnson & Greenwood;
 the Dugdale stress equal to the LJ peak attraction gives 1.157 mu).
@@ -75,6 +80,50 @@ def maugis_curve(lam: float, m):
     A = 2.0 / (c1 + np.sqrt(c1 * c1 + 4.0 * c2))
     P = A ** 3 - lam * A * A * (s + m * m * at)
     return A, P
+
+
+def maugis_approach(lam: float, m):
+    """(A, Delta, P_bar) of the Maugis-Dugdale solution for ratios m = c/a > 1: the contact
+    radius, approach and load in Johnson & Greenwood's units (module docstring)."""
+    A, P = maugis_curve(lam, m)
+    return A, A * A - 4.0 * lam * A * np.sqrt(np.asarray(m, dtype=float) ** 2 - 1.0) / 3.0, P
+
+
+def jkr_curve(A):
+    """(Delta, P_bar) of JKR at contact radii A (Johnson & Greenwood's units)."""
+    A = np.asarray(A, dtype=float)
+    return A * A - 2.0 * np.sqrt(6.0 * A) / 3.0, A ** 3 - np.sqrt(6.0 * A ** 3)
+
+
+def dmt_curve(A):
+    """(Delta, P_bar) of DMT (Hertz plus the constant pull 2 pi R w) at contact radii A."""
+    A = np.asarray(A, dtype=float)
+    return A * A, A ** 3 - 2.0
+
+
+def maugis_units(e_star: float, radius: float, work_of_adhesion: float) -> tuple[float, float]:
+    """(delta per Delta [m], P per P_bar [N]): (pi^2 w^2 R / K^2)^(1/3) and pi w R, K = 4 E* / 3."""
+    k = 4.0 * e_star / 3.0
+    return (np.pi ** 2 * work_of_adhesion ** 2 * radius / k ** 2) ** (1.0 / 3.0), np.pi * work_of_adhesion * radius
+
+
+def maugis_lambda(e_star: float, radius: float, work_of_adhesion: float, peak_stress: float) -> float:
+    """The transition parameter lambda = 2 sigma0 (R / (pi w K^2))^(1/3) [-] of a law whose
+    Dugdale stress sigma0 [Pa] is its peak attraction (Lennard-Jones: lambda = 1.157 mu)."""
+    k = 4.0 * e_star / 3.0
+    return 2.0 * peak_stress * (radius / (np.pi * work_of_adhesion * k * k)) ** (1.0 / 3.0)
+
+
+#: A/A0 = kappa p / (E* h'_rms) at small loads, h'_rms = sqrt(<|grad h|^2>): Persson (J. Chem.
+#: Phys. 115, 3840, 2001), kappa = sqrt(8 / pi); Bush, Gibson & Thomas (Wear 35, 87, 1975),
+#: kappa = sqrt(2 pi) (their sqrt(pi) with the rms slope of a profile, h'_rms / sqrt(2)).
+#: Exact numerics lie between (kappa ~ 2: Hyun, Pei, Molinari & Robbins, PRE 70, 026117, 2004).
+KAPPA_PERSSON, KAPPA_BGT = float(np.sqrt(8.0 / np.pi)), float(np.sqrt(2.0 * np.pi))
+
+
+def area_fraction_small_load(mean_pressure, e_star: float, rms_slope: float, kappa: float = KAPPA_PERSSON):
+    """The small-load contact area fraction A/A0 = kappa p / (E* h'_rms) [-]."""
+    return kappa * np.asarray(mean_pressure, dtype=float) / (e_star * rms_slope)
 
 
 def maugis_pull_off_bar(lam: float) -> float:

@@ -57,14 +57,16 @@ class SolveHistory:
     def column(self, name: str) -> list:
         return [getattr(r, name) for r in self.records]
 
-    def csv_text(self, header: bool = True) -> str:
-        """All records as CSV text, one row per iteration."""
+    def csv_text(self, header: bool = True, step: float | None = None) -> str:
+        """All records as CSV text, one row per iteration; with ``step`` a last column ``step``
+        of that value (the run's step the iterations solved, docs/outputs.md)."""
         out = io.StringIO()
-        w = csv.DictWriter(out, fieldnames=list(HistoryRecord.__dataclass_fields__))
+        names = list(HistoryRecord.__dataclass_fields__) + ([] if step is None else ["step"])
+        w = csv.DictWriter(out, fieldnames=names)
         if header:
             w.writeheader()
         for r in self.records:
-            w.writerow(asdict(r))
+            w.writerow(asdict(r) if step is None else dict(asdict(r), step=step))
         return out.getvalue()
 
     def write_csv(self, path: str) -> None:

@@ -1,0 +1,168 @@
+"""Plots of a run's outputs, with matplotlib (imported only when a plot is drawn: importing this
+package imports numpy alone).
+
+``plot_run(directory)`` reads what a run wrote (``curve.csv``, ``scene.json``; with adhesion
+``jumps.csv`` and ``summary.json``; ``history.csv``; the step file of the plotted step) and
+saves, in the same directory (docs/outputs.md, "Plots"):
+
+- ``load_approach.png``: force against approach, loading and unloading apart, jumps and the
+  pull-off force; on smooth spheres the closed forms (Hertz; DMT, JKR, Maugis-Dugdale) and,
+  with adhesion, Greenwood's alpha* and W* on the top and right axes (``curves``).
+- ``contact_area.png`` and ``mean_gap.png`` (periodic cells): A/A0 against p/E* with the
+  small-load laws of Persson and Bush-Gibson-Thomas, and the mean gap against log p/E*.
+- ``pressure_map.png`` and ``histograms.png``: the pressure, and the pressure and gap
+  distributions, of the plotted step: ``output.plot_step``, by default the step at the largest
+  approach (``fields``).
+- ``psd.png`` (rough surfaces: self-affine or from a file): the radially averaged power
+  spectrum of the heights, with the generator's slope -2(1 + H) for a self-affine one.
+- ``error_vs_time.png``: the error of every iteration against run time and FFT pairs, one colour
+  per step (``history``).
+
+Serial code on the files: ``contactpetsc run`` calls it on rank 0 after a run when
+``output.plots = true`` (or ``--plots``); ``contactpetsc plot DIR`` plots a finished run.
+"""
+from __future__ import annotations
+
+import json
+import os
+
+import numpy as np
+
+from .common import is_number, prefix, read_csv, require
+from .curves import BRANCH_STYLE, contact_area, load_approach, mean_gap, sphere_overlays
+from .fields import histograms, pressure_map, psd, radial_psd, rms_slope
+from .history import ERRORS, error_vs_time
+
+__all__ = ["plot_run", "plot_step", "require", "read_csv", "is_number", "prefix", "load_approach",
+           "contact_area", "mean_gap", "sphere_overlays", "pressure_map", "histograms", "psd",
+           "radial_psd", "rms_slope", "error_vs_time", "BRANCH_STYLE", "ERRORS", "PLOTS", "planned"]
+
+MAP_PIXELS = 2048      #: a larger field is read every k-th node for the map and the histograms
+HEIGHT_NODES = 8192    #: the heights (spectrum, rms slope) are read whole up to this many per side
+JUMP_NUMBERS = ("approach_before_m", "approach_after_m", "force_before_N", "force_after_N")
+#: every file ``plot_run`` may write (the run directory's own files, docs/outputs.md)
+PLOTS = ("load_approach.png", "contact_area.png", "mean_gap.png", "pressure_map.png", "histograms.png",
+         "psd.png", "error_vs_time.png")
+
+
+def planned(scene: dict | None) -> tuple:
+    """The plots a run of ``scene`` draws (those whose data it writes: ``plot_run`` leaves out a
+    plot whose data a directory lacks); all of them when the scene is not known."""
+    if scene is None:
+        return PLOTS
+    g = scene["geometry"]
+    return tuple(name for name in PLOTS if not (
+        name in ("contact_area.png", "mean_gap.png") and not g["periodic"]
+        or name == "psd.png" and g["kind"] not in ("self-affine", "file")))
+
+
+def plot_step(approach, converged, requested: int | None = None) -> int:
+    """The step whose fields are plotted (1, 2, ...): ``requested`` (``output.plot_step``), else
+    the converged step of the largest approach (the last on ties): the most pressed state, the
+    one of the largest load without adhesion; else the last step.  A requested step beyond the
+    run's steps is a ValueError naming the key."""
+    approach = np.asarray(approach, float)
+    if requested is not None:
+        if not 1 <= requested <= approach.size:
+            raise ValueError(f"plot step {requested} (output.plot_step, or plot --step): the run has steps 1 "
+                             f"to {approach.size}")
+        return int(requested)
+    ok = (np.asarray(converged, float) == 1) & np.isfinite(approach)
+    if not np.any(ok):
+        return int(approach.size)
+    best = np.where(ok, approach, -np.inf)
+    return int(np.flatnonzero(best == best.max())[-1]) + 1
+
+
+def read_fields(directory: str, step: int) -> dict | None:
+    """The fields of ``step_NNNN.h5``, or None when the run wrote no field files: ``pressure``
+    and ``gap`` read every k-th node (at most MAP_PIXELS per side) with their spacing ``dx``,
+    ``dy``; ``heights`` whole with ``hdx``, ``hdy`` (None above HEIGHT_NODES per side);
+    ``attrs``, the file's attributes."""
+    path = os.path.join(directory, f"step_{step:04d}.h5")
+    if not os.path.exists(path):
+        return None
+    import h5py
+    with h5py.File(path, "r") as f:
+        attrs = dict(f.attrs)
+        dx, dy = float(attrs["dx"]), float(attrs["dy"])
+        shape = f["pressure"].shape
+        k = max(1, -(-max(shape) // MAP_PIXELS))
+        whole = max(shape) <= HEIGHT_NODES and "heights" in f
+        return dict(pressure=f["pressure"][::k, ::k], gap=f["gap"][::k, ::k] if "gap" in f else None,
+                    dx=k * dx, dy=k * dy, heights=f["heights"][:] if whole else None, hdx=dx, hdy=dy,
+                    attrs=attrs)
+
+
+def plot_run(directory: str, fields: dict | None = None, step: int | None = None) -> list[str]:
+    """Save the plots of a run's output directory; returns their paths.
+
+    ``fields``: the plotted step's ``pressure``, ``gap``, ``heights`` (ny, nx) with ``dx``, ``dy``
+    (``hdx``, ``hdy`` for the heights) and its ``step``, for runs without field files; by
+    default they are read from its ``step_NNNN.h5``.  ``step``: the step to plot (default
+    ``output.plot_step`` of the run's scene, else the step at the largest approach).
+    """
+    path = lambda name: os.path.join(directory, name)  # noqa: E731
+    if not os.path.exists(path("curve.csv")):
+        raise FileNotFoundError(f"no curve.csv in {directory}: not a contactpetsc output directory")
+    curve = read_csv(path("curve.csv"), numeric=("step", "approach_m", "force_N"))
+    if not curve:
+        raise ValueError(f"{path('curve.csv')} has no steps yet")
+    scene = None
+    if os.path.exists(path("scene.json")):
+        with open(path("scene.json")) as f:
+            scene = json.load(f)
+    jumps = read_csv(path("jumps.csv"), numeric=JUMP_NUMBERS) if os.path.exists(path("jumps.csv")) else None
+    pull_off = None
+    if os.path.exists(path("summary.json")):
+        with open(path("summary.json")) as f:
+            pull_off = json.load(f).get("pull_off_force_N")
+    if fields is not None:
+        chosen = fields["step"]
+    else:
+        requested = step if step is not None else (scene or {}).get("output", {}).get("plot_step")
+        chosen = plot_step(curve["approach_m"], curve.get("converged", np.ones(len(curve["step"]))), requested)
+        fields = read_fields(directory, int(curve["step"][chosen - 1]))
+    name = scene["name"] if scene else os.path.basename(os.path.normpath(directory))
+    written = []
+
+    def draw(file, plot, *args, **kw):
+        written.append(path(file))
+        plot(*args, path=written[-1], **kw)
+
+    wanted = planned(scene)
+    draw("load_approach.png", load_approach, curve, jumps, pull_off, title=f"{name}: load against approach",
+         overlays=sphere_overlays(scene, curve["approach_m"]) if scene else [])
+    g = scene["geometry"] if scene else {}
+    heights = fields.get("heights") if fields else None
+    slope = rms_slope(heights, fields["hdx"], fields["hdy"]) if heights is not None else g.get("rms_slope")
+    if "contact_area.png" in wanted and scene and np.any(curve["mean_pressure_Pa"] > 0):
+        from ..scenes import e_star as e_star_of   # E* or E, nu (the scene module needs PETSc)
+        e_star = e_star_of(scene)
+        draw("contact_area.png", contact_area, curve, e_star, slope, title=f"{name}: contact area against load")
+        if np.any(np.isfinite(curve.get("mean_gap_m", np.nan))):   # not in runs of older versions
+            h_rms = float(np.std(heights)) if heights is not None else g.get("rms_height")
+            draw("mean_gap.png", mean_gap, curve, e_star, h_rms, title=f"{name}: mean gap against load")
+    if fields is not None:
+        row = chosen - 1
+        what = (f"{name}, step {int(curve['step'][row])}: δ = {curve['approach_m'][row]:.4g} m, "
+                f"F = {curve['force_N'][row]:.4g} N")
+        draw("pressure_map.png", pressure_map, fields["pressure"], fields["dx"], fields["dy"], title=what)
+        if fields.get("gap") is not None:
+            draw("histograms.png", histograms, fields["pressure"], fields["gap"], title=what)
+    if "psd.png" in wanted and heights is not None and scene:
+        generated = g["kind"] == "self-affine"
+        draw("psd.png", psd, heights, fields["hdx"], fields["hdy"], bool(g.get("periodic")),
+             hurst=g["hurst"] if generated else None, cutoffs=_band(g) if generated else None,
+             title=f"{name}: power spectrum of the heights")
+    if os.path.exists(path("history.csv")):
+        draw("error_vs_time.png", error_vs_time, read_csv(path("history.csv")),
+             title=f"{name}: error against run time")
+    return written
+
+
+def _band(g: dict) -> tuple[float, float]:
+    """(q_r, q_s) [1/m] of a self-affine scene's geometry section."""
+    from ...geometry.surfaces import self_affine_band
+    return self_affine_band(g["nx"] * g["dx"], g["ny"] * g["dy"], g["dx"], g["dy"], g["rolloff_wavelength"],
+                            g["short_cutoff_wavelength"])
