@@ -22,7 +22,7 @@ export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1
 export PY_COLORS=0  # ranks share one terminal: no escape codes in the log
 cd "$here"
 py="$venv/bin/python"
-"$py" -m contactpetsc --version | head -4 | paste -sd' '
+"$py" -m contactpetsc --version   # the stack the suite runs on
 stage() {   # NAME COMMAND...: one stage under the time limit, and a message if the limit ends it
     local name="$1"; shift
     echo "== pytest, $name (time limit ${limit} s, TEST_TIMEOUT)"
