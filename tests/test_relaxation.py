@@ -45,7 +45,7 @@ def test_relaxation_equals_newton_on_a_sphere(coll, law):
 def test_eq8_relaxation_of_a_flat_punch_gives_the_lj_pressure(coll):
     """Periodic flat surface: g = -delta at every node, so the pressure must be p_LJ(z0 - delta),
     reached from the previous state on both branches (adhesive, repulsive) and back."""
-    grid = SurfaceGrid(16, 16, 1.0, periodic=True)
+    grid = SurfaceGrid(8, 8, 1.0, periodic=True)
     h = grid.create_vec(0.0)
     law = make_law("lj", work_of_adhesion=0.05, z0=1.0)
     relax = RelaxationSolver(AdhesiveProblem(grid, h, 1.0, law, prefix="flat_", stability_check=False),
