@@ -101,8 +101,7 @@ def describe_solver(law=None, method: str = "newton", prefix: str | None = None,
                              f"got {choice!r}")
         pc_path = None if choice == "none" else ADHESIVE_PC
         if method == "relaxation":
-            form = "eq. 7, hard wall" if law.hard_wall else "eq. 8, the full curve"
-            return [f"relaxation-mlmi (the reference paper's MLMI relaxation, {form}; options prefix -{prefix}relax_)"]
+            return [f"relaxation-mlmi (the reference paper's MLMI relaxation; options prefix -{prefix}relax_)"]
         lines = _describe_snes(opts, prefix, newton_linesearch(law.hard_wall), newton_ksp_type(law.hard_wall),
                                pc_path)
         lines.append(f"  preconditioner {choice} on the contact-like rows (-{prefix}preconditioner)")
