@@ -109,7 +109,8 @@ def test_the_relaxation_refusals_come_from_the_registry(toy_law):
     register_law(SoftToy)
     try:
         soft = SoftToy(1e-3, 1.0)
-        with pytest.raises(ValueError, match=r"hard wall or a repulsive branch \(.*toy-cohesive.*\), got law 'toy-soft'"):
+        with pytest.raises(ValueError,
+                           match=r"hard wall or a repulsive branch \(.*toy-cohesive.*\), got law 'toy-soft'"):
             describe_solver(soft, method="relaxation")
         with pytest.raises(ValueError, match=r"hard wall or a repulsive branch \(.*lj.*\); law 'toy-soft'"):
             RelaxationSolver(SimpleNamespace(hard_wall=False, law=soft))

@@ -85,7 +85,8 @@ _SCHEMA = {
     },
     "solver": {
         "method": _k(str, "newton", "", "with adhesion: SNES VI Newton, or the reference paper's MLMI "
-                     "relaxation (eq. 7 for hard-wall laws, eq. 8 for lj with the nodal rule)", choices=("newton", "relaxation")),
+                     "relaxation (eq. 7 for hard-wall laws, eq. 8 for lj with the nodal rule)",
+                     choices=("newton", "relaxation")),
         "preconditioner": _k(str, "spectral", "", "reduced-system preconditioner",
                              choices=("spectral", "mlmi", "none")),
         "tol": _k(float, None, "", "error tolerance: complementarity error relative to the rms height "

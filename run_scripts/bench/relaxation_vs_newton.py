@@ -156,7 +156,8 @@ def solve_law(scene_name, grid, h, name, law, delta):
 
 
 def table(rows):
-    print("\n| scene | law | solver | iterations | FFT pairs | median time [s] (3 runs) | final max abs(g - g_ref) [z0] |")
+    print("\n| scene | law | solver | iterations | FFT pairs | median time [s] (3 runs) "
+          "| final max abs(g - g_ref) [z0] |")
     print("|---|---|---|---|---|---|---|")
     for r in rows:
         print(f"| {r['scene']} | {r['law']} | {r['solver']} | {r['iterations']} | {r['fft_pairs']:.0f} | "
