@@ -10,34 +10,9 @@ from contactpetsc.grid import SurfaceGrid
 from contactpetsc.paths import sweep
 from contactpetsc.physics.interactions import make_law
 from contactpetsc.solvers.adhesive import AdhesiveProblem
-from contactpetsc.solvers.relaxation import RelaxationSolver
 from contactpetsc.geometry.surfaces import self_affine
 
 from adhesive_setup import sphere_problem
-
-
-def test_newton_and_relaxation_agree(coll):
-    """The paper's relaxation (E_Total <= 1e-4 z0) and Newton (1e-8 z0) give the same state."""
-    newton = sphere_problem(0.5, n=64, dx=2.0)
-    relaxed = sphere_problem(0.5, n=64, dx=2.0, prefix="relaxed_")
-    sn = newton.solve(approach=1.0)
-    sr = RelaxationSolver(relaxed).solve(approach=1.0)
-    assert sr.converged and sr.total_error <= 1e-4 and sn.total_error < 1e-6
-    g = newton.grid
-    dg = g.rows(sn.gap, readonly=True) - g.rows(sr.gap, readonly=True)
-    rms = np.sqrt(g.mpi_comm.allreduce(float(np.sum(dg ** 2))) / (g.nx * g.ny))
-    assert rms < 1e-4
-    # the same point of the load-approach curve: the force difference, as an approach
-    # difference through the tangent stiffness dW/d delta, is of the order of 1e-4 z0
-    assert abs(sn.force - sr.force) / sn.stiffness < 2e-4
-    # the relaxation's history has E_Total per adhesive cycle, falling to the tolerance
-    e = [r.total_error for r in relaxed.history.records if r.solver == "relaxation-mlmi"]
-    assert e[-1] <= 1e-4 < e[0]
-
-
-def test_relaxation_rejects_the_full_lj_curve(coll):
-    pb = sphere_problem(0.5, law="lj", n=16)
-    coll.raises(ValueError, ["hard-wall law", "Newton"], RelaxationSolver, pb)
 
 
 def test_rank_independence_of_adhesive_states(coll):

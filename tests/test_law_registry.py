@@ -93,21 +93,32 @@ def test_an_unregistered_law_and_its_keys_are_refused():
         scenes.validate(scene(law="toy-cohesive", work_of_adhesion=1e-3))
 
 
-def test_the_hard_wall_refusals_name_a_registered_hard_wall_law(toy_law):
-    # independent truth: the toy law's class declares hard_wall = True (InteractionLaw's default)
+def test_the_relaxation_refusals_come_from_the_registry(toy_law):
+    # independent truth: the toy law's class declares hard_wall = True (InteractionLaw's default),
+    # its soft variant neither a wall nor a repulsive branch
     from types import SimpleNamespace
 
-    from contactpetsc.physics.interactions import make_law
     from contactpetsc.solvers.factory import describe_solver
     from contactpetsc.solvers.relaxation import RelaxationSolver
+
+    class SoftToy(ConstantTraction):
+        name = "toy-soft"
+        hard_wall = False
+
     assert toy_law.hard_wall
-    lj = make_law("lj", work_of_adhesion=1e-3, z0=1.0)
-    with pytest.raises(ValueError, match=r"needs a hard-wall law \(.*toy-cohesive.*\), got law 'lj'"):
-        describe_solver(lj, method="relaxation")
-    with pytest.raises(ValueError, match=r"needs a hard-wall law \(.*toy-cohesive.*\); law 'lj'"):
-        RelaxationSolver(SimpleNamespace(hard_wall=False, law=lj))
-    with pytest.raises(scenes.SceneError, match=r"needs a hard-wall law \(.*toy-cohesive.*\)"):
-        scenes.validate(dict(scene(law="lj", work_of_adhesion=1e-3, z0=1.0), solver={"method": "relaxation"}))
+    register_law(SoftToy)
+    try:
+        soft = SoftToy(1e-3, 1.0)
+        with pytest.raises(ValueError,
+                           match=r"hard wall or a repulsive branch \(.*toy-cohesive.*\), got law 'toy-soft'"):
+            describe_solver(soft, method="relaxation")
+        with pytest.raises(ValueError, match=r"hard wall or a repulsive branch \(.*lj.*\); law 'toy-soft'"):
+            RelaxationSolver(SimpleNamespace(hard_wall=False, law=soft))
+        with pytest.raises(scenes.SceneError, match=r"hard wall or a repulsive branch \(.*toy-cohesive.*\)"):
+            scenes.validate(dict(scene(law="toy-soft", work_of_adhesion=1e-3, cohesive_range=1.0),
+                                 solver={"method": "relaxation"}))
+    finally:
+        LAWS.pop(SoftToy.name)
 
 
 def test_a_registered_law_refuses_a_clashing_parameter():

@@ -84,8 +84,9 @@ def test_factory_picks_the_stack(coll):
     assert type(ad) is AdhesiveProblem and ad.prefix == "popt_f_"
     relax = make_problem(grid, h, 1.0, HARD, method="relaxation", tol=1e-3)
     assert isinstance(relax, RelaxationSolver) and relax.tol == 1e-3 and relax.problem.prefix == "adhesion_"
-    with pytest.raises(ValueError, match="hard-wall"):
-        make_problem(grid, h, 1.0, LJ, method="relaxation")
+    assert isinstance(make_problem(grid, h, 1.0, LJ, method="relaxation", prefix="popt_r_"), RelaxationSolver)
+    with pytest.raises(ValueError, match="nodal rule"):
+        make_problem(grid, h, 1.0, LJ, method="relaxation", prefix="popt_e_", element_integration=True)
     with pytest.raises(ValueError, match="method"):
         make_problem(grid, h, 1.0, LJ, method="guess")
 

@@ -18,7 +18,7 @@ import os
 import tomllib
 
 from ..operators.layer import INTERFACES
-from ..physics.interactions import LAWS, WORK_OF_ADHESION, adhesive_laws
+from ..physics.interactions import LAWS, WORK_OF_ADHESION, adhesive_laws, relaxation_laws
 from ..topography import DETREND, FORMATS, HEIGHT_UNITS
 
 POS = (0.0, math.inf, False, False)      # (low, high, low included?, high included?)
@@ -110,7 +110,8 @@ _SCHEMA = {
     },
     "solver": {
         "method": _k(str, "newton", "", "with adhesion: SNES VI Newton, or the reference paper's MLMI "
-                     "relaxation (hard-wall laws)", choices=("newton", "relaxation")),
+                     "relaxation (eq. 7 for hard-wall laws, eq. 8 for lj with the nodal rule)",
+                     choices=("newton", "relaxation")),
         "preconditioner": _k(str, "spectral", "", "reduced-system preconditioner",
                              choices=("spectral", "mlmi", "none")),
         "tol": _k(float, None, "", "error tolerance: complementarity error relative to the rms height "
@@ -390,9 +391,14 @@ def _check_interaction(out: dict, given: set) -> None:
     if out["protocol"]["control"] in ("mean_pressure", "force"):
         raise SceneError(f"protocol.control = {out['protocol']['control']!r} with adhesion: load "
                          f"control is unstable on parts of adhesive paths; use approach or central_gap")
-    if out["solver"]["method"] == "relaxation" and not LAWS[law].hard_wall:
-        raise SceneError(f"solver.method = 'relaxation' needs a hard-wall law ({', '.join(adhesive_laws(True))}); "
-                         f"law {law!r} has no hard wall and is solved by newton")
+    if out["solver"]["method"] == "relaxation":
+        if law not in relaxation_laws():
+            raise SceneError(f"solver.method = 'relaxation' needs a law with a hard wall or a repulsive branch "
+                             f"({', '.join(relaxation_laws())}); law {law!r} is solved by newton")
+        if not LAWS[law].hard_wall and it["element_integration"]:
+            raise SceneError(f"solver.method = 'relaxation' with interaction.law = {law!r} (eq. 8) needs the "
+                             f"nodal rule: set interaction.element_integration = false, or solver.method = "
+                             f"'newton'")
 
 
 def _check_protocol(out: dict) -> None:

@@ -7,6 +7,9 @@ derivative dp/dg (for the Newton Jacobian) and the interaction energy per
 unit area Phi(g) [J/m^2] with p = -dPhi/dg and Phi -> 0 as g -> infinity.
 ``hard_wall`` says whether g >= 0 is a constraint (contact pressure then
 comes from the complementarity problem, eq. 7a) or not (eq. 8).
+``repulsive_branch`` says whether a law without a wall is repulsive exactly
+below g = 0 (z < z0) and invertible there, the contact of eq. 8 that the
+paper's relaxation relaxes apart (``relaxation_laws``).
 
 Laws
 ----
@@ -61,6 +64,9 @@ class InteractionLaw:
     summary = ""
     #: a singular law's gap [m] below which the traction is continued linearly (physics.traction)
     safe_gap = None
+    #: no wall, p > 0 exactly where g < 0 and p(g) invertible there (the cubic solution f of
+    #: eq. 8): the paper's relaxation applies, with target gap f(p) at positive-pressure nodes
+    repulsive_branch = False
 
     def pressure(self, gap):
         raise NotImplementedError
@@ -143,6 +149,7 @@ class LennardJones(InteractionLaw):
 
     name = "lj"
     hard_wall = False
+    repulsive_branch = True
     parameters = (WORK_OF_ADHESION, Parameter("z0", "m", "equilibrium separation"))
     summary = "the full Lennard-Jones curve (eq. 8), no hard wall"
 
@@ -188,6 +195,7 @@ class HardWallLennardJones(LennardJones):
 
     name = "hardwall-lj"
     hard_wall = True
+    repulsive_branch = False   # the wall carries the contact
     summary = "hard wall and Lennard-Jones attraction (eq. 7)"
 
     def _g(self, gap):
@@ -299,6 +307,13 @@ def adhesive_laws(hard_wall: bool | None = None) -> tuple[str, ...]:
     wall, g >= 0 as a constraint."""
     return tuple(name for name, cls in LAWS.items()
                  if WORK_OF_ADHESION in cls.parameters and (hard_wall is None or cls.hard_wall == hard_wall))
+
+
+def relaxation_laws() -> tuple[str, ...]:
+    """Names of the registered adhesive laws the reference paper's relaxation applies to: a hard
+    wall (eq. 7, target gap 0 at positive-pressure nodes) or a ``repulsive_branch`` (eq. 8,
+    target gap f(p))."""
+    return tuple(name for name in adhesive_laws() if LAWS[name].hard_wall or LAWS[name].repulsive_branch)
 
 
 def make_law(name: str, **params) -> InteractionLaw:

@@ -6,7 +6,7 @@ from petsc4py import PETSc
 
 from ..operators.elastic import half_space
 from ..operators.layer import Layer
-from ..physics.interactions import adhesive_laws
+from ..physics.interactions import relaxation_laws
 from .adhesive import PTC_LINESEARCH, AdhesiveProblem, newton_ksp_type, newton_linesearch
 from .base import VIProblem
 from .pc_registry import ADHESIVE_PC, ADHESIVE_PRECONDITIONERS, PRECONDITIONERS
@@ -25,10 +25,10 @@ def _no_adhesion(law) -> bool:
 def _check_method(law, method: str) -> None:
     if method not in METHODS:
         raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
-    if method == "relaxation" and (_no_adhesion(law) or not law.hard_wall):
+    if method == "relaxation" and (_no_adhesion(law) or law.name not in relaxation_laws()):
         name = "none" if law is None else law.name
-        raise ValueError(f"method 'relaxation' needs a hard-wall law ({', '.join(adhesive_laws(True))}), "
-                         f"got law {name!r}")
+        raise ValueError(f"method 'relaxation' needs an adhesive law with a hard wall or a repulsive branch "
+                         f"({', '.join(relaxation_laws())}), got law {name!r}")
 
 
 def make_problem(grid, heights, e_star: float, law=None, *, method: str = "newton", prefix: str | None = None,

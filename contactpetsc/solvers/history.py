@@ -32,6 +32,8 @@ class HistoryRecord:
     pressure_error: float = float("nan")
     #: complementarity error relative to min(length scale, interference) (contact solves)
     interference_error: float = float("nan")
+    #: the paper's contact measure: rms of g - f(p) at the loaded or penetrating nodes / z0 (relaxation solver)
+    rms_contact_residual: float = float("nan")
 
 
 @dataclass

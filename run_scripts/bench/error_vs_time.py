@@ -31,10 +31,11 @@ Solvers
   iteration have no points (the curve starts when the fine grid does).
   Stability checks are off (the peers make none); the tangent computed after
   convergence is in the solve's total time, not in the curve.
-* The reference paper's relaxation (``RelaxationSolver``; hard-wall laws
-  only, so only the sphere): its iterates are internal, so it is run from
-  rest at each tolerance of --relax-tols (E_Total and the contact residual,
-  z0), one point per run (its time, its returned gap).
+* The reference paper's relaxation (``RelaxationSolver``; here on the
+  sphere): run from rest at each tolerance of --relax-tols (E_Total and the
+  contact residual, z0), one point per run (its time, its returned gap).
+  Per cycle, with both LJ forms on the sphere and the rough surface:
+  ``relaxation_vs_newton.py``.
 * Peers, whose iterations we cannot observe: run from rest at each
   iteration cap of --caps, one point per run (the peer's own solve time,
   the error of its returned gap).  ``rough``: Tamaas 2.9 PolonskyKeerRey
@@ -46,8 +47,8 @@ Solvers
   --stop-error.
 * Not run: TAO (contactpetsc has no TAO solver); relaxation for ``rough``
   (load control and no adhesive law: the paper's solver is the adhesive
-  cycle around the projected relaxation) and for ``adhesive`` (the full LJ
-  curve has no contact pressure to relax apart); Tamaas for the adhesive
+  cycle around the projected relaxation) and for ``adhesive``
+  (``relaxation_vs_newton.py`` compares it there); Tamaas for the adhesive
   scenes (no LJ-type law); ContactMechanics for ``rough`` (no driver) and
   for ``sphere`` (the driver is periodic and has no hard wall).
 
