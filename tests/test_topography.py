@@ -56,7 +56,7 @@ def write_matrix(path, header=True):
     """Gwyddion's ASCII data matrix export: one line per y, columns along x, comment header."""
     lines = ["# Channel: Height", f"# Width: {NX * DX} um", f"# Height: {NY * DY} um",
              "# Value units: nm"] if header else []
-    lines += [" ".join(f"{v!r}" for v in row) for row in grid_pattern().T]
+    lines += [" ".join(repr(float(v)) for v in row) for row in grid_pattern().T]
     path.write_text("\n".join(lines) + "\n")
 
 
@@ -188,9 +188,9 @@ def test_xyz_points_in_any_order_make_the_grid(tmp_path):
     rows = np.column_stack([10 + i.ravel() * DX, -4 + j.ravel() * DY, pattern(i, j).ravel()])
     rows = rows[np.random.default_rng(0).permutation(len(rows))]
     path = tmp_path / "scan.xyz"
-    path.write_text("\n".join(f"{x:.6g}\t{y:.6g}\t{z!r}" for x, y, z in rows) + "\n")
+    path.write_text("\n".join(f"{x:.6g}\t{y:.6g}\t{float(z)!r}" for x, y, z in rows) + "\n")
     check(read_topography(str(path), height_unit="um"), 1e-6, 1e-6)
-    path.write_text("\n".join(f"{x:.6g} {y:.6g} {z!r}" for x, y, z in rows[1:]) + "\n")
+    path.write_text("\n".join(f"{x:.6g} {y:.6g} {float(z)!r}" for x, y, z in rows[1:]) + "\n")
     with pytest.raises(FormatError, match="1 of the 7 x 5 grid points are missing"):
         read_topography(str(path))
 
