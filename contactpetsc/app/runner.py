@@ -47,9 +47,17 @@ def plan(scene: dict, grid: SurfaceGrid, law=None, out_dir: str | None = None) -
             f"  rows per rank {[b - a for a, b in grid.y_ranges]}",
             chain,
             f"  protocol: {scene['protocol']['control']} x {len(scene['protocol']['values'])} steps",
-            f"  memory estimate: {per_rank / 2**20:.0f} MiB per rank",
+            f"  memory estimate: {per_rank / 2**20:.0f} MiB per rank" + _memory_note(grid, per_rank),
             _outputs_line(scene, grid.nx * grid.ny, out_dir or scene["output"]["directory"]),
             _stack_line(grid)]
+
+
+def _memory_note(grid: SurfaceGrid, per_rank: float) -> str:
+    """A warning for the plan when the estimate exceeds what a rank can allocate here (a dry run
+    on a login node sizes a job for the cluster: it is a note, not a refusal)."""
+    from ..grid import available_memory
+    avail = available_memory(grid.mpi_comm)
+    return "" if per_rank <= avail else f" (more than the {avail / 2**20:.0f} MiB a rank can allocate here)"
 
 
 def _stack_line(grid: SurfaceGrid) -> str:
