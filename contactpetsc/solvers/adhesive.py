@@ -49,7 +49,7 @@ from .continuation import Continuation
 from .history import SolveHistory
 from .load_control import solve_force
 from .options import code_default, print_help
-from .pc_registry import ADHESIVE_PC, ADHESIVE_PRECONDITIONERS
+from .pc_registry import ADHESIVE_PRECONDITIONERS
 from .states import AdhesiveState
 from .tangent import TangentAndState
 
@@ -320,7 +320,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
             pc.setType("none")
         else:
             pc.setType("python")
-            pc.setPythonType(ADHESIVE_PC)
+            pc.setPythonType(ADHESIVE_PRECONDITIONERS[self.preconditioner])
         snes.setFromOptions()
         return snes
 

@@ -165,9 +165,8 @@ class AdhesivePC:
         self.n_union = n_union = ctx.grid.mpi_comm.allreduce(int(self.union.sum()))
         if n_union:
             if self.inner_pc is None:
-                from .mlmi import MLMIPC
                 from .preconditioners import SpectralPC
-                self.inner_pc = (MLMIPC if pb.preconditioner == "mlmi" else SpectralPC)()
+                self.inner_pc = SpectralPC()
             self.inner_pc.prepare(_SetView(ctx.parent, self.union))
             self.inner_active = True
         else:
