@@ -172,6 +172,8 @@ class AdhesiveMLMIPC:
         self.power_its = opts.getInt("mlmi_power_its", 6)
         self.bound = opts.getReal("mlmi_rho_bound", 1.6)
         self.coarse_sweeps = opts.getInt("mlmi_coarse_sweeps", 4)
+        self.pre = opts.getInt("mlmi_pre", 1)
+        self.post = opts.getInt("mlmi_post", 1)
         last = self.levels[-1]
         if last.grid.nx * last.grid.ny <= DENSE_MAX:
             last.build_dense(ctx.parent.op.lowest_mode_stiffness())
@@ -203,10 +205,18 @@ class AdhesiveMLMIPC:
         c = np.where(free, c, C_CAP * k_ii)   # unknowns held at a bound: dp = 0
         self.inv_beta = np.where(self.q_set, 1.0, np.where(free, 1.0 / beta, 0.0))
         self.a_gain = kappa * d
+        kind = np.where(np.abs(c) < k_ii, 0, np.sign(c))   # K-dominated 0, local rows by the sign of c
         for l, lev in enumerate(self.levels):
             if l:
-                c = restrict(c)
+                # a coarse node whose children mix K-dominated rows with local ones (or local
+                # rows of both signs: the attractive tail and the wall side) has no consistent
+                # mean row: the cycle leaves it out (no correction there)
+                blocks = kind.reshape(kind.shape[0] // 2, 2, kind.shape[1] // 2, 2)
+                same = (blocks.min(axis=(1, 3)) == blocks.max(axis=(1, 3)))
+                kind = np.where(same, blocks[:, 0, :, 0], 2)
+                c = np.where(same, restrict(c), C_CAP * lev.base.k0)
             lev.set_c(c, self.power_its, self.bound)
+            lev.keep = kind != 2
         if self.levels[-1].dense is not None:
             self.levels[-1].factor()
         self.n_kdom = ctx.grid.mpi_comm.allreduce(int(self.levels[0].kdom.sum()))
@@ -224,10 +234,13 @@ class AdhesiveMLMIPC:
                 for k in range(self.coarse_sweeps):
                     lev.smooth(b, x, zero_start=k == 0)
             return x
-        lev.smooth(b, x, zero_start=True)
-        r = np.subtract(b, lev.apply(x, lev.ku), out=lev.r)
-        x += prolong_constant(self._cycle(l + 1, restrict(r)))
-        lev.smooth(b, x, zero_start=False)
+        for k in range(self.pre):
+            lev.smooth(b, x, zero_start=k == 0)
+        r = np.subtract(b, lev.apply(x, lev.ku), out=lev.r) if self.pre else b
+        coarse = self.levels[l + 1]
+        x += prolong_constant(self._cycle(l + 1, restrict(r) * coarse.keep) * coarse.keep)
+        for _ in range(self.post):
+            lev.smooth(b, x, zero_start=False)
         return x
 
     @collective_guard
