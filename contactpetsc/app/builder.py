@@ -105,8 +105,7 @@ def build_problem(scene: dict, grid: SurfaceGrid, heights: PETSc.Vec, law: Inter
         hertz = (g["kind"] == "sphere" and not g["periodic"] and scene["interaction"]["law"] == "none"
                  and control == "approach")
         problem = make_problem(grid, heights, e_star, prefix=CONTACT_PREFIX, petsc_options=options,
-                               tol=sol["tol"] or 1e-10,
-                               preconditioner=None if sol["preconditioner"] == "auto" else sol["preconditioner"],
+                               tol=sol["tol"] or 1e-10, preconditioner=sol["preconditioner"],
                                length_scale=max(scene["protocol"]["values"]) if hertz else None)
         return problem, None
     relax = sol["method"] == "relaxation"

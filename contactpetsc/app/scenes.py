@@ -86,9 +86,8 @@ _SCHEMA = {
     "solver": {
         "method": _k(str, "newton", "", "with adhesion: SNES VI Newton, or the reference paper's MLMI "
                      "relaxation (hard-wall laws)", choices=("newton", "relaxation")),
-        "preconditioner": _k(str, "auto", "", "reduced-system preconditioner (auto: spectral without "
-                             "adhesion; with adhesion mlmi where the snap number K_ii max da/dg >= 0.02, else "
-                             "spectral)", choices=("auto", "spectral", "mlmi", "none")),
+        "preconditioner": _k(str, "spectral", "", "reduced-system preconditioner",
+                             choices=("spectral", "mlmi", "none")),
         "tol": _k(float, None, "", "error tolerance: complementarity error relative to the rms height "
                   "(default 1e-10); with adhesion, the errors in z0 (default 1e-8; relaxation: E_Total, 1e-4)", TOL),
         "options": _k(dict, {}, "", "further PETSc options under the solver's prefix (contact_, or "

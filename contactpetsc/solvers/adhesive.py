@@ -49,7 +49,7 @@ from .continuation import Continuation
 from .history import SolveHistory
 from .load_control import solve_force
 from .options import code_default, print_help
-from .pc_registry import ADHESIVE_PRECONDITIONERS, adhesive_preconditioner
+from .pc_registry import ADHESIVE_PRECONDITIONERS
 from .states import AdhesiveState
 from .tangent import TangentAndState
 
@@ -99,8 +99,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
     tol : float
         Code default of ``-<prefix>tol``: the errors above, in z0 (1e-8).
     preconditioner : str
-        Code default of ``-<prefix>preconditioner``: auto (default: mlmi from the snap number
-        ``pc_registry.MLMI_SNAP_NUMBER`` on, else spectral), spectral, mlmi or none.
+        Code default of ``-<prefix>preconditioner``: spectral (default), mlmi or none.
     stability_check : bool
         Code default of ``-<prefix>stability_check`` (on).
     centre : (i, j), optional
@@ -272,9 +271,9 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self.fmg_tol = opts.getReal("fmg_tol", code_default("adhesion", "fmg_tol"))
         self.fmg_steps = opts.getBool("fmg_steps", code_default("adhesion", "fmg_steps"))
         choice = opts.getString("preconditioner", self._default("preconditioner")).lower()
-        if choice != "auto" and choice not in ADHESIVE_PRECONDITIONERS:
-            raise ValueError(f"-{self.prefix}preconditioner must be auto, spectral, mlmi or none, got {choice!r}")
-        self.preconditioner = adhesive_preconditioner(choice, self.snap_number)
+        if choice not in ADHESIVE_PRECONDITIONERS:
+            raise ValueError(f"-{self.prefix}preconditioner must be spectral, mlmi or none, got {choice!r}")
+        self.preconditioner = choice
         self._jac = AdhesiveJacobian(self)
         from ..lifetime import destroy_at_exit
         J = destroy_at_exit(PETSc.Mat().createPython(((self.n_local, self.n_global),) * 2,

@@ -7,8 +7,7 @@ from petsc4py import PETSc
 from ..physics.interactions import adhesive_laws
 from .adhesive import PTC_LINESEARCH, AdhesiveProblem, newton_ksp_type, newton_linesearch
 from .base import VIProblem
-from .options import code_default
-from .pc_registry import ADHESIVE_PRECONDITIONERS, MLMI_SNAP_NUMBER, PRECONDITIONERS
+from .pc_registry import ADHESIVE_PRECONDITIONERS, PRECONDITIONERS
 from .problem import NEWTON_KSP, NEWTON_LINESEARCH, ContactProblem
 from .relaxation import RelaxationSolver
 
@@ -92,23 +91,20 @@ def describe_solver(law=None, method: str = "newton", prefix: str | None = None,
         db = PETSc.Options(prefix)
         if not adhesive:
             choice = db.getString("preconditioner", "spectral").lower()
-            choice = "spectral" if choice == "auto" else choice   # auto: the adhesive choice; spectral here
             if choice not in PRECONDITIONERS:
                 raise ValueError(f"-{prefix}preconditioner must be one of {sorted(PRECONDITIONERS)}, got {choice!r}")
             return (_describe_snes(opts, prefix, NEWTON_LINESEARCH, NEWTON_KSP, PRECONDITIONERS[choice])
                     + [f"  preconditioner {choice} (-{prefix}preconditioner)"])
-        choice = db.getString("preconditioner", code_default("adhesion", "preconditioner")).lower()
-        if choice != "auto" and choice not in ADHESIVE_PRECONDITIONERS:
-            raise ValueError(f"-{prefix}preconditioner must be one of auto, {', '.join(ADHESIVE_PRECONDITIONERS)}, "
+        choice = db.getString("preconditioner", "spectral").lower()
+        if choice not in ADHESIVE_PRECONDITIONERS:
+            raise ValueError(f"-{prefix}preconditioner must be one of {', '.join(ADHESIVE_PRECONDITIONERS)}, "
                              f"got {choice!r}")
-        pc_path = ADHESIVE_PRECONDITIONERS["spectral" if choice == "auto" else choice]
+        pc_path = ADHESIVE_PRECONDITIONERS[choice]
         if method == "relaxation":
             return [f"relaxation-mlmi (the reference paper's MLMI relaxation; options prefix -{prefix}relax_)"]
         lines = _describe_snes(opts, prefix, newton_linesearch(law.hard_wall), newton_ksp_type(law.hard_wall),
                                pc_path)
-        lines.append(f"  preconditioner {choice} (-{prefix}preconditioner)" + (
-            f": mlmi where the snap number K_ii max da/dg >= {MLMI_SNAP_NUMBER:g}, else spectral"
-            if choice == "auto" else ""))
+        lines.append(f"  preconditioner {choice} (-{prefix}preconditioner)")
         lines += ["fallback " + line for line in _describe_snes(opts, prefix + "ptc_", PTC_LINESEARCH,
                                                                  newton_ksp_type(law.hard_wall), pc_path)]
         return lines

@@ -18,18 +18,6 @@ ADHESIVE_PRECONDITIONERS = {
     "mlmi": "contactpetsc.solvers.AdhesiveMLMIPC",
     "none": None,
 }
-#: ``auto`` (the adhesive default) takes ``mlmi`` from this snap number K_ii max da/dg on, below it
-#: ``spectral``: where the law's local stiffness is a visible part of the Newton rows the cycle
-#: needs fewer FFT pairs and converges states the spectral one does not (docs/performance.md,
-#: "Preconditioners for the adhesive Newton system")
-MLMI_SNAP_NUMBER = 0.02
-
-
-def adhesive_preconditioner(choice: str, snap_number: float) -> str:
-    """The adhesive preconditioner a choice names: ``auto`` resolved by the snap number."""
-    if choice == "auto":
-        return "mlmi" if snap_number >= MLMI_SNAP_NUMBER else "spectral"
-    return choice
 
 
 def resolve(path: str):
