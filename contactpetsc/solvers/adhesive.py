@@ -10,8 +10,8 @@ pressure.  The residual is
 
 so the bound q >= 0 is a plain variable bound of ``SNESVINEWTONRSLS`` and the
 VI is exactly eq. (7) (or eq. 8).  ``adhesive_jacobian.py`` has the Jacobian,
-its reduced version and the block preconditioner (spectral or MLMI on the
-contact-like rows).
+its reduced version and the block preconditioner (spectral on the contact-like
+rows); ``adhesive_mlmi.py`` the multilevel cycle on the whole system.
 
 Globalisation (the problem is non-convex): Newton steps only start from a
 converged neighbouring state (tangent predictor; line search ``newton_linesearch``);
