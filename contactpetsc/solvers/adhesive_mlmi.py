@@ -33,6 +33,11 @@ K^-1 cannot see.  MLMI solves it by a multilevel cycle in the manner of Venner
   so that it stays regular where c vanishes), gathered on every rank;
 * a V(1, 1)-cycle: a fixed linear operator, for GMRES or BiCGStab (L is not
   symmetric in general: c < 0 on the attractive tail).
+
+Options (the adhesive prefix, the names of ``mlmi.py``): ``mlmi_levels``,
+``mlmi_min_size`` (the hierarchy), ``mlmi_pre``/``mlmi_post`` (sweeps, 1),
+``mlmi_coarse_sweeps`` (4, where the coarsest grid is too large to invert),
+``mlmi_power_its`` (6) and ``mlmi_rho_bound`` (1.6).
 """
 from __future__ import annotations
 
