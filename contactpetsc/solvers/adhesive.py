@@ -10,8 +10,8 @@ pressure.  The residual is
 
 so the bound q >= 0 is a plain variable bound of ``SNESVINEWTONRSLS`` and the
 VI is exactly eq. (7) (or eq. 8).  ``adhesive_jacobian.py`` has the Jacobian,
-its reduced version and the block preconditioner (spectral or MLMI on the
-contact-like rows).
+its reduced version and the block preconditioner (spectral on the contact-like
+rows); ``adhesive_mlmi.py`` the multilevel cycle on the whole system.
 
 Globalisation (the problem is non-convex): Newton steps only start from a
 converged neighbouring state (tangent predictor; line search ``newton_linesearch``);
@@ -49,7 +49,7 @@ from .continuation import Continuation
 from .history import SolveHistory
 from .load_control import solve_force
 from .options import code_default, print_help
-from .pc_registry import ADHESIVE_PC, ADHESIVE_PRECONDITIONERS
+from .pc_registry import ADHESIVE_PRECONDITIONERS
 from .states import AdhesiveState
 from .tangent import TangentAndState
 
@@ -320,7 +320,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
             pc.setType("none")
         else:
             pc.setType("python")
-            pc.setPythonType(ADHESIVE_PC)
+            pc.setPythonType(ADHESIVE_PRECONDITIONERS[self.preconditioner])
         snes.setFromOptions()
         return snes
 

@@ -119,12 +119,13 @@ class AdhesivePC:
     Rows that behave like contact rows, where K dominates (q at contact
     nodes; a where the traction is stiff, -kappa A_ii > 1, the repulsive part
     of the full LJ curve or the wall side of the attraction), are solved
-    together by the pressure-space preconditioner of the non-adhesive solver
-    (the Fourier inverse or an MLMI cycle) on their union S, the a rows
+    together by the spectral preconditioner of the non-adhesive solver (the
+    Fourier inverse) on their union S, the a rows
     scaled by 1 / (-kappa A_ii) (their row is ~ -kappa A_ii (K da)_i).  The
     remaining a rows are near the identity and get the local (Jacobi) factor
     1 / (kappa (1 - A_ii K_ii)), kept away from zero where A_ii > 0.
-    ``-<prefix>preconditioner spectral|mlmi`` chooses the inner one.
+    ``-<prefix>preconditioner spectral`` (the default); ``mlmi`` is the cycle on the whole
+    system (``adhesive_mlmi.py``).
     """
 
     inner_pc = None       # the pressure-space PC of the contact-like rows, made at the first set-up
@@ -165,9 +166,8 @@ class AdhesivePC:
         self.n_union = n_union = ctx.grid.mpi_comm.allreduce(int(self.union.sum()))
         if n_union:
             if self.inner_pc is None:
-                from .mlmi import MLMIPC
                 from .preconditioners import SpectralPC
-                self.inner_pc = (MLMIPC if pb.preconditioner == "mlmi" else SpectralPC)()
+                self.inner_pc = SpectralPC()
             self.inner_pc.prepare(_SetView(ctx.parent, self.union))
             self.inner_active = True
         else:

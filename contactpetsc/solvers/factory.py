@@ -9,7 +9,7 @@ from ..operators.layer import Layer
 from ..physics.interactions import relaxation_laws
 from .adhesive import PTC_LINESEARCH, AdhesiveProblem, newton_ksp_type, newton_linesearch
 from .base import VIProblem
-from .pc_registry import ADHESIVE_PC, ADHESIVE_PRECONDITIONERS, PRECONDITIONERS
+from .pc_registry import ADHESIVE_PRECONDITIONERS, PRECONDITIONERS
 from .problem import NEWTON_KSP, NEWTON_LINESEARCH, ContactProblem
 from .relaxation import RelaxationSolver
 
@@ -109,12 +109,12 @@ def describe_solver(law=None, method: str = "newton", prefix: str | None = None,
         if choice not in ADHESIVE_PRECONDITIONERS:
             raise ValueError(f"-{prefix}preconditioner must be one of {', '.join(ADHESIVE_PRECONDITIONERS)}, "
                              f"got {choice!r}")
-        pc_path = None if choice == "none" else ADHESIVE_PC
+        pc_path = ADHESIVE_PRECONDITIONERS[choice]
         if method == "relaxation":
             return [f"relaxation-mlmi (the reference paper's MLMI relaxation; options prefix -{prefix}relax_)"]
         lines = _describe_snes(opts, prefix, newton_linesearch(law.hard_wall), newton_ksp_type(law.hard_wall),
                                pc_path)
-        lines.append(f"  preconditioner {choice} on the contact-like rows (-{prefix}preconditioner)")
+        lines.append(f"  preconditioner {choice} (-{prefix}preconditioner)")
         lines += ["fallback " + line for line in _describe_snes(opts, prefix + "ptc_", PTC_LINESEARCH,
                                                                  newton_ksp_type(law.hard_wall), pc_path)]
         return lines

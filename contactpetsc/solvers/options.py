@@ -59,7 +59,8 @@ ADHESION = (
     Option(("step_limit",), "0.5 (full LJ), 0", "largest fall of a gap below min(g, 0) per Newton step (z0)"),
     Option(("fmg", "fmg_min_size", "fmg_tol", "fmg_steps"), (True, 32, 1e-3, True),
            "nested iteration and the coarse-grid predictor"),
-    Option(("preconditioner",), ("spectral",), "spectral, mlmi or none"),
+    Option(("preconditioner",), ("spectral",), "spectral (block: spectral on the contact-like rows), mlmi "
+           "(multilevel cycle on the whole system) or none"),
     Option(("element_integration",), (False,), "the paper's element integration"),
     Option(("stability_check", "stability_steps"), (True, 30), "Lanczos stability check"),
     Option(("predictor",), (True,), "tangent predictor under displacement control"),

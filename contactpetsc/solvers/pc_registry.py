@@ -10,10 +10,14 @@ PRECONDITIONERS = {
     "mlmi": "contactpetsc.solvers.MLMIPC",
     "none": None,
 }
-#: the block preconditioner of the adhesive Newton and tangent solves
-ADHESIVE_PC = "contactpetsc.solvers.AdhesivePC"
-#: ``-<prefix>preconditioner`` choices of the adhesive problem (the contact-like rows' PC)
-ADHESIVE_PRECONDITIONERS = ("spectral", "mlmi", "none")
+#: ``-<prefix>preconditioner`` choices of the adhesive problem -> ``pc_python_type`` of its
+#: Newton, PTC and tangent solves: the block preconditioner (spectral on the contact-like rows,
+#: Jacobi on the others) or the multilevel cycle on the whole reduced Jacobian
+ADHESIVE_PRECONDITIONERS = {
+    "spectral": "contactpetsc.solvers.AdhesivePC",
+    "mlmi": "contactpetsc.solvers.AdhesiveMLMIPC",
+    "none": None,
+}
 
 
 def resolve(path: str):

@@ -8,7 +8,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from .base import with_options
-from .pc_registry import ADHESIVE_PC
+from .pc_registry import ADHESIVE_PRECONDITIONERS
 from .stability import stability_margin
 from .states import AdhesiveState
 
@@ -108,8 +108,11 @@ class TangentAndState:
         # (a jump is a force change larger than the predicted change itself; the predictor's
         # error is the branch's curvature times the step squared; docs/performance.md)
         ksp.setTolerances(rtol=1e-2, max_it=1000)
-        ksp.getPC().setType("python")
-        ksp.getPC().setPythonType(ADHESIVE_PC)
+        if self.preconditioner == "none":
+            ksp.getPC().setType("none")
+        else:
+            ksp.getPC().setType("python")
+            ksp.getPC().setPythonType(ADHESIVE_PRECONDITIONERS[self.preconditioner])
         ksp.setOperators(A, A)
         ksp.setFromOptions()
         ksp.solve(b, t)

@@ -1,0 +1,275 @@
+"""A multilevel preconditioner for the whole reduced adhesive Jacobian (``-<prefix>preconditioner mlmi``).
+
+The Newton system (``adhesive_jacobian.py``) has, per node, the rows
+
+    contact node (q free):  (K dp)_i = r_q,i
+    other nodes:            alpha_i dp_i + beta_i (K dp)_i = r_a,i
+
+for the total pressure correction dp = dq + da, with alpha = kappa (1 + shift),
+beta = -kappa A_ii for the pressure-form rows of the law (A = da/dg) and
+alpha = shift kappa - G'(a), beta = 1 for gap-form rows; at a contact node the
+a row then gives da_i = (r_a,i + kappa A_ii r_q,i) / alpha_i.  Divided by beta,
+every row is one of
+
+    L dp = (K + C) dp = f,   C = diag(c), c = alpha / beta (0 at contact nodes):
+
+a half-space operator plus the local stiffness of the law, which a spectral
+K^-1 cannot see.  MLMI solves it by a multilevel cycle in the manner of Venner
+& Lubrecht's multilevel multi-integration with distributive relaxation:
+
+* smoother: where K dominates the row (|c_i| < K_ii, contact and stiff wall-side
+  rows) distributive Jacobi (``mlmi.py``: the correction spread over the node
+  and its K-dominated neighbours with D = [1, -1/4 x 4], local diagonal
+  lambda_i + c_i); elsewhere plain Jacobi with the diagonal K_ii + c_i.
+  Both from one residual, damped so that a power-iteration estimate of the
+  smoothing operator's spectral radius times 1.1 stays below 1.6;
+* coarse grids: the hierarchy of ``mlmi.py`` (the half-space operator
+  rediscretised on the 2x coarser grid, as the nested iteration's coarse
+  problems), c restricted by 2 x 2 means (the Galerkin product R C P of the
+  constant prolongation), residuals by 2 x 2 means, corrections copied to the
+  children;
+* coarsest grid: an exact dense solve of K_c + C_c (K_c built once from the
+  operator; on a periodic cell its mean mode gets the lowest mode's stiffness
+  so that it stays regular where c vanishes), gathered on every rank;
+* a V(1, 1)-cycle: a fixed linear operator, for GMRES or BiCGStab (L is not
+  symmetric in general: c < 0 on the attractive tail).
+
+Options (the adhesive prefix, the names of ``mlmi.py``): ``mlmi_levels``,
+``mlmi_min_size`` (the hierarchy), ``mlmi_pre``/``mlmi_post`` (sweeps, 1),
+``mlmi_coarse_sweeps`` (4, where the coarsest grid is too large to invert),
+``mlmi_power_its`` (6) and ``mlmi_rho_bound`` (1.6).
+"""
+from __future__ import annotations
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from ..collective import collective_guard
+from ..log_events import log_event
+from .mlmi import build_levels
+from .reduced import view_context
+from .transfer import prolong_constant, restrict
+
+#: the coarsest grid is solved exactly when it has at most this many nodes, else smoothed
+DENSE_MAX = 1024
+#: c above this multiple of K_ii: the row is a pure local one (the law nearly flat, A ~ 0)
+C_CAP = 1e8
+
+
+class _Level:
+    """One grid's share of the cycle: c, the smoother's scalings, work arrays."""
+
+    def __init__(self, base):
+        self.base = base            # mlmi.Level: operator, influence coefficients, halos
+        self.op, self.grid = base.op, base.grid
+        shape = (self.grid.ny_local, self.grid.nx)
+        self.x, self.r, self.ku = np.zeros(shape), np.zeros(shape), np.zeros(shape)
+        self.s1, self.s2 = np.zeros(shape), np.zeros(shape)
+        self.dense = None           # (K_c as a dense matrix, lowest mode term) on the coarsest
+
+    def set_c(self, c: np.ndarray, power_its: int, bound: float) -> None:
+        """c on this level; the smoother's split, scalings and damping."""
+        b = self.base
+        self.c = c
+        k_ii = b.k0
+        self.kdom = np.abs(c) < k_ii
+        kd = self.kdom.astype(float)
+        sx, sy = b.neighbour_sums(kd, self.s1, self.s2)
+        lam = b.k0 - 0.25 * (b.kx * sx + b.ky * sy) + c
+        self.scale = np.where(self.kdom & (lam > 0), np.sqrt(b.omega / np.where(lam > 0, lam, 1.0)), 0.0)
+        diag = k_ii + c
+        self.jac = np.where(self.kdom, 0.0, 1.0 / np.where(diag != 0, diag, 1.0))
+        self.theta = 1.0
+        comm = self.grid.mpi_comm
+        i = np.arange(self.grid.nx)[None, :]
+        j = np.arange(self.grid.ys, self.grid.ye)[:, None]
+        v = np.where((i + j) % 2 == 0, 1.0, 0.0)
+        norm = np.sqrt(comm.allreduce(float(np.vdot(v, v))))
+        rho = 0.0
+        if norm > 0:
+            v = v / norm
+            for _ in range(power_its):
+                w = self.correction(self.apply(v, self.ku).copy(), np.zeros_like(v))
+                rho = np.sqrt(comm.allreduce(float(np.vdot(w, w))))
+                if rho == 0:
+                    break
+                v = w / rho
+        if 1.1 * rho > bound:
+            self.theta = bound / (1.1 * rho)
+
+    def apply(self, x: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """out = (K + C) x."""
+        self.op.apply(x, out)
+        out += self.c * x
+        return out
+
+    def correction(self, r: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """out = theta (S_dist + J_local) r: one smoothing step's correction from the residual r."""
+        t = r * self.scale
+        sx, sy = self.base.neighbour_sums(t, self.s1, self.s2)
+        sx += sy
+        np.multiply(sx, -0.25, out=sx)
+        sx += t
+        np.multiply(sx, self.scale, out=out)
+        out += self.jac * r
+        out *= self.theta
+        return out
+
+    def smooth(self, b: np.ndarray, x: np.ndarray, zero_start: bool) -> None:
+        r = b if zero_start else np.subtract(b, self.apply(x, self.ku), out=self.r)
+        x += self.correction(r, self.s1.copy())
+
+    # -- coarsest grid: exact solve ---------------------------------------------------
+    def build_dense(self, lowest_stiffness: float) -> None:
+        """K_c as a dense matrix in global row-major order (once; every rank holds it)."""
+        g = self.grid
+        n = g.nx * g.ny
+        comm = g.mpi_comm
+        e = np.zeros((g.ny_local, g.nx))
+        k = np.zeros((n, n))
+        for col in range(n):
+            e[...] = 0.0
+            jc, ic = divmod(col, g.nx)
+            if g.ys <= jc < g.ye:
+                e[jc - g.ys, ic] = 1.0
+            self.op.apply(e, self.ku)
+            k[:, col] = np.concatenate(comm.allgather(self.ku.reshape(-1)))
+        if g.periodic:
+            # K has no mean mode there: the lowest mode's compliance keeps K_c + C_c regular
+            k += 1.0 / (lowest_stiffness * n)
+        self.dense = k
+
+    def factor(self) -> None:
+        g = self.grid
+        c = np.concatenate(g.mpi_comm.allgather(self.c.reshape(-1)))
+        self.inverse = np.linalg.inv(self.dense + np.diag(c))
+
+    def solve(self, b: np.ndarray, x: np.ndarray) -> None:
+        g = self.grid
+        full = np.concatenate(g.mpi_comm.allgather(b.reshape(-1)))
+        sol = self.inverse @ full
+        start = g.ys * g.nx
+        x[...] = sol[start:start + b.size].reshape(b.shape)
+
+
+class AdhesiveMLMIPC:
+    """V-cycle on (K + C) in the total-pressure correction (see module doc)."""
+
+    _data = None
+
+    def view(self, pc, viewer=None):
+        sizes = ", ".join(f"{lev.grid.nx}x{lev.grid.ny}" for lev in self.levels)
+        coarse = "dense solve" if self.levels[-1].dense is not None else f"{self.coarse_sweeps} sweeps"
+        view_context(viewer, [
+            "contactpetsc AdhesiveMLMIPC: V-cycle on K + diag(alpha / beta), the whole reduced adhesive Jacobian",
+            f"  {len(self.levels)} levels ({sizes}); coarsest: {coarse}; "
+            f"K-dominated rows: {getattr(self, 'n_kdom', 0)} of {self.levels[0].grid.nx * self.levels[0].grid.ny}"])
+
+    def _initialize(self, ctx):
+        data = ctx.parent.pc_data
+        prefix = ctx.parent.prefix
+        opts = PETSc.Options(prefix)
+        if data.mlmi_levels is None:
+            data.mlmi_levels = build_levels(ctx.parent.op, opts.getInt("mlmi_levels", 8),
+                                            opts.getInt("mlmi_min_size", 8))
+        self.levels = [_Level(b) for b in data.mlmi_levels]
+        self.power_its = opts.getInt("mlmi_power_its", 6)
+        self.bound = opts.getReal("mlmi_rho_bound", 1.6)
+        self.coarse_sweeps = opts.getInt("mlmi_coarse_sweeps", 4)
+        self.pre = opts.getInt("mlmi_pre", 1)
+        self.post = opts.getInt("mlmi_post", 1)
+        last = self.levels[-1]
+        if last.grid.nx * last.grid.ny <= DENSE_MAX:
+            last.build_dense(ctx.parent.op.lowest_mode_stiffness())
+
+    @collective_guard
+    def setUp(self, pc):
+        _, P = pc.getOperators()
+        ctx = self.ctx = P.getPythonContext()
+        if self._data is not ctx.parent.pc_data:
+            self._data = ctx.parent.pc_data
+            self._initialize(ctx)
+        pb = ctx.problem
+        kappa = pb.kappa
+        d = pb.traction.diagonal
+        masks = ctx.masks
+        self.q_set = masks[0] if pb.hard_wall else np.zeros(d.shape, bool)
+        free = masks[-1] | self.q_set
+        alpha = np.full(d.shape, kappa * (1.0 + pb.shift))
+        beta = -kappa * d
+        if pb._gap_rows is not None:
+            alpha = np.where(pb._gap_rows, pb.shift * kappa - pb._gap_slope, alpha)
+            beta = np.where(pb._gap_rows, 1.0, beta)
+        self.alpha = alpha
+        k_ii = self.levels[0].base.k0
+        # where the law is flat (beta ~ 0) the row is alpha dp = r: c large, the smoother exact there
+        floor = np.abs(alpha) / (C_CAP * k_ii)
+        beta = np.where(np.abs(beta) < floor, np.where(beta < 0, -floor, floor), beta)
+        c = np.where(self.q_set, 0.0, alpha / beta)
+        c = np.where(free, c, C_CAP * k_ii)   # unknowns held at a bound: dp = 0
+        self.inv_beta = np.where(self.q_set, 1.0, np.where(free, 1.0 / beta, 0.0))
+        self.a_gain = kappa * d
+        kind = np.where(np.abs(c) < k_ii, 0, np.sign(c))   # K-dominated 0, local rows by the sign of c
+        for l, lev in enumerate(self.levels):
+            if l:
+                # a coarse node whose children mix K-dominated rows with local ones (or local
+                # rows of both signs: the attractive tail and the wall side) has no consistent
+                # mean row: the cycle leaves it out (no correction there)
+                blocks = kind.reshape(kind.shape[0] // 2, 2, kind.shape[1] // 2, 2)
+                same = (blocks.min(axis=(1, 3)) == blocks.max(axis=(1, 3)))
+                kind = np.where(same, blocks[:, 0, :, 0], 2)
+                c = np.where(same, restrict(c), C_CAP * lev.base.k0)
+            lev.set_c(c, self.power_its, self.bound)
+            lev.keep = kind != 2
+        if self.levels[-1].dense is not None:
+            self.levels[-1].factor()
+        self.n_kdom = ctx.grid.mpi_comm.allreduce(int(self.levels[0].kdom.sum()))
+        self.full = np.zeros_like(ctx.full_in)
+        self.out = np.zeros_like(ctx.full_in)
+
+    def _cycle(self, l: int, b: np.ndarray) -> np.ndarray:
+        lev = self.levels[l]
+        x = lev.x
+        x[...] = 0.0
+        if l == len(self.levels) - 1:
+            if lev.dense is not None:
+                lev.solve(b, x)
+            else:
+                for k in range(self.coarse_sweeps):
+                    lev.smooth(b, x, zero_start=k == 0)
+            return x
+        for k in range(self.pre):
+            lev.smooth(b, x, zero_start=k == 0)
+        r = np.subtract(b, lev.apply(x, lev.ku), out=lev.r) if self.pre else b
+        coarse = self.levels[l + 1]
+        x += prolong_constant(self._cycle(l + 1, restrict(r) * coarse.keep) * coarse.keep)
+        for _ in range(self.post):
+            lev.smooth(b, x, zero_start=False)
+        return x
+
+    @collective_guard
+    def apply(self, pc, x, y):
+        ev = log_event("CPMLMICycle")
+        ev.begin()
+        ctx = self.ctx
+        full, out = self.full, self.out
+        full[...] = 0.0
+        ctx.to_full(x, full)
+        r_a = full[-1]
+        hard = ctx.problem.hard_wall
+        # the right-hand side of (K + C) dp = f, row by row
+        f = r_a * self.inv_beta
+        if hard:
+            np.copyto(f, full[0], where=self.q_set)
+        dp = self._cycle(0, f)
+        out[...] = 0.0
+        if hard:
+            # at a contact node the a row gives da from (K dp)_i = r_q,i
+            da_c = (r_a + self.a_gain * full[0]) / self.alpha
+            out[-1] = np.where(self.q_set, da_c, dp)
+            out[0] = np.where(self.q_set, dp - da_c, 0.0)
+        else:
+            out[-1] = dp
+        ctx.from_full(out, y)
+        ev.end()
