@@ -42,7 +42,6 @@ Options (the adhesive prefix, the names of ``mlmi.py``): ``mlmi_levels``,
 from __future__ import annotations
 
 import numpy as np
-from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..collective import collective_guard
