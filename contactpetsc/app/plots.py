@@ -219,12 +219,14 @@ def error_vs_time(history: dict, path: str | None = None, title: str = ""):
 
 def read_step(directory: str, step: int):
     """(pressure (ny, nx) read every k-th node, dx, dy, attrs) of ``step_NNNN.h5``, or None when
-    the run wrote no field files."""
+    the run wrote no field file of that step, or none with the pressure (output.fields)."""
     path = os.path.join(directory, f"step_{step:04d}.h5")
     if not os.path.exists(path):
         return None
     import h5py
     with h5py.File(path, "r") as f:
+        if "pressure" not in f:
+            return None
         dset = f["pressure"]
         k = max(1, -(-max(dset.shape) // MAP_PIXELS))
         attrs = dict(f.attrs)

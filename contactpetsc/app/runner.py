@@ -16,7 +16,6 @@ from petsc4py import PETSc
 from . import builder, rundir
 from ..collective import collective_call
 from ..grid import SurfaceGrid
-from .output import ADHESIVE_FIELDS, FIELDS
 from .recorder import CURVE_COLUMNS, NAN, StepRecorder
 
 __all__ = ["run", "plan", "CURVE_COLUMNS"]
@@ -89,7 +88,7 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
             PETSc.Sys.Print(f"  warning: in {len(recorder.edge_steps)} step(s) the pressure-carrying zone reached "
                             "the window's edge (curve.csv window_reach = 1): those forces are not the isolated "
                             "contact's")
-        _save_plots(scene, grid, out_dir, states)
+        _save_plots(scene, grid, out_dir, states, len(recorder.rows))
         grid.mpi_comm.Barrier()   # the outputs are complete when run() returns, on every rank
         PETSc.Sys.Print(f"  wrote {out_dir}/curve.csv, history.csv, summary.json")
         return states
@@ -127,9 +126,11 @@ def _outputs_line(scene: dict, n: int, out_dir: str) -> str:
     out, steps = scene["output"], len(scene["protocol"]["values"])
     files = ["curve.csv", "history.csv", "summary.json", "scene.json"] + (
         ["jumps.csv"] if adhesive(scene) else [])
-    if out["fields"]:
-        per_step = (len(FIELDS) + (len(ADHESIVE_FIELDS) if adhesive(scene) else 0)) * n * 8
-        files.append(f"{steps} x step_NNNN.h5 + .xdmf ({per_step / 2**20:.1f} MiB each)")
+    if out["fields"] is not False:
+        from .output import expected_step_files, scene_field_types, step_file_bytes
+        types = scene_field_types(scene)
+        files.append(f"{expected_step_files(scene)} x step_NNNN.h5 + .xdmf ({', '.join(types)}; "
+                     f"{step_file_bytes(types, n) / 2**20:.1f} MiB each), fields.xdmf")
     if out["atom_forces"] and scene["geometry"]["kind"] == "tip":
         files.append("atom_forces.csv")
     if out["plots"]:
@@ -137,14 +138,15 @@ def _outputs_line(scene: dict, n: int, out_dir: str) -> str:
     return f"  outputs in {out_dir}: " + ", ".join(files)
 
 
-def _save_plots(scene: dict, grid: SurfaceGrid, out_dir: str, states: list) -> None:
+def _save_plots(scene: dict, grid: SurfaceGrid, out_dir: str, states: list, last_step: int) -> None:
     """``output.plots``: ``plots.plot_run`` on rank 0 from the files just written; collective (a
     plotting error is raised on every rank)."""
     if not scene["output"]["plots"]:
         return
     from .plots import plot_run
     pressure = None
-    if not scene["output"]["fields"] and states:   # no field file: gather the last pressure
+    if states and not _wrote_pressure(scene, grid, out_dir, last_step):
+        # no field file of the last step, or no pressure in it: gather the last pressure
         last = states[-1]
         field = grid.gather(last.pressure, root=0)
         if field is not None:
@@ -155,6 +157,16 @@ def _save_plots(scene: dict, grid: SurfaceGrid, out_dir: str, states: list) -> N
                               lambda: plot_run(out_dir, pressure) if rank0 else [])
     if rank0:
         PETSc.Sys.Print("  plots: " + ", ".join(written), comm=PETSc.COMM_SELF)
+
+
+def _wrote_pressure(scene: dict, grid: SurfaceGrid, out_dir: str, step: int) -> bool:
+    """Whether step ``step`` (the last in curve.csv) has a file with the pressure (read by ``plot_run``)."""
+    import os
+    fields = scene["output"]["fields"]
+    if fields is False or (fields is not True and "pressure" not in fields):
+        return False
+    path = os.path.join(out_dir, f"step_{step:04d}.h5")
+    return grid.mpi_comm.bcast(os.path.exists(path) if grid.mpi_comm.Get_rank() == 0 else None, root=0)
 
 
 def _branch(control: str, values: list, i: int) -> str:

@@ -17,6 +17,8 @@ from __future__ import annotations
 import numpy as np
 from petsc4py import PETSc
 
+from .output import RESTART_FIELDS
+
 NAN = float("nan")
 
 
@@ -25,7 +27,7 @@ class ContactSteps:
     stop_on_failure = False
     sweeping = False              #: no jumps, no pull-off
     zone_threshold = 0.0          #: the contact zone: p > 0
-    fields = ("pressure",)
+    fields = RESTART_FIELDS[False]
 
     def __init__(self, scene: dict, grid, problem, relax=None):
         g = scene["geometry"]
@@ -70,7 +72,7 @@ class ContactSteps:
 class AdhesiveSteps:
     """Adhesive contact: a failed step ends the run (the steps on disk stay a path to restart from)."""
     stop_on_failure = True
-    fields = ("contact_pressure", "adhesive_pressure")
+    fields = RESTART_FIELDS[True]
 
     def __init__(self, scene: dict, grid, problem, relax=None):
         from ..metrics import CUTOFF
