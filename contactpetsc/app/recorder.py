@@ -114,11 +114,22 @@ class StepRecorder:
             raise RuntimeError("restart needs the field files: set output.fields = true (or a list)")
         got = collective_call(comm, RunDirectoryError, f"cannot restart from {self.out_dir}: {{error}}",
                               lambda: self._read_back(fields) if self.rank0 else None)
-        self.rows, self.jumps, atoms, self.written, notes = comm.bcast(got, root=0)
+        self.rows, self.jumps, atoms, steps, notes = comm.bcast(got, root=0)
         differ = differences(stored, self.scene, len(self.rows)) if stored is not None else []
         if differ:
             raise RunDirectoryError(f"cannot restart in {self.out_dir!r}: the run there solved another problem ("
                                     + "; ".join(differ) + "); choose another --output, or --overwrite it")
+
+        def check_files():   # each intact; (step, approach, types) for fields.xdmf
+            out = []
+            for k in steps:
+                check_step_file(self.path(f"step_{k:04d}.h5"), self.grid, fields)
+                out.append((k,) + read_written_step(self.path(f"step_{k:04d}.h5")))
+            return out
+
+        self.written = comm.bcast(collective_call(comm, RunDirectoryError,
+                                                  f"cannot restart from {self.out_dir}: {{error}}",
+                                                  lambda: check_files() if self.rank0 else None), root=0)
         for line in notes:
             PETSc.Sys.Print(f"  note: {line}")
 
@@ -145,13 +156,9 @@ class StepRecorder:
         for k, r in enumerate(rows, 1):
             if r["step"] != str(k):
                 raise ValueError(f"{self.path('curve.csv')}, row {k}: step {r['step']!r}, expected {k}")
-        # the step files of those steps, each intact; the path resumes after the last one
-        written = []
-        for k in range(1, len(rows) + 1):
-            if os.path.exists(self.path(f"step_{k:04d}.h5")):
-                check_step_file(self.path(f"step_{k:04d}.h5"), self.grid, fields)
-                written.append((k,) + read_written_step(self.path(f"step_{k:04d}.h5")))
-        done = written[-1][0] if written else 0
+        # the steps with a field file; the path resumes after the last one
+        steps = [k for k in range(1, len(rows) + 1) if os.path.exists(self.path(f"step_{k:04d}.h5"))]
+        done = steps[-1] if steps else 0
         if done < len(rows):
             notes.append(f"steps {done + 1}-{len(rows)} of curve.csv have no field file to resume from "
                          f"(output.field_every): they are solved again")
@@ -169,7 +176,7 @@ class StepRecorder:
         for r in rows:
             for c in CURVE_COLUMNS:
                 r.setdefault(c, "nan")   # a column an older version did not write
-        return rows, jumps, atoms, written, notes
+        return rows, jumps, atoms, steps, notes
 
     def read_step(self, step: int, fields: tuple) -> tuple[list, float]:
         """([Vec per field], approach) of step ``step``'s file; every rank reads its rows."""
