@@ -254,3 +254,22 @@ def same_on_one_rank(coll, make, out, shared_tmp):
     for (_, x, _), (_, y, _) in zip(ta[1], tb[1]):
         worst = max(worst, abs(x - y) / abs(y))
     assert coll.max(worst) <= 1e-6
+
+
+@pytest.mark.filterwarnings("ignore::contactpetsc.physics.resolution.UnderResolvedWarning")
+def test_restart_without_the_pull_off_state_file_goes_on(coll, shared_tmp):
+    """A sweep written without pull-off refinement every 4th step, restarted with the refinement
+    on: its most tensile state (step 3) has no file, so the refinement starts from the new steps
+    (a note) and the path completes with the uninterrupted run's curve."""
+    ref, out = shared_tmp / "ref", shared_tmp / "cut"
+    runner.run(sweep(ref, field_every=4), comm=PETSc.COMM_WORLD)
+    first = sweep(out, field_every=4)
+    first["protocol"].update(values=first["protocol"]["values"][:8], refine_pull_off=False)
+    runner.run(first, comm=PETSc.COMM_WORLD)
+    assert 3 not in step_files(out)
+    states = runner.run(sweep(out, field_every=4), comm=PETSc.COMM_WORLD, restart=True)
+    assert len(states) == 2 and coll.all(all(st.converged for st in states))
+    a, b = read_rows(out / "curve.csv"), read_rows(ref / "curve.csv")
+    assert len(a) == len(b) == 10
+    worst = max(abs(float(x["force_N"]) - float(y["force_N"])) / abs(float(y["force_N"])) for x, y in zip(a, b))
+    assert coll.max(worst) <= 1e-6

@@ -81,6 +81,7 @@ def step_file_bytes(types: dict, nodes: int, attrs: int = 0) -> float:
     ``attrs`` characters) and HDF5's own structure."""
     return nodes * sum(np.dtype(t).itemsize for t in types.values()) + 2**16 + attrs
 
+
 def versions() -> dict:
     import numpy
     import mpi4py
@@ -206,8 +207,8 @@ def write_state(directory: str, step: int, grid, heights, state, attrs: dict, *,
             dset = f.create_dataset(field, (grid.ny, grid.nx), dtype=code)
             dset.attrs["unit"] = UNITS[field]
             dset.attrs["axes"] = AXES
-            # float32 by rounding to nearest (numpy's cast); masks 0/1
-            data = rows[field].astype(code)
+            # float32 by rounding to nearest (numpy's cast); masks 0/1; float64 as it is
+            data = np.asarray(rows[field], dtype=code)
             if comm.Get_size() > 1:
                 with dset.collective:  # one MPI-IO write for all ranks
                     dset[grid.ys:grid.ye, :] = data

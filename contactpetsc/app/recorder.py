@@ -178,6 +178,10 @@ class StepRecorder:
                 r.setdefault(c, "nan")   # a column an older version did not write
         return rows, jumps, atoms, steps, notes
 
+    def written_steps(self) -> list:
+        """The steps of the path that have a field file."""
+        return [k for k, _, _ in self.written]
+
     def read_step(self, step: int, fields: tuple) -> tuple[list, float]:
         """([Vec per field], approach) of step ``step``'s file; every rank reads its rows."""
         import h5py

@@ -116,6 +116,10 @@ class AdhesiveSteps:
         if not stable:
             return
         best = min(stable, key=lambda i: pts[i].force)
+        if best + 1 not in recorder.written_steps():   # a run of other output settings
+            PETSc.Sys.Print(f"  note: the most tensile state on disk (step {best + 1}) has no field file: the "
+                            "pull-off refinement starts from the new steps only")
+            return
         (q, a), approach = recorder.read_step(best + 1, self.fields)
         self.problem.warm_start(q, a, approach)
         st = self.problem.solve(approach=approach, raise_on_failure=False, fallback=False)
