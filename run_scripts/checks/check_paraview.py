@@ -24,7 +24,9 @@ one rank, and an adhesive Lennard-Jones sphere on two ranks (parallel HDF5),
 its fields float32 every 2nd step with lengths in nm.
 Prints one line per file and reader; exit status 1 on any mismatch.
 ``--screenshot PNG`` also renders the last directory's last step coloured by
-pressure, as a user sees it (needs a display; headless: ``xvfb-run -a``).
+pressure, as a user sees it (needs a display; headless: ``xvfb-run -a``);
+``--warp FIELD`` with it shows the surface warped by FIELD (scale factor 1:
+for runs with ``output.length_unit`` nm or um) in a 3-D view.
 
 Debian 12: ``apt-get install --no-install-recommends paraview python3-paraview``.
 """
@@ -203,21 +205,31 @@ def check_directory(directory: str) -> list:
     return errors + check_collection(directory)
 
 
-def screenshot(xdmf: str, png: str) -> None:
-    """What a user sees: the step coloured by pressure on a range centred at zero (needs a
-    display: ``xvfb-run -a pvpython ...`` on a headless machine)."""
+def screenshot(xdmf: str, png: str, warp: str | None = None) -> None:
+    """What a user sees: the step coloured by pressure on a range centred at zero, flat or warped
+    by ``warp`` with factor 1 (needs a display: ``xvfb-run -a pvpython ...`` on a headless
+    machine)."""
     from paraview.simple import ColorBy, GetActiveViewOrCreate, GetColorTransferFunction, \
-        ResetCamera, SaveScreenshot, Show
+        ResetCamera, SaveScreenshot, Show, WarpByScalar
     reader = XDMFReader(FileNames=[xdmf])
     view = GetActiveViewOrCreate("RenderView")
-    shown = Show(reader, view)
+    source = reader if warp is None else WarpByScalar(Input=reader, Scalars=["POINTS", warp], ScaleFactor=1.0)
+    shown = Show(source, view)
     ColorBy(shown, ("POINTS", "pressure"))
     lut = GetColorTransferFunction("pressure")
     lut.ApplyPreset("Cool to Warm", True)
     top = max(abs(v) for v in reader.PointData["pressure"].GetRange())
     lut.RescaleTransferFunction(-top, top)
     shown.SetScalarBarVisibility(view, True)
-    view.InteractionMode = "2D"
+    if warp is None:
+        view.InteractionMode = "2D"
+    else:   # an oblique view from below the x axis
+        bounds = servermanager.Fetch(source).GetBounds()
+        centre = [(bounds[0] + bounds[1]) / 2, (bounds[2] + bounds[3]) / 2, (bounds[4] + bounds[5]) / 2]
+        size = bounds[1] - bounds[0]
+        view.CameraPosition = [centre[0] + 0.2 * size, centre[1] - 1.3 * size, centre[2] + 0.9 * size]
+        view.CameraFocalPoint = centre
+        view.CameraViewUp = [0, 0, 1]
     ResetCamera()
     SaveScreenshot(png, view, ImageResolution=[700, 560])
     print(f"wrote {png} ({os.path.basename(xdmf)} as ParaView shows it)")
@@ -225,15 +237,18 @@ def screenshot(xdmf: str, png: str) -> None:
 
 def main(args) -> int:
     print(f"ParaView {servermanager.vtkSMProxyManager.GetParaViewSourceVersion()}")
-    png = None
+    png = warp = None
     if "--screenshot" in args:
         k = args.index("--screenshot")
         png, args = args[k + 1], args[:k] + args[k + 2:]
+    if "--warp" in args:
+        k = args.index("--warp")
+        warp, args = args[k + 1], args[:k] + args[k + 2:]
     with tempfile.TemporaryDirectory(prefix="contactpetsc-paraview-") as tmp:
         dirs = args or make_runs(tmp)
         errors = [e for d in dirs for e in check_directory(d)]
         if png:
-            screenshot(sorted(glob.glob(os.path.join(dirs[-1], "step_*.xdmf")))[-1], png)
+            screenshot(sorted(glob.glob(os.path.join(dirs[-1], "step_*.xdmf")))[-1], png, warp)
     for e in errors:
         print(f"MISMATCH {e}")
     print("ParaView reads every step as written" if not errors else f"{len(errors)} mismatches")
