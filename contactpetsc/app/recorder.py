@@ -2,8 +2,9 @@
 
 Per finished step, in this order (rank 0 for the text files, every rank for
 the field file): ``step_NNNN.h5`` (renamed into place when complete; the steps
-``writes_fields`` picks) and ``fields.xdmf``, the step's rows of ``atom_forces.csv`` and ``jumps.csv``, its row of
-``curve.csv`` -- the step's commit point --, its iterations in
+``writes_fields`` picks) and ``fields.xdmf``, the step's rows of
+``atom_forces.csv`` and ``jumps.csv``, its row of ``curve.csv`` -- the
+step's commit point --, its iterations in
 ``history.csv``, then ``summary.json``.  The CSV files are appended (whole
 lines, flushed and synced), so the cost of a step does not grow with the
 path.  ``resume`` reads back what an interrupted run left: the rows of
