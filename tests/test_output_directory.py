@@ -72,7 +72,7 @@ def test_another_runs_directory_is_refused_unless_overwrite(tmp_path):
     done = run(["run", other, "--overwrite"])
     assert done.returncode == 0, done.stderr
     assert sorted(os.listdir(out)) == sorted(["curve.csv", "history.csv", "summary.json", "scene.json",
-                                              "notes.txt", "step_0001.h5", "step_0001.xdmf",
+                                              "notes.txt", "fields.xdmf", "step_0001.h5", "step_0001.xdmf",
                                               "step_0002.h5", "step_0002.xdmf"])
     assert (out / "notes.txt").read_text() == "mine"
 

@@ -21,6 +21,7 @@ from petsc4py import PETSc
 
 from contactpetsc.app import runner, scenes
 from contactpetsc.app.rundir import RunDirectoryError
+from test_field_output import expected_steps
 
 SCENES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "examples", "scenes")
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
@@ -132,7 +133,7 @@ def test_killed_adhesive_sweep_restarts_to_the_uninterrupted_results(tmp_path, r
         assert s["pull_off_force_N"] == pytest.approx(ref_summary["pull_off_force_N"], rel=1e-6)
 
 
-def tip_scene(path, out):
+def tip_scene(path, out, output=()):
     scene = scenes.load(os.path.join(SCENES, "atomic_tip.toml"))
     g = scene["geometry"]
     lines = ["[geometry]", 'kind = "tip"', f'tip = "{g["tip"]}"', f"radius = {g['radius']!r}",
@@ -141,7 +142,7 @@ def tip_scene(path, out):
              "[interaction]", 'law = "lj"', f"work_of_adhesion = {scene['interaction']['work_of_adhesion']!r}",
              f"z0 = {scene['interaction']['z0']!r}",
              "[protocol]", f"values = {scene['protocol']['values']!r}",
-             "[output]", f'directory = "{out}"', "atom_forces = true"]
+             "[output]", f'directory = "{out}"', "atom_forces = true", *output]
     path.write_text("\n".join(lines) + "\n")
     return str(path)
 
@@ -150,13 +151,17 @@ def tip_scene(path, out):
 @needs_mpirun
 @pytest.mark.parametrize("ranks", [1, 2])
 def test_killed_tip_run_keeps_the_forces_per_atom(tmp_path, ranks):
-    """An atomic tip with atom_forces, killed mid-path and restarted: atom_forces.csv has every
-    step's forces (those before the kill too), equal to the uninterrupted run's, and the
-    pull-off force is the uninterrupted run's."""
+    """An atomic tip with atom_forces, and field files of every 4th step (float32, a selection,
+    lengths in nm), killed mid-path and restarted: atom_forces.csv has every step's forces
+    (those before the kill too), equal to the uninterrupted run's, the pull-off force is the
+    uninterrupted run's, and the step files and the temporal collection are those of the
+    documented rule (the path resumed from the last step file)."""
+    output = ('fields = ["gap", "contact"]', 'field_precision = "float32"', "field_every = 4",
+              'length_unit = "nm"')
     full = tmp_path / "full"
-    cli(ranks, ["run", tip_scene(tmp_path / "full.toml", full)])
+    cli(ranks, ["run", tip_scene(tmp_path / "full.toml", full, output)])
     cut = tmp_path / "cut"
-    scene = tip_scene(tmp_path / "cut.toml", cut)
+    scene = tip_scene(tmp_path / "cut.toml", cut, output)
     kept = kill_after(ranks, ["run", scene], cut / "curve.csv", 5)
     assert 5 <= kept < 17
     cli(ranks, ["run", scene, "--restart"])
@@ -169,6 +174,14 @@ def test_killed_tip_run_keeps_the_forces_per_atom(tmp_path, ranks):
         total = sum(float(x["force_N"]) for x in a if x["step"] == r["step"])
         assert total == pytest.approx(float(r["force_N"]), rel=1e-9)
     assert summary(cut)["pull_off_force_N"] == pytest.approx(summary(full)["pull_off_force_N"], rel=1e-6)
+    for out in (full, cut):   # the documented steps (round-off may order two equal forces apart)
+        want = expected_steps(out, 4, True)
+        assert written_steps(out) == [f"step_{k:04d}.{ext}" for k in want for ext in ("h5", "xdmf")]
+        assert len(want) < 17 and (out / "fields.xdmf").read_text().count("<Time ") == len(want)
+
+
+def written_steps(out):
+    return sorted(n for n in os.listdir(out) if n.startswith("step_"))
 
 
 # -- in-process: what a restart refuses --------------------------------------------------------

@@ -255,7 +255,7 @@ def test_full_output_directory_is_reported_before_the_solve(coll, shared_tmp, mo
     solved = []
     monkeypatch.setattr(ContactProblem, "solve", lambda self, **kw: solved.append(kw))
     monkeypatch.setattr(os, "statvfs", lambda path: Full())
-    coll.raises(OSError, ["0.0 MiB free", "2 steps of 5 fields of 16 x 16"], runner.run,
+    coll.raises(OSError, ["0.0 MiB free", "2 step files of 5 fields of 16 x 16"], runner.run,
                 _scene(str(shared_tmp / "full")), comm=PETSc.COMM_WORLD)
     assert not solved
 

@@ -14,6 +14,7 @@ import pytest
 from petsc4py import PETSc
 
 from contactpetsc.app import runner, scenes
+from contactpetsc.app.output import LENGTH_UNITS
 
 
 def minimal(**geometry):
@@ -154,10 +155,15 @@ EXAMPLES = sorted(os.path.join(os.path.dirname(__file__), "..", "examples", "sce
                   if f.endswith(".toml"))
 
 
-def check_xdmf(path, nx, ny, dx, dy):
+XDMF_TYPES = {np.dtype("f8"): ("Float", "8"), np.dtype("f4"): ("Float", "4"), np.dtype("u1"): ("UChar", "1")}
+
+
+def check_xdmf(path, nx, ny, dx, dy, scale=1.0, precision="float64"):
     """The XDMF sidecar read by its schema's rules (axes listed slowest first: z, y, x), not by
-    our writer: a one-node-thick ny x nx mesh of spacing (dx, dy), every attribute a dataset of
-    the step's HDF5 file with ny x nx doubles, and every dataset listed."""
+    our writer: a one-node-thick ny x nx mesh of spacing (dx, dy) shown in a length unit of
+    ``scale`` per metre, every attribute a dataset of the step's HDF5 file with ny x nx values
+    of its type (masks uint8; doubles, or floats with ``precision`` float32), the lengths (unit m)
+    shown through a Function item ``<scale>*$0``, and every dataset listed."""
     root = ElementTree.parse(path).getroot()
     grid = root.find("Domain/Grid")
     topology, geometry = grid.find("Topology"), grid.find("Geometry")
@@ -165,16 +171,23 @@ def check_xdmf(path, nx, ny, dx, dy):
     assert [int(w) for w in topology.get("Dimensions").split()] == [1, ny, nx]
     assert geometry.get("GeometryType") == "ORIGIN_DXDYDZ"
     origin, spacing = ([float(w) for w in item.text.split()] for item in geometry.findall("DataItem"))
-    assert origin == [0.0, 0.0, 0.0] and spacing[1:] == [dy, dx]
+    assert origin == [0.0, 0.0, 0.0] and spacing[1:] == pytest.approx([dy * scale, dx * scale], rel=1e-15)
     names = set()
+    floats = {np.dtype("f8")} | ({np.dtype("f4")} if precision == "float32" else set())
     with h5py.File(os.path.join(os.path.dirname(path), os.path.basename(path)[:-5] + ".h5"), "r") as f:
         for attribute in grid.findall("Attribute"):
             item = attribute.find("DataItem")
+            if item.get("ItemType") == "Function":
+                assert float(item.get("Function").split("*$0")[0]) == scale != 1.0
+                item = item.find("DataItem")
             file_name, dataset = item.text.strip().split(":")
             assert file_name == os.path.basename(path)[:-5] + ".h5" and item.get("Format") == "HDF"
             assert np.prod([int(w) for w in item.get("Dimensions").split()]) == nx * ny
-            assert f[dataset].shape == (ny, nx) and f[dataset].dtype == np.float64
-            assert item.get("Precision") == "8"
+            assert f[dataset].shape == (ny, nx)
+            unit = f[dataset].attrs["unit"]
+            assert f[dataset].dtype == np.uint8 if unit == "1" else f[dataset].dtype in floats
+            assert (item.get("NumberType"), item.get("Precision")) == XDMF_TYPES[f[dataset].dtype]
+            assert (attribute.find("DataItem").get("ItemType") == "Function") == (unit == "m" and scale != 1.0)
             names.add(attribute.get("Name"))
         assert names == set(f)
 
@@ -237,14 +250,18 @@ def test_example_scenes_run_at_reduced_size(coll, shared_tmp, path):
         assert coll.all(all(np.isfinite(st.force) and st.force > 0 for st in states))
     g = scene["geometry"]
     area = g["nx"] * g["dx"] * g["ny"] * g["dy"]
-    for k in range(1, len(values) + 1):
+    written = [k for k in range(1, len(values) + 1) if os.path.exists(os.path.join(out, f"step_{k:04d}.h5"))]
+    every = scene["output"]["field_every"]
+    assert {k for k in range(1, len(values) + 1) if k % every == 0 or k == len(values)} <= set(written)
+    for k in written:
         with h5py.File(os.path.join(out, f"step_{k:04d}.h5"), "r") as f:
             assert all(np.all(np.isfinite(f[name][:])) for name in f)
             assert float(f.attrs["approach"]) == pytest.approx(float(rows[k - 1]["approach_m"]), rel=1e-12)
             assert json.loads(f.attrs["scene"])["name"] == scene["name"] and "PETSc" in f.attrs["versions"]
             # the mean of the pressure field is the force of curve.csv over the grid's area
             assert f["pressure"][:].mean() * area == pytest.approx(float(rows[k - 1]["force_N"]), rel=1e-9)
-        check_xdmf(os.path.join(out, f"step_{k:04d}.xdmf"), g["nx"], g["ny"], g["dx"], g["dy"])
+        check_xdmf(os.path.join(out, f"step_{k:04d}.xdmf"), g["nx"], g["ny"], g["dx"], g["dy"],
+                   LENGTH_UNITS[scene["output"]["length_unit"]], scene["output"]["field_precision"])
     check_plots(out)
     if coll.size > 1:
         alone = os.path.join(shared_tmp, f"self{coll.rank}")
@@ -253,12 +270,12 @@ def test_example_scenes_run_at_reduced_size(coll, shared_tmp, path):
         for a, b in zip(rows, read_curve(alone)):
             for c in ("approach_m", "force_N"):
                 worst = max(worst, abs(float(a[c]) - float(b[c])) / max(abs(float(b[c])), 1e-300))
-        for k in range(1, len(values) + 1):
+        for k in written:
             with h5py.File(os.path.join(out, f"step_{k:04d}.h5"), "r") as fa, \
                     h5py.File(os.path.join(alone, f"step_{k:04d}.h5"), "r") as fb:
                 assert set(fa) == set(fb)
                 for name in fa:
-                    x, y = fa[name][:], fb[name][:]
+                    x, y = fa[name][:].astype(float), fb[name][:].astype(float)
                     worst = max(worst, np.abs(x - y).max() / max(np.abs(y).max(), 1e-300))
         assert coll.max(worst) <= 1e-6
 

@@ -44,7 +44,7 @@ def _parser() -> argparse.ArgumentParser:
                           "and resume after the last")
     run.add_argument("--overwrite", action="store_true",
                      help="remove another run's files from the output directory (curve.csv, history.csv, "
-                          "jumps.csv, summary.json, scene.json, atom_forces.csv, step files, plots) first")
+                          "jumps.csv, summary.json, scene.json, atom_forces.csv, step files, fields.xdmf, plots) first")
     run.add_argument("--dry-run", action="store_true",
                      help="print the plan (grid, decomposition, solver, memory, outputs) and exit")
     run.add_argument("--plots", action="store_true",

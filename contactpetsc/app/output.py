@@ -6,7 +6,10 @@ the process runs under an MPI launcher).  Datasets are stored (ny, nx), row j
 at y = j dy, so that the XDMF ``3DCoRectMesh`` (which lists the slowest axis
 first) shows x horizontally.  Files are written to a temporary name and
 renamed when complete: a reader never sees half a step, and an interrupted
-run keeps every finished step.
+run keeps every finished step.  Masks are uint8, the other fields float64 or
+(``output.field_precision``) float32, except what a restart or a height
+reader needs (``RESTART_FIELDS``, heights), always float64.  ``fields.xdmf``
+collects the written steps in one temporal collection.
 """
 from __future__ import annotations
 
@@ -25,6 +28,59 @@ ADHESIVE_FIELDS = ("contact_pressure", "adhesive_pressure", "adhesive")
 AXES = "y,x"   #: the axis order of every stored field (slowest first), a file and dataset attribute
 UNITS = {"pressure": "Pa", "gap": "m", "displacement": "m", "heights": "m", "contact": "1",
          "contact_pressure": "Pa", "adhesive_pressure": "Pa", "adhesive": "1"}
+MASKS = ("contact", "adhesive")            #: 0/1 fields, stored as uint8
+#: the fields a restart resumes from (the stepper's state), without and with adhesion: written
+#: in every step file at full precision, whatever output.fields and output.field_precision say
+RESTART_FIELDS = {False: ("pressure",), True: ("contact_pressure", "adhesive_pressure")}
+#: read back as a surface (geometry.kind = "file"): always float64
+FULL_PRECISION = ("heights",)
+#: output.length_unit: the factor from metres that the XDMF files apply to lengths (the
+#: geometry, the approach as time, and the length fields); the HDF5 data stay in metres
+LENGTH_UNITS = {"m": 1.0, "um": 1e6, "nm": 1e9}
+COLLECTION = "fields.xdmf"   #: the temporal collection of every written step
+_XDMF_TYPES = {"f8": ("Float", 8), "f4": ("Float", 4), "u1": ("UChar", 1)}
+
+
+def available_fields(adhesive: bool) -> tuple:
+    """The field names a scene's step files can hold (``output.fields``)."""
+    return FIELDS + (ADHESIVE_FIELDS if adhesive else ())
+
+
+def field_types(selected, adhesive: bool, precision: str = "float64") -> dict:
+    """{field: HDF5 type code} of a step file: the ``selected`` fields (True: all) and the
+    restart fields, in the order of ``available_fields``; masks uint8 ("u1"), the restart
+    fields and heights float64 ("f8"), the others ``precision`` ("f8" or "f4")."""
+    names = available_fields(adhesive)
+    chosen = set(names if selected is True else selected) | set(RESTART_FIELDS[adhesive])
+    low = "f4" if precision == "float32" else "f8"
+    return {name: "u1" if name in MASKS else
+            "f8" if name in FULL_PRECISION or name in RESTART_FIELDS[adhesive] else low
+            for name in names if name in chosen}
+
+
+def scene_field_types(scene: dict) -> dict:
+    """``field_types`` of a validated scene (empty with output.fields = false)."""
+    from .scenes import adhesive
+    out = scene["output"]
+    if out["fields"] is False:
+        return {}
+    return field_types(out["fields"], adhesive(scene), out["field_precision"])
+
+
+def expected_step_files(scene: dict) -> int:
+    """The step files a path writes at least: every ``field_every``-th step and the last (jumps,
+    unconverged steps and pull-off candidates come on top); 0 without fields."""
+    if scene["output"]["fields"] is False:
+        return 0
+    steps = len(scene["protocol"]["values"])
+    every = scene["output"]["field_every"]
+    return steps // every + (steps % every != 0)
+
+
+def step_file_bytes(types: dict, nodes: int, attrs: int = 0) -> float:
+    """Bytes of one step file: the datasets, plus the attributes (the scene and versions,
+    ``attrs`` characters) and HDF5's own structure."""
+    return nodes * sum(np.dtype(t).itemsize for t in types.values()) + 2**16 + attrs
 
 
 def write_text_atomic(path: str, text: str) -> None:
@@ -88,30 +144,29 @@ def _check_room(directory: str, final: str, comm, need: float) -> None:
                       f"with --restart")
 
 
-def write_state(directory: str, step: int, grid, heights, state, attrs: dict) -> str:
+def write_state(directory: str, step: int, grid, heights, state, attrs: dict, *, types: dict | None = None,
+                length_unit: str = "m") -> str:
     """Write step ``step`` of ``state`` (a ContactState) to ``directory/step_NNNN.h5`` (+ ``.xdmf``).
 
-    Collective over the grid's communicator.  Returns the HDF5 path.  A failed write (a
-    full disk) raises OSError naming the file on every rank and leaves no temporary file.
+    ``types``: {field: HDF5 type code} (``field_types``; default: every field of the state,
+    masks uint8, the rest float64).  Collective over the grid's communicator.  Returns the HDF5
+    path.  A failed write (a full disk) raises OSError naming the file on every rank and leaves
+    no temporary file.
     """
     comm = grid.mpi_comm
+    if types is None:
+        types = field_types(True, hasattr(state, "adhesive_pressure"))
     name = f"step_{step:04d}.h5"
     final = os.path.join(directory, name)
     tmp = final + ".tmp"
-    rows = {
-        "pressure": grid.rows(state.pressure, readonly=True),
-        "gap": grid.rows(state.gap, readonly=True),
-        "displacement": grid.rows(state.displacement, readonly=True),
-        "heights": grid.rows(heights, readonly=True),
-    }
-    rows["contact"] = (rows["pressure"] > 0).astype(np.float64)
-    fields = FIELDS
+    sources = {"pressure": state.pressure, "gap": state.gap, "displacement": state.displacement,
+               "heights": heights}
     if hasattr(state, "adhesive_pressure"):
-        # adhesive states: the two pressures stored apart (restart needs both) and the adhesive mask
-        fields = FIELDS + ADHESIVE_FIELDS
-        rows["contact_pressure"] = grid.rows(state.contact_pressure, readonly=True)
-        rows["adhesive_pressure"] = grid.rows(state.adhesive_pressure, readonly=True)
-        rows["adhesive"] = (rows["pressure"] < 0).astype(np.float64)
+        # adhesive states: the two pressures stored apart (restart needs both)
+        sources.update(contact_pressure=state.contact_pressure, adhesive_pressure=state.adhesive_pressure)
+    rows = {field: grid.rows(vec, readonly=True) for field, vec in sources.items()}
+    rows["contact"] = rows["pressure"] > 0
+    rows["adhesive"] = rows["pressure"] < 0
 
     def fill(f):
         for key, value in attrs.items():
@@ -121,19 +176,20 @@ def write_state(directory: str, step: int, grid, heights, state, attrs: dict) ->
             f.attrs[field] = getattr(state, field)
         f.attrs["dx"], f.attrs["dy"] = grid.dx, grid.dy
         f.attrs["axes"] = AXES
-        for field in fields:
-            dset = f.create_dataset(field, (grid.ny, grid.nx), dtype="f8")
+        for field, code in types.items():
+            dset = f.create_dataset(field, (grid.ny, grid.nx), dtype=code)
             dset.attrs["unit"] = UNITS[field]
             dset.attrs["axes"] = AXES
+            # float32 by rounding to nearest (numpy's cast); masks 0/1; float64 as it is
+            data = np.asarray(rows[field], dtype=code)
             if comm.Get_size() > 1:
                 with dset.collective:  # one MPI-IO write for all ranks
-                    dset[grid.ys:grid.ye, :] = rows[field]
+                    dset[grid.ys:grid.ye, :] = data
             else:
-                dset[grid.ys:grid.ye, :] = rows[field]
+                dset[grid.ys:grid.ye, :] = data
 
-    # the datasets, plus the attributes (the scene and versions) and HDF5's own structure
-    _check_room(directory, final, comm, 8.0 * grid.nx * grid.ny * len(fields) + 2**16
-                + sum(len(str(v)) for v in attrs.values()))
+    _check_room(directory, final, comm, step_file_bytes(types, grid.nx * grid.ny,
+                                                        sum(len(str(v)) for v in attrs.values())))
     try:
         _write_h5(tmp, comm, fill)
         error = None
@@ -149,32 +205,75 @@ def write_state(directory: str, step: int, grid, heights, state, attrs: dict) ->
     def publish():
         if comm.Get_rank() == 0:
             os.replace(tmp, final)
-            _write_xdmf(os.path.join(directory, f"step_{step:04d}.xdmf"), name, grid, fields)
+            write_text_atomic(os.path.join(directory, f"step_{step:04d}.xdmf"),
+                              _xdmf([_grid_xml(name, grid, types, length_unit)]))
 
     collective_call(comm, OSError, f"cannot write {final}: {{error}}", publish)
     return final
 
 
-def _write_xdmf(path: str, h5name: str, grid, fields=FIELDS) -> None:
-    # a 3-D mesh one node thick, axes listed slowest first (z, y, x; dz := dx): ParaView reads a
-    # 2DCoRectMesh into its y-z plane, this one into the x-y plane; spacings in double precision
+def write_collection(directory: str, grid, steps: list, length_unit: str = "m") -> None:
+    """``directory/fields.xdmf`` (rank 0; written whole under a temporary name): one temporal
+    collection of the written ``steps``, a list of (step, approach [m], {field: type code}).
+
+    The time of each step is its approach in ``length_unit`` when the approaches of the listed
+    steps strictly increase (loading paths, load control), else the step number (paths that
+    unload or turn: ParaView orders steps by time and merges equal times); the XDMF file
+    names which in an Information item ``time``.
+    """
+    scale = LENGTH_UNITS[length_unit]
+    approaches = [a for _, a, _ in steps]
+    by_approach = all(b > a for a, b in zip(approaches, approaches[1:]))
+    grids = []
+    for step, approach, types in steps:
+        time = approach * scale if by_approach else float(step)
+        grids.append(_grid_xml(f"step_{step:04d}.h5", grid, types, length_unit, time=time,
+                               name=f"step_{step:04d}", indent=6))
+    what = f"approach [{length_unit}]" if by_approach else "step"
+    text = (f'    <Grid Name="steps" GridType="Collection" CollectionType="Temporal">\n'
+            f'      <Information Name="time" Value="{what}"/>\n' + "".join(grids) + "    </Grid>\n")
+    write_text_atomic(os.path.join(directory, COLLECTION), _xdmf([text]))
+
+
+def read_written_step(path: str) -> tuple:
+    """(approach [m], {field: type code}) of a step file, for the collection of a restarted run."""
+    with h5py.File(path, "r") as f:
+        return float(f.attrs["approach"]), {name: f[name].dtype.str[1:] for name in f}
+
+
+def _xdmf(grids: list) -> str:
+    return ('<?xml version="1.0" ?>\n<Xdmf Version="3.0">\n  <Domain>\n' + "".join(grids)
+            + "  </Domain>\n</Xdmf>\n")
+
+
+def _grid_xml(h5name: str, grid, types: dict, length_unit: str, *, time: float | None = None,
+              name: str = "surface", indent: int = 4) -> str:
+    """One uniform grid of a step file's fields: a 3-D mesh one node thick, axes listed slowest
+    first (z, y, x; dz := dx): ParaView reads a 2DCoRectMesh into its y-z plane, this one into the
+    x-y plane; spacings in double precision.  Lengths (the spacing, the length fields) are shown
+    in ``length_unit`` through an XDMF Function item, the data staying in metres."""
+    scale = LENGTH_UNITS[length_unit]
     dims = f"1 {grid.ny} {grid.nx}"
-    attrs = "\n".join(
-        f'      <Attribute Name="{field}" AttributeType="Scalar" Center="Node">\n'
-        f'        <DataItem Dimensions="{dims}" NumberType="Float" Precision="8" Format="HDF">'
-        f'{h5name}:/{field}</DataItem>\n      </Attribute>' for field in fields)
-    text = f"""<?xml version="1.0" ?>
-<Xdmf Version="3.0">
-  <Domain>
-    <Grid Name="surface" GridType="Uniform">
-      <Topology TopologyType="3DCoRectMesh" Dimensions="{dims}"/>
-      <Geometry GeometryType="ORIGIN_DXDYDZ">
-        <DataItem Dimensions="3" NumberType="Float" Precision="8" Format="XML">0 0 0</DataItem>
-        <DataItem Dimensions="3" NumberType="Float" Precision="8" Format="XML">{grid.dx!r} {grid.dy!r} {grid.dx!r}</DataItem>
-      </Geometry>
-{attrs}
-    </Grid>
-  </Domain>
-</Xdmf>
-"""
-    write_text_atomic(path, text)
+    pad = " " * indent
+    lines = [f'{pad}<Grid Name="{name}" GridType="Uniform">']
+    if time is not None:
+        lines.append(f'{pad}  <Time Value="{time!r}"/>')
+    dx, dy = grid.dx * scale, grid.dy * scale
+    lines += [f'{pad}  <Topology TopologyType="3DCoRectMesh" Dimensions="{dims}"/>',
+              f'{pad}  <Geometry GeometryType="ORIGIN_DXDYDZ">',
+              f'{pad}    <DataItem Dimensions="3" NumberType="Float" Precision="8" Format="XML">0 0 0</DataItem>',
+              f'{pad}    <DataItem Dimensions="3" NumberType="Float" Precision="8" Format="XML">{dx!r} {dy!r} {dx!r}</DataItem>',
+              f'{pad}  </Geometry>']
+    for field, code in types.items():
+        number, precision = _XDMF_TYPES[code]
+        item = (f'<DataItem Dimensions="{dims}" NumberType="{number}" Precision="{precision}" '
+                f'Format="HDF">{h5name}:/{field}</DataItem>')
+        lines.append(f'{pad}  <Attribute Name="{field}" AttributeType="Scalar" Center="Node">')
+        if UNITS[field] == "m" and scale != 1.0:
+            lines += [f'{pad}    <DataItem ItemType="Function" Function="{scale!r}*$0" Dimensions="{dims}">',
+                      f'{pad}      {item}', f'{pad}    </DataItem>']
+        else:
+            lines.append(f'{pad}    {item}')
+        lines.append(f'{pad}  </Attribute>')
+    lines.append(f'{pad}</Grid>')
+    return "\n".join(lines) + "\n"

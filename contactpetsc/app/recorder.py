@@ -1,16 +1,19 @@
 """The step recorder: everything a run writes, written as soon as it is known.
 
 Per finished step, in this order (rank 0 for the text files, every rank for
-the field file): ``step_NNNN.h5`` (renamed into place when complete), the
-step's rows of ``atom_forces.csv`` and ``jumps.csv``, its row of
-``curve.csv`` -- the step's commit point --, its iterations in
+the field file): ``step_NNNN.h5`` (renamed into place when complete; the steps
+``writes_fields`` picks) and ``fields.xdmf``, the step's rows of
+``atom_forces.csv`` and ``jumps.csv``, its row of ``curve.csv`` -- the
+step's commit point --, its iterations in
 ``history.csv``, then ``summary.json``.  The CSV files are appended (whole
 lines, flushed and synced), so the cost of a step does not grow with the
 path.  ``resume`` reads back what an interrupted run left: the rows of
 ``curve.csv`` (a partial last row is dropped and that step solved again; a
 damaged earlier row is refused, naming the file and the row), the step files
-they list (each checked: intact, the grid's shape, ``axes = "y,x"``), and the
-rows of ``jumps.csv`` and ``atom_forces.csv`` of those steps.
+of those steps (each checked: intact, the grid's shape, ``axes = "y,x"``), and the
+rows of ``jumps.csv`` and ``atom_forces.csv`` of those steps.  The path resumes
+from the last step with a field file: the rows after it (steps that
+``output.field_every`` left without a file) are dropped and solved again.
 """
 from __future__ import annotations
 
@@ -25,7 +28,8 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..collective import collective_call
-from .output import AXES, write_state, write_text_atomic
+from .output import (AXES, COLLECTION, read_written_step, scene_field_types, write_collection, write_state,
+                     write_text_atomic)
 from .plots import is_number
 
 CURVE_COLUMNS = ["step", "branch", "approach_m", "force_N", "mean_pressure_Pa", "contact_fraction",
@@ -90,7 +94,13 @@ class StepRecorder:
         self.summary = {}
         self.history_written = self.unconverged = 0
         self.provenance = None
-        if scene["output"]["fields"]:
+        out = scene["output"]
+        self.types = scene_field_types(scene)   #: {field: type code} of the step files; {}: none
+        self.every, self.length_unit = out["field_every"], out["length_unit"]
+        # a sweep that refines the pull-off restarts the refinement from its most tensile state's file
+        self.pull_off_files = jumps and scene["protocol"]["refine_pull_off"]
+        self.written = []   #: (step, approach, types) of the step files of the path, for fields.xdmf
+        if self.types:
             from ..stack import CITATION, describe
             self.provenance = {"scene": scene, "versions": describe(grid.comm), "citation": CITATION}
         self.path = lambda name: os.path.join(out_dir, name)
@@ -102,22 +112,26 @@ class StepRecorder:
         scene on disk) has other physics than this run's, and rewrite the text files to them."""
         from .rundir import RunDirectoryError, differences
         comm = self.grid.mpi_comm
-        if not self.scene["output"]["fields"]:
-            raise RuntimeError("restart needs the field files: set output.fields = true")
+        if not self.types:
+            raise RuntimeError("restart needs the field files: set output.fields = true (or a list)")
         got = collective_call(comm, RunDirectoryError, f"cannot restart from {self.out_dir}: {{error}}",
                               lambda: self._read_back(fields) if self.rank0 else None)
-        self.rows, self.jumps, atoms, notes = comm.bcast(got, root=0)
+        self.rows, self.jumps, atoms, steps, notes = comm.bcast(got, root=0)
         differ = differences(stored, self.scene, len(self.rows)) if stored is not None else []
         if differ:
             raise RunDirectoryError(f"cannot restart in {self.out_dir!r}: the run there solved another problem ("
                                     + "; ".join(differ) + "); choose another --output, or --overwrite it")
 
-        def check_files():
-            for k in range(1, len(self.rows) + 1):
+        def check_files():   # each intact; (step, approach, types) for fields.xdmf
+            out = []
+            for k in steps:
                 check_step_file(self.path(f"step_{k:04d}.h5"), self.grid, fields)
+                out.append((k,) + read_written_step(self.path(f"step_{k:04d}.h5")))
+            return out
 
-        collective_call(comm, RunDirectoryError, f"cannot restart from {self.out_dir}: {{error}}",
-                        lambda: check_files() if self.rank0 else None)
+        self.written = comm.bcast(collective_call(comm, RunDirectoryError,
+                                                  f"cannot restart from {self.out_dir}: {{error}}",
+                                                  lambda: check_files() if self.rank0 else None), root=0)
         for line in notes:
             PETSc.Sys.Print(f"  note: {line}")
 
@@ -131,6 +145,8 @@ class StepRecorder:
                 write_text_atomic(self.path("atom_forces.csv"), csv_lines([ATOM_COLUMNS] + atoms))
             _drop_partial_line(self.path("history.csv"))
             _add_step_column(self.path("history.csv"))
+            _remove_steps_after(self.out_dir, len(self.rows))   # solved (and written) again
+            write_collection(self.out_dir, self.grid, self.written, self.length_unit)
 
         collective_call(comm, OSError, f"cannot rewrite the files of {self.out_dir}: {{error}}",
                         lambda: rewrite() if self.rank0 else None)
@@ -143,7 +159,13 @@ class StepRecorder:
         for k, r in enumerate(rows, 1):
             if r["step"] != str(k):
                 raise ValueError(f"{self.path('curve.csv')}, row {k}: step {r['step']!r}, expected {k}")
-        done = len(rows)
+        # the steps with a field file; the path resumes after the last one
+        steps = [k for k in range(1, len(rows) + 1) if os.path.exists(self.path(f"step_{k:04d}.h5"))]
+        done = steps[-1] if steps else 0
+        if done < len(rows):
+            notes.append(f"steps {done + 1}-{len(rows)} of curve.csv have no field file to resume from "
+                         f"(output.field_every): they are solved again")
+            rows = rows[:done]
         # rows of the steps on disk (files of an older version have no step column: all kept)
         jumps = [dict(j, step=j.get("step", "nan"))
                  for j in _read_rows(self.path("jumps.csv"), JUMP_COLUMNS[1:], notes, JUMP_COLUMNS[2:])
@@ -157,7 +179,11 @@ class StepRecorder:
         for r in rows:
             for c in CURVE_COLUMNS:
                 r.setdefault(c, "nan")   # a column an older version did not write
-        return rows, jumps, atoms, notes
+        return rows, jumps, atoms, steps, notes
+
+    def written_steps(self) -> list:
+        """The steps of the path that have a field file."""
+        return [k for k, _, _ in self.written]
 
     def read_step(self, step: int, fields: tuple) -> tuple[list, float]:
         """([Vec per field], approach) of step ``step``'s file; every rank reads its rows."""
@@ -167,7 +193,8 @@ class StepRecorder:
         def read():
             check_step_file(path, grid, fields)
             with h5py.File(path, "r") as f:
-                return [np.asarray(f[name][grid.ys:grid.ye, :]) for name in fields], float(f.attrs["approach"])
+                return ([np.asarray(f[name][grid.ys:grid.ye, :], dtype=float) for name in fields],
+                        float(f.attrs["approach"]))
 
         arrays, approach = collective_call(grid.mpi_comm, RuntimeError, f"cannot restart from {path}: {{error}}",
                                            read)
@@ -188,7 +215,7 @@ class StepRecorder:
             if self.tip is not None and not os.path.exists(self.path("atom_forces.csv")):
                 write_text_atomic(self.path("atom_forces.csv"), csv_lines([ATOM_COLUMNS]))
         self.first = len(self.rows)
-        self.unconverged = sum(r["converged"] not in (True, "True") for r in self.rows)
+        self.unconverged = sum(not _true(r["converged"]) for r in self.rows)
         self.t_start = MPI.Wtime()
 
     def record(self, st, row: dict, problem, new_jumps=(), results: dict | None = None) -> None:
@@ -199,14 +226,19 @@ class StepRecorder:
         if not self.grid.periodic:
             from ..metrics import window_reach
             row["window_reach"], share = window_reach(self.grid, st.pressure, self.zone_threshold)
-        if self.provenance is not None:
-            write_state(self.out_dir, step, self.grid, self.heights, st, self.provenance)
+        if self.types and self.writes_fields(row, new_jumps):
+            write_state(self.out_dir, step, self.grid, self.heights, st, self.provenance, types=self.types,
+                        length_unit=self.length_unit)
+            self.written.append((step, st.approach, self.types))
+            collective_call(self.grid.mpi_comm, OSError, f"cannot write {self.path(COLLECTION)}: {{error}}",
+                            lambda: write_collection(self.out_dir, self.grid, self.written, self.length_unit)
+                            if self.rank0 else None)
         atoms = self._atom_rows(step, st) if self.tip is not None else []
         jumps = [dict(zip(JUMP_COLUMNS, [step, j.kind, j.approach_before, j.approach_after, j.force_before,
                                          j.force_after])) for j in new_jumps]
         self.jumps += jumps
         self.rows.append(row)
-        self.unconverged += row["converged"] not in (True, "True")
+        self.unconverged += not _true(row["converged"])
 
         def append():
             if atoms:
@@ -231,6 +263,20 @@ class StepRecorder:
                     "isolated contact is cut there and its forces are off; enlarge the window (nx dx, ny dy)")
             self.edge_steps.append(step)
         self.write_summary(**(results or {}))
+
+    def writes_fields(self, row: dict, new_jumps=()) -> bool:
+        """Whether step ``row['step']`` writes its field file: every ``output.field_every``-th step,
+        the protocol's last step, the first step on a new branch (a jump reached it), an
+        unconverged step, and, on a sweep that refines the pull-off, each new most tensile stable
+        state (a restart starts the refinement from its file)."""
+        step = row["step"]
+        if step % self.every == 0 or step == self.total or new_jumps or not _true(row["converged"]):
+            return True
+        if not self.pull_off_files or row["stable"] in (False, "False"):
+            return False
+        earlier = [float(r["force_N"]) for r in self.rows
+                   if _true(r["converged"]) and r["stable"] not in (False, "False")]
+        return not earlier or row["force_N"] < min(earlier)
 
     def _print(self, st, row) -> None:
         k = row["step"]
@@ -288,7 +334,8 @@ class StepRecorder:
 
 
 def check_step_file(path: str, grid, fields: tuple) -> None:
-    """A step file fit to restart from: complete, the grid's (ny, nx) shape, axes "y,x"."""
+    """A step file fit to restart from: complete, ``fields`` present, every dataset of the grid's
+    (ny, nx) shape and axes "y,x"."""
     import h5py
     if not os.path.exists(path):
         raise FileNotFoundError(f"{path} is missing")
@@ -303,6 +350,7 @@ def check_step_file(path: str, grid, fields: tuple) -> None:
         for name in fields:
             if name not in f:
                 raise ValueError(f"{path} has no dataset {name!r}")
+        for name in f:
             if f[name].shape != (grid.ny, grid.nx):
                 raise ValueError(f"{path}: {name} has shape {f[name].shape}: it does not fit the scene's grid "
                                  f"(ny, nx) = ({grid.ny}, {grid.nx})")
@@ -360,6 +408,21 @@ def _add_step_column(path: str) -> None:
     if lines and "step" not in next(csv.reader([lines[0]])):
         write_text_atomic(path, "".join(line.rstrip("\r\n") + (",step" if k == 0 else ",nan") + "\r\n"
                                         for k, line in enumerate(lines)))
+
+
+def _true(flag) -> bool:
+    """A ``converged`` flag, as solved (bool) or read back from curve.csv (text)."""
+    return flag in (True, "True")
+
+
+def _remove_steps_after(out_dir: str, done: int) -> None:
+    """Remove the step files (and their leftovers) of steps after ``done``: those steps are
+    solved again, and written again as the run's settings say."""
+    from .rundir import STEP_FILE
+    for name in os.listdir(out_dir):
+        core = name.removesuffix(".tmp")
+        if STEP_FILE.match(core) and int(core[5:].split(".")[0]) > done:
+            os.remove(os.path.join(out_dir, name))
 
 
 def _drop_partial_line(path: str) -> None:

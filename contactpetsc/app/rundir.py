@@ -33,7 +33,8 @@ from .plots import PLOTS
 
 LOCK = ".contactpetsc.lock"
 SCENE = "scene.json"
-RUN_FILES = ("curve.csv", "history.csv", "jumps.csv", "summary.json", "atom_forces.csv", SCENE) + PLOTS
+RUN_FILES = ("curve.csv", "history.csv", "jumps.csv", "summary.json", "atom_forces.csv", SCENE,
+             "fields.xdmf") + PLOTS
 STEP_FILE = re.compile(r"step_\d{4,}\.(h5|xdmf)$")
 #: scene keys that may differ on a restart (they change the outputs or the numerics, not the problem)
 NOT_PHYSICS = ("name", "output.", "solver.", "protocol.refine_pull_off", "protocol.jump_refinement",
@@ -216,7 +217,7 @@ def _check(scene: dict, out_dir: str, restart: bool, overwrite: bool) -> dict | 
 
 def _probe(scene: dict, grid, out_dir: str, what: str) -> None:
     """Every rank can create a file in ``out_dir``, and it has room for the run's outputs."""
-    from .output import ADHESIVE_FIELDS, FIELDS
+    from .output import expected_step_files, scene_field_types, step_file_bytes
     comm = grid.mpi_comm
     rank = comm.Get_rank()
 
@@ -234,11 +235,11 @@ def _probe(scene: dict, grid, out_dir: str, what: str) -> None:
         return st.f_bavail * st.f_frsize
 
     free = collective_call(comm, OSError, f"{what} is not writable: {{error}}", probe)
-    fields = len(FIELDS) + (len(ADHESIVE_FIELDS) if scene["interaction"]["law"] != "none" else 0)
-    steps = len(scene["protocol"]["values"])
-    need = (steps * fields * 8 * grid.nx * grid.ny if scene["output"]["fields"] else 0) + 2**20 * (1 + steps)
+    types = scene_field_types(scene)
+    steps, files = len(scene["protocol"]["values"]), expected_step_files(scene)
+    need = files * step_file_bytes(types, grid.nx * grid.ny) + 2**20 * (1 + steps)
     if comm.allreduce(free < need, op=MPI.LOR):
         raise OSError(f"{what} has {comm.allreduce(free, op=MPI.MIN) / 2**20:.1f} MiB free; the run writes "
                       f"about {need / 2**20:.1f} MiB ({steps} steps"
-                      + (f" of {fields} fields of {grid.nx} x {grid.ny}" if scene["output"]["fields"] else "")
+                      + (f", {files} step files of {len(types)} fields of {grid.nx} x {grid.ny}" if types else "")
                       + "): free some space, choose another directory or set output.fields = false")

@@ -17,7 +17,6 @@ from . import builder, rundir
 from ..collective import collective_call
 from ..grid import SurfaceGrid
 from ..stack import check_parallel_output, describe
-from .output import ADHESIVE_FIELDS, FIELDS
 from .recorder import CURVE_COLUMNS, NAN, StepRecorder
 
 __all__ = ["run", "plan", "CURVE_COLUMNS"]
@@ -124,7 +123,7 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
             PETSc.Sys.Print(f"  warning: in {len(recorder.edge_steps)} step(s) the pressure-carrying zone reached "
                             "the window's edge (curve.csv window_reach = 1): those forces are not the isolated "
                             "contact's")
-        _save_plots(scene, grid, out_dir, states, h)
+        _save_plots(scene, grid, out_dir, states, h, recorder.rows)
         grid.mpi_comm.Barrier()   # the outputs are complete when run() returns, on every rank
         PETSc.Sys.Print(f"  wrote {out_dir}/curve.csv, history.csv, summary.json")
         return states
@@ -159,12 +158,14 @@ def _steps(scene: dict, stepper, recorder) -> list:
 def _outputs_line(scene: dict, n: int, out_dir: str) -> str:
     """The files a run writes (docs/outputs.md), for the plan."""
     from .scenes import adhesive
-    out, steps = scene["output"], len(scene["protocol"]["values"])
+    out = scene["output"]
     files = ["curve.csv", "history.csv", "summary.json", "scene.json"] + (
         ["jumps.csv"] if adhesive(scene) else [])
-    if out["fields"]:
-        per_step = (len(FIELDS) + (len(ADHESIVE_FIELDS) if adhesive(scene) else 0)) * n * 8
-        files.append(f"{steps} x step_NNNN.h5 + .xdmf ({per_step / 2**20:.1f} MiB each)")
+    if out["fields"] is not False:
+        from .output import expected_step_files, scene_field_types, step_file_bytes
+        types = scene_field_types(scene)
+        files.append(f"{expected_step_files(scene)} x step_NNNN.h5 + .xdmf ({', '.join(types)}; "
+                     f"{step_file_bytes(types, n) / 2**20:.1f} MiB each), fields.xdmf")
     if out["atom_forces"] and scene["geometry"]["kind"] == "tip":
         files.append("atom_forces.csv")
     if out["plots"]:
@@ -173,28 +174,41 @@ def _outputs_line(scene: dict, n: int, out_dir: str) -> str:
     return f"  outputs in {out_dir}: " + ", ".join(files)
 
 
-def _save_plots(scene: dict, grid: SurfaceGrid, out_dir: str, states: list, heights) -> None:
-    """``output.plots``: ``plots.plot_run`` on rank 0 from the files just written, and without
-    field files from the plotted step's pressure, gap and the heights gathered to rank 0 (only
-    then); collective (a plotting error is raised on every rank)."""
+def _save_plots(scene: dict, grid: SurfaceGrid, out_dir: str, states: list, heights, rows: list) -> None:
+    """``output.plots``: ``plots.plot_run`` on rank 0 from the files just written, and where the
+    plotted step has no step file with the pressure (``output.fields``, ``output.field_every``)
+    from its pressure, gap and the heights gathered to rank 0 (only then; a step of this run
+    only); collective (a plotting error is raised on every rank)."""
     if not scene["output"]["plots"]:
         return
     from .plots import plot_step, plot_run
     fields = None
-    if not scene["output"]["fields"] and states:   # no field file: gather the plotted step's fields
-        step = collective_call(grid.mpi_comm, ValueError, "{error}", plot_step, [st.approach for st in states],
-                               [st.converged for st in states], scene["output"]["plot_step"])
-        st = states[step - 1]
-        got = {name: grid.gather(vec, root=0) for name, vec in
-               (("pressure", st.pressure), ("gap", st.gap), ("heights", heights))}
-        if got["pressure"] is not None:
-            fields = {name: a.T for name, a in got.items()}
-            fields.update(step=step, dx=grid.dx, dy=grid.dy, hdx=grid.dx, hdy=grid.dy)
+    if states:
+        step = collective_call(grid.mpi_comm, ValueError, "{error}", plot_step, [r["approach_m"] for r in rows],
+                               [r["converged"] in (True, "True") for r in rows], scene["output"]["plot_step"])
+        k = step - (len(rows) - len(states))   # the plotted step among this run's states (1, 2, ...)
+        if 1 <= k <= len(states) and not _wrote_pressure(scene, grid, out_dir, step):
+            st = states[k - 1]
+            got = {name: grid.gather(vec, root=0) for name, vec in
+                   (("pressure", st.pressure), ("gap", st.gap), ("heights", heights))}
+            if got["pressure"] is not None:
+                fields = {name: a.T for name, a in got.items()}
+                fields.update(step=step, dx=grid.dx, dy=grid.dy, hdx=grid.dx, hdy=grid.dy)
     rank0 = grid.mpi_comm.Get_rank() == 0
     written = collective_call(grid.mpi_comm, RuntimeError, "plots failed: {error}",
                               lambda: plot_run(out_dir, fields) if rank0 else [])
     if rank0:
         PETSc.Sys.Print("  plots: " + ", ".join(written), comm=PETSc.COMM_SELF)
+
+
+def _wrote_pressure(scene: dict, grid: SurfaceGrid, out_dir: str, step: int) -> bool:
+    """Whether step ``step`` has a file with the pressure (read by ``plot_run``)."""
+    import os
+    fields = scene["output"]["fields"]
+    if fields is False or (fields is not True and "pressure" not in fields):
+        return False
+    path = os.path.join(out_dir, f"step_{step:04d}.h5")
+    return grid.mpi_comm.bcast(os.path.exists(path) if grid.mpi_comm.Get_rank() == 0 else None, root=0)
 
 
 def _branch(control: str, values: list, i: int) -> str:

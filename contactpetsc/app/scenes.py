@@ -121,8 +121,18 @@ _SCHEMA = {
     },
     "output": {
         "directory": _k(str, "contactpetsc-output", "", "where curve.csv, history.csv and the fields go"),
-        "fields": _k(bool, True, "", "write step_NNNN.h5 (pressure, gap, displacement, heights, "
-                     "contact mask) and step_NNNN.xdmf for ParaView, per step"),
+        "fields": _k((bool, list), True, "", "write step_NNNN.h5 and step_NNNN.xdmf (ParaView) per step, "
+                     "and fields.xdmf (all written steps as a time series): true (every field), false "
+                     "(none; no restart), or a list of field names (pressure, gap, displacement, heights, "
+                     "contact; with adhesion contact_pressure, adhesive_pressure, adhesive); the fields a "
+                     "restart resumes from are always written (docs/outputs.md)"),
+        "field_precision": _k(str, "float64", "", "the float fields of step files (masks are uint8; "
+                              "heights and the restart fields stay float64)", choices=("float64", "float32")),
+        "field_every": _k(int, 1, "", "write the fields of every k-th step, and of the last step, jumps, "
+                          "unconverged steps and each new most tensile stable state (docs/outputs.md)",
+                          (1, 2**31 - 1, True, True)),
+        "length_unit": _k(str, "m", "", "the length unit ParaView shows (XDMF geometry, approach as time, "
+                          "gap, displacement, heights); the HDF5 data stay in metres", choices=("m", "um", "nm")),
         "plots": _k(bool, False, "", "save the plots (needs matplotlib; docs/outputs.md): load_approach.png "
                     "(jumps, pull-off, closed forms on spheres), contact_area.png and mean_gap.png (periodic "
                     "cells), pressure_map.png and histograms.png (the plotted step), psd.png (rough "
@@ -182,12 +192,17 @@ def range_text(rng) -> str:
     return f"{'[' if lo_in else '('}{_number_text(lo)}, {_number_text(hi)}{']' if hi_in else ')'}"
 
 
+def kind_name(kind) -> str:
+    """A key's type as printed in messages and docs ("bool or list")."""
+    return " or ".join(k.__name__ for k in kind) if isinstance(kind, tuple) else kind.__name__
+
+
 def _check_value(path: str, spec: dict, value):
     kind = spec["kind"]
     if kind is float and isinstance(value, int) and not isinstance(value, bool):
         value = float(value)
     if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
-        raise SceneError(f"{path} = {value!r}: expected {kind.__name__}")
+        raise SceneError(f"{path} = {value!r}: expected {kind_name(kind)}")
     if spec["choices"] is not None and value not in spec["choices"]:
         raise SceneError(f"{path} = {value!r}: accepted values are {', '.join(spec['choices'])}")
     if spec["range"] is not None:
@@ -242,6 +257,7 @@ def validate(scene: dict) -> dict:
     if out["output"]["atom_forces"] and g["kind"] != "tip":
         raise SceneError("output.atom_forces needs geometry.kind = tip (forces per atom of a tip)")
     _check_interaction(out, _given(scene, "interaction"))
+    _check_fields(out, _given(scene, "output"))
     _check_protocol(out)
     _check_hardness(out)
     steps = len(out["protocol"]["values"])
@@ -401,6 +417,27 @@ def _check_interaction(out: dict, given: set) -> None:
                              f"'newton'")
 
 
+def _check_fields(out: dict, given: set) -> None:
+    """output.fields: true, false or a non-empty list of this scene's field names, without
+    repeats; the keys that shape field files only with fields."""
+    from .output import available_fields
+    o = out["output"]
+    names = available_fields(adhesive(out))
+    if isinstance(o["fields"], list):
+        bad = [f for f in o["fields"] if f not in names]
+        if not o["fields"] or bad or len(set(o["fields"])) != len(o["fields"]):
+            why = (f"{bad[0]!r} is not a field of this scene" if bad else "an empty list" if not o["fields"]
+                   else "a field named twice")
+            raise SceneError(f"output.fields = {o['fields']!r}: {why}; accepted: true, false or a list of "
+                             f"{', '.join(names)}" + ("" if adhesive(out) else
+                                                      " (contact_pressure, adhesive_pressure, adhesive: "
+                                                      "with adhesion)"))
+    if o["fields"] is False:
+        for key in sorted(given & {"field_precision", "field_every", "length_unit"}):
+            raise SceneError(f"output.{key} shapes the field files: it needs output.fields (true or a list), "
+                             f"not false")
+
+
 def _check_protocol(out: dict) -> None:
     """Values must be finite numbers, loads positive, and no load so small that it is round-off:
     loads below LOAD_RESOLUTION E* (mean pressure) or E* nx dx ny dy (force) would be solved to a
@@ -500,7 +537,7 @@ def schema_markdown() -> str:
                   "|---|---|---|---|---|---|"]
         for name, s in items:
             acc = ", ".join(s["choices"]) if s["choices"] else (range_text(s["range"]) if s["range"] else "")
-            lines.append(f"| `{name}` | {s['kind'].__name__} | {s['unit']} | {s['default']!r} | {acc} | {s['doc']} |")
+            lines.append(f"| `{name}` | {kind_name(s['kind'])} | {s['unit']} | {s['default']!r} | {acc} | {s['doc']} |")
         lines.append("")
     lines += ["### Interaction laws", "", "| law | parameters | meaning |", "|---|---|---|"]
     for name, cls in LAWS.items():

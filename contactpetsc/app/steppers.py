@@ -17,6 +17,8 @@ from __future__ import annotations
 import numpy as np
 from petsc4py import PETSc
 
+from .output import RESTART_FIELDS
+
 NAN = float("nan")
 
 
@@ -35,7 +37,7 @@ class ContactSteps:
     stop_on_failure = False
     sweeping = False              #: no jumps, no pull-off
     zone_threshold = 0.0          #: the contact zone: p > 0
-    fields = ("pressure",)
+    fields = RESTART_FIELDS[False]
 
     def __init__(self, scene: dict, grid, problem, relax=None):
         g = scene["geometry"]
@@ -87,7 +89,7 @@ class ContactSteps:
 class AdhesiveSteps:
     """Adhesive contact: a failed step ends the run (the steps on disk stay a path to restart from)."""
     stop_on_failure = True
-    fields = ("contact_pressure", "adhesive_pressure")
+    fields = RESTART_FIELDS[True]
 
     def __init__(self, scene: dict, grid, problem, relax=None):
         from ..metrics import CUTOFF
@@ -131,6 +133,10 @@ class AdhesiveSteps:
         if not stable:
             return
         best = min(stable, key=lambda i: pts[i].force)
+        if best + 1 not in recorder.written_steps():   # a run of other output settings
+            PETSc.Sys.Print(f"  note: the most tensile state on disk (step {best + 1}) has no field file: the "
+                            "pull-off refinement starts from the new steps only")
+            return
         (q, a), approach = recorder.read_step(best + 1, self.fields)
         self.problem.warm_start(q, a, approach)
         st = self.problem.solve(approach=approach, raise_on_failure=False, fallback=False)

@@ -75,7 +75,8 @@ def plot_step(approach, converged, requested: int | None = None) -> int:
 
 
 def read_fields(directory: str, step: int) -> dict | None:
-    """The fields of ``step_NNNN.h5``, or None when the run wrote no field files: ``pressure``
+    """The fields of ``step_NNNN.h5``, or None when the run wrote no field file of that step, or
+    none with the pressure (``output.fields``, ``output.field_every``): ``pressure``
     and ``gap`` read every k-th node (at most MAP_PIXELS per side) with their spacing ``dx``,
     ``dy``; ``heights`` whole with ``hdx``, ``hdy`` (None above HEIGHT_NODES per side);
     ``attrs``, the file's attributes."""
@@ -84,6 +85,8 @@ def read_fields(directory: str, step: int) -> dict | None:
         return None
     import h5py
     with h5py.File(path, "r") as f:
+        if "pressure" not in f:
+            return None
         attrs = dict(f.attrs)
         dx, dy = float(attrs["dx"]), float(attrs["dy"])
         shape = f["pressure"].shape
