@@ -182,7 +182,7 @@ def test_plots_are_off_unless_asked_and_cost_nothing_then(tmp_path):
     refuses in the child process)."""
     code = f"""
 import sys, petsc4py
-petsc4py.init(sys.argv[:1])
+petsc4py.init(["plots-off-check"])   # argv[0] of python -c is "-c", an option to PETSc
 from contactpetsc.grid import SurfaceGrid
 def refuse(*a, **k):
     raise AssertionError("a field was gathered")

@@ -48,7 +48,7 @@ from .base import AdhesiveSolveError, VIProblem, check_tolerance, reason_name, w
 from .continuation import Continuation
 from .history import SolveHistory
 from .load_control import solve_force
-from .options import code_default, print_help
+from .options import LINESEARCH_MAX_STEP, code_default, print_help
 from .pc_registry import ADHESIVE_PRECONDITIONERS
 from .states import AdhesiveState
 from .tangent import TangentAndState
@@ -308,7 +308,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self.set_default("snes_linesearch_type", linesearch, prefix)
         # PETSc's default (1e8) is in the unknowns' units, Pa here: it cut every Newton step
         # of a stiff sphere (docs/formulation.md, "Adhesive contact: unknowns and Newton")
-        self.set_default("snes_linesearch_maxstep", "1e300", prefix)
+        self.set_default(LINESEARCH_MAX_STEP, "1e300", prefix)
         ksp = snes.getKSP()
         ksp.setType(newton_ksp_type(self.hard_wall))
         # with the full LJ curve an inexact step is cheaper than an exact one far from the

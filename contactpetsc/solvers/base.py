@@ -138,7 +138,7 @@ class VIProblem:
             if outer:
                 opts = PETSc.Options()
                 # and what PETSc added under the prefix meanwhile (newer PETSc sets the new
-                # name of a deprecated option we gave, e.g. snes_linesearch_maxstep)
+                # name of a deprecated option a user gave)
                 added = [k for k in opts.getAll() if k not in before and k.startswith(self.prefix)]
                 for name in set(self._inserted) | set(added):
                     opts.delValue(name)

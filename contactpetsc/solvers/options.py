@@ -10,6 +10,11 @@ from dataclasses import dataclass
 
 from petsc4py import PETSc
 
+#: the line search's largest step: PETSc 3.24 renamed snes_linesearch_maxstep (and warns about
+#: the old name)
+LINESEARCH_MAX_STEP = ("snes_linesearch_maxlambda" if PETSc.Sys.getVersion()[:2] >= (3, 24)
+                       else "snes_linesearch_maxstep")
+
 
 @dataclass(frozen=True)
 class Option:

@@ -43,7 +43,7 @@ from .base import (ContactSolveError, VIProblem, check_tolerance, convergence_ve
                    weighted_pairs, with_options)
 from .contact_load import MIN_LOAD, ContactLoadControl
 from .history import SolveHistory
-from .options import code_default, print_help
+from .options import LINESEARCH_MAX_STEP, code_default, print_help
 from .pc_registry import PRECONDITIONERS, preconditioner_name
 from .reduced import ContactJacobian
 from .plasticity import check_hardness, plastic_measures
@@ -149,7 +149,7 @@ class ContactProblem(ContactLoadControl, VIProblem):
         snes = self.make_vi_snes(self.prefix, (grid.create_vec(0.0), grid.create_vec(upper)),
                                  code_default("contact", "snes_max_it"))
         self.set_default("snes_linesearch_type", NEWTON_LINESEARCH)
-        self.set_default("snes_linesearch_maxstep", "1e300")   # PETSc's 1e8 is in Pa here
+        self.set_default(LINESEARCH_MAX_STEP, "1e300")   # PETSc's 1e8 is in Pa here
         ksp = snes.getKSP()
         ksp.setType(NEWTON_KSP)
         # inexact Newton: the semismooth Newton method converges linearly with
