@@ -33,7 +33,7 @@ stage() {   # NAME COMMAND...: one stage under the time limit, and a message if 
     fi
     return "$status"
 }
-stage "1 rank" "$py" -m pytest -q -p no:cacheprovider tests "$@"
+stage "1 rank" "$py" -m pytest -q -p no:cacheprovider --durations=8 tests "$@"
 for n in 2 3; do
     stage "$n ranks" mpirun -n "$n" "$py" -m pytest -q -p no:cacheprovider -m "not serial" tests "$@"
 done
