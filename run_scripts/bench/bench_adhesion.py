@@ -36,7 +36,6 @@ import subprocess
 import sys
 import tempfile
 import time
-import warnings
 
 import petsc4py
 
@@ -69,13 +68,11 @@ from petsc4py import PETSc  # noqa: E402
 
 from contactpetsc.grid import SurfaceGrid  # noqa: E402
 from contactpetsc.physics.interactions import make_law  # noqa: E402
-from contactpetsc.physics.resolution import UnderResolvedWarning  # noqa: E402
 from contactpetsc.solvers.adhesive import AdhesiveProblem  # noqa: E402
 from contactpetsc.solvers.relaxation import RelaxationSolver  # noqa: E402
-from contactpetsc.solvers.transfer import can_halve, halved, restrict  # noqa: E402
-from contactpetsc.geometry.surfaces import self_affine, sphere  # noqa: E402
+from contactpetsc.geometry.surfaces import sphere  # noqa: E402
 
-from rough_surface import rough_surface  # noqa: E402
+from rough_surface import calibrate, rough_surface  # noqa: E402
 
 rank = PETSc.COMM_WORLD.getRank()
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -133,36 +130,6 @@ def sphere_cases():
                      W_star=st.force / (2 * np.pi * R * w))
 
 
-def calibrate(grid, h, law, areas, steps=40):
-    """Approaches giving the target contact fractions (p > 0, i.e. z < z0) of the adhesive
-    contact on its loading path: a sweep with our solver (untimed) in ``steps`` equal steps
-    across the height range, stopped past the largest target, then linear interpolation.
-    Above ``--calibrate-max-n`` the sweep runs on the heights averaged to that grid (same
-    w and z0): the areas are then approximate -- each case reports the area it reached --
-    and the calibration no longer costs more than the benchmark (at 1024^2 it had taken
-    over an hour on the full grid)."""
-    while grid.nx > args.calibrate_max_n and can_halve(grid):
-        coarse = halved(grid)
-        hc = coarse.create_vec()
-        coarse.rows(hc)[...] = restrict(grid.rows(h, readonly=True))
-        grid, h = coarse, hc
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UnderResolvedWarning)   # coarser than the case by design
-        pb = AdhesiveProblem(grid, h, 1.0, law, prefix="cal_", tol=1e-6, stability_check=False)
-    lo, hi = float(h.min()[1]) - law.z0, float(h.max()[1])
-    deltas, fractions = [], []
-    for d in np.linspace(lo, hi, steps):
-        st = pb.solve(approach=d, raise_on_failure=False)
-        if st.converged:
-            deltas.append(d)
-            fractions.append(st.contact_fraction)
-        if fractions and fractions[-1] > 1.2 * max(areas):
-            break
-    if len(fractions) < 2:
-        return None     # no loading path to interpolate on: the case is reported as failed
-    return [float(np.interp(a, fractions, deltas)) for a in areas]
-
-
 def run_peer(heights_path, dx, w, z0, approaches, outdir):
     cmd = [args.peer_python, os.path.join(HERE, os.pardir, "peers", "cm_adhesion.py"), "--surface", heights_path,
            "--dx", repr(dx), "--e-star", "1.0", "--w", repr(w), "--z0", repr(z0),
@@ -184,7 +151,7 @@ def rough_cases():
             for z0_rel in args.z0:
                 z0, w = z0_rel * dx, w_rel * dx
                 law = make_law("lj", work_of_adhesion=w, z0=z0)
-                approaches = args.approaches or calibrate(grid, h, law, args.areas)
+                approaches = args.approaches or calibrate(grid, h, law, args.areas, max_n=args.calibrate_max_n)
                 if approaches is None:
                     emit(case="rough", n=n, w=w_rel, z0=z0_rel, solver="calibration", converged=False,
                          message="the calibration sweep converged at fewer than two approaches")

@@ -55,9 +55,8 @@ from contactpetsc.grid import SurfaceGrid  # noqa: E402
 from contactpetsc.physics.interactions import make_law  # noqa: E402
 from contactpetsc.physics.resolution import UnderResolvedWarning  # noqa: E402
 from contactpetsc.solvers.adhesive import AdhesiveProblem  # noqa: E402
-from contactpetsc.solvers.transfer import can_halve, halved, restrict  # noqa: E402
 
-from rough_surface import rough_surface  # noqa: E402
+from rough_surface import calibrate, rough_surface  # noqa: E402
 
 comm = PETSc.COMM_WORLD.tompi4py()
 rows = []
@@ -81,28 +80,6 @@ def solve_path(grid, h, law, pc, approaches):
                         converged=bool(st.converged), fallback=bool(st.fallback),
                         area=st.contact_fraction, snap=pb.snap_number, reason=st.reason[:120]))
     return out
-
-
-def calibrate(grid, h, law, areas, steps=40, max_n=128):
-    """Approaches of the target contact fractions on the loading path of the averaged heights."""
-    while grid.nx > max_n and can_halve(grid):
-        coarse = halved(grid)
-        hc = coarse.create_vec()
-        coarse.rows(hc)[...] = restrict(grid.rows(h, readonly=True))
-        grid, h = coarse, hc
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UnderResolvedWarning)
-        pb = AdhesiveProblem(grid, h, 1.0, law, prefix="cal_", tol=1e-6, stability_check=False)
-    lo, hi = float(h.min()[1]) - law.z0, float(h.max()[1])
-    deltas, fractions = [], []
-    for d in np.linspace(lo, hi, steps):
-        st = pb.solve(approach=d, raise_on_failure=False)
-        if st.converged:
-            deltas.append(d)
-            fractions.append(st.contact_fraction)
-        if fractions and fractions[-1] > 1.2 * max(areas):
-            break
-    return [float(np.interp(a, fractions, deltas)) for a in areas] if len(fractions) > 1 else None
 
 
 def record(case, n, z0, stages, results):
