@@ -364,15 +364,15 @@ def test_a_step_file_scene_needs_only_its_path(coll, shared_tmp):
     import json
 
     import h5py
-    path = shared_tmp / "step.h5"
-
-    def write(periodic):
+    def write(path, periodic):
         with h5py.File(path, "w") as f:
             f.attrs.update(axes="y,x", dx=2e-9, dy=3e-9,
                            scene=json.dumps({"geometry": {"kind": "self-affine", "periodic": periodic}}))
             f["heights"] = grid_pattern().T * 1e-9          # stored (ny, nx)
     for periodic in (True, False):
-        on_root(coll, lambda: write(periodic))
+        # a file of its own per case: rank 0 must not rewrite one that other ranks still read
+        path = shared_tmp / f"step_{'periodic' if periodic else 'window'}.h5"
+        on_root(coll, lambda: write(path, periodic))
         g = scenes.validate(file_scene(path))["geometry"]
         assert (g["nx"], g["ny"], g["dx"], g["dy"], g["format"]) == (NX, NY, 2e-9, 3e-9, "hdf5")
         assert g["periodic"] is periodic
