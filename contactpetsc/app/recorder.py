@@ -215,7 +215,7 @@ class StepRecorder:
             if self.tip is not None and not os.path.exists(self.path("atom_forces.csv")):
                 write_text_atomic(self.path("atom_forces.csv"), csv_lines([ATOM_COLUMNS]))
         self.first = len(self.rows)
-        self.unconverged = sum(not _true(r["converged"]) for r in self.rows)
+        self.unconverged = sum(not is_true(r["converged"]) for r in self.rows)
         self.t_start = MPI.Wtime()
 
     def record(self, st, row: dict, problem, new_jumps=(), results: dict | None = None) -> None:
@@ -238,7 +238,7 @@ class StepRecorder:
                                          j.force_after])) for j in new_jumps]
         self.jumps += jumps
         self.rows.append(row)
-        self.unconverged += not _true(row["converged"])
+        self.unconverged += not is_true(row["converged"])
 
         def append():
             if atoms:
@@ -270,12 +270,12 @@ class StepRecorder:
         unconverged step, and, on a sweep that refines the pull-off, each new most tensile stable
         state (a restart starts the refinement from its file)."""
         step = row["step"]
-        if step % self.every == 0 or step == self.total or new_jumps or not _true(row["converged"]):
+        if step % self.every == 0 or step == self.total or new_jumps or not is_true(row["converged"]):
             return True
         if not self.pull_off_files or row["stable"] in (False, "False"):
             return False
         earlier = [float(r["force_N"]) for r in self.rows
-                   if _true(r["converged"]) and r["stable"] not in (False, "False")]
+                   if is_true(r["converged"]) and r["stable"] not in (False, "False")]
         return not earlier or row["force_N"] < min(earlier)
 
     def _print(self, st, row) -> None:
@@ -410,7 +410,7 @@ def _add_step_column(path: str) -> None:
                                         for k, line in enumerate(lines)))
 
 
-def _true(flag) -> bool:
+def is_true(flag) -> bool:
     """A ``converged`` flag, as solved (bool) or read back from curve.csv (text)."""
     return flag in (True, "True")
 

@@ -17,7 +17,7 @@ from . import builder, rundir
 from ..collective import collective_call
 from ..grid import SurfaceGrid
 from ..stack import check_parallel_output, describe
-from .recorder import CURVE_COLUMNS, NAN, StepRecorder
+from .recorder import CURVE_COLUMNS, NAN, StepRecorder, is_true
 
 __all__ = ["run", "plan", "CURVE_COLUMNS"]
 
@@ -185,7 +185,7 @@ def _save_plots(scene: dict, grid: SurfaceGrid, out_dir: str, states: list, heig
     fields = None
     if states:
         step = collective_call(grid.mpi_comm, ValueError, "{error}", plot_step, [r["approach_m"] for r in rows],
-                               [r["converged"] in (True, "True") for r in rows], scene["output"]["plot_step"])
+                               [is_true(r["converged"]) for r in rows], scene["output"]["plot_step"])
         k = step - (len(rows) - len(states))   # the plotted step among this run's states (1, 2, ...)
         if 1 <= k <= len(states) and not _wrote_pressure(scene, grid, out_dir, step):
             st = states[k - 1]
