@@ -49,13 +49,13 @@ def test_printed_ranges_say_what_is_accepted(section, key, spec):
                                     (hi, (hi + lo) / 2 if math.isfinite(hi) else lo + 1, text[-1] == "]")):
         value = spec["kind"](bound) if math.isfinite(bound) else bound
         try:
-            scenes._check_value(f"{section}.{key}", spec, value)
+            scenes.check_value(f"{section}.{key}", spec, value)
             accepted = True
         except scenes.SceneError as exc:
             accepted = False
             assert f"{section}.{key} = {value!r}: accepted range {text}" in str(exc)
         assert accepted == included, (key, bound, text)
-        scenes._check_value(f"{section}.{key}", spec, spec["kind"](inside))
+        scenes.check_value(f"{section}.{key}", spec, spec["kind"](inside))
 
 
 @pytest.mark.parametrize("tol", [1e300, 1.0, 0.0101])

@@ -20,16 +20,10 @@ import tomllib
 from ..operators.layer import INTERFACES
 from ..physics.interactions import LAWS, WORK_OF_ADHESION, adhesive_laws, relaxation_laws
 from ..topography import DETREND, FORMATS, HEIGHT_UNITS
-
-POS = (0.0, math.inf, False, False)      # (low, high, low included?, high included?)
-NONNEG = (0.0, math.inf, True, False)
-TOL = (0.0, 1e-2, False, True)           # a tolerance: above 1e-2 a solve is not a solution
-POISSON = (-1.0, 0.5, False, True)       # Poisson's ratio of an isotropic solid (0.5: incompressible)
-LOAD_RESOLUTION = 1e-12   #: smallest non-zero load or approach, relative to E* or the grid spacing
-
-
-class SceneError(ValueError):
-    """An invalid scene (raised identically on every rank: scenes are read by all)."""
+from .scene_files import read_height_file
+from .scene_material import check_hardness, check_material, e_star, layer  # noqa: F401 (e_star, layer: API)
+from .scene_values import (LOAD_RESOLUTION, NONNEG, POISSON, POS, TOL, SceneError,  # noqa: F401 (API)
+                           check_value, kind_name, range_text)
 
 
 def _k(kind, default, unit, doc, rng=None, choices=None):
@@ -182,39 +176,6 @@ DEFAULT_SCENE = {
 }
 
 
-def _number_text(v) -> str:
-    return str(v) if isinstance(v, int) else ("inf" if v == math.inf else f"{v:g}")
-
-
-def range_text(rng) -> str:
-    """An accepted range as printed in messages and docs: [ and ] include the bound."""
-    lo, hi, lo_in, hi_in = rng
-    return f"{'[' if lo_in else '('}{_number_text(lo)}, {_number_text(hi)}{']' if hi_in else ')'}"
-
-
-def kind_name(kind) -> str:
-    """A key's type as printed in messages and docs ("bool or list")."""
-    return " or ".join(k.__name__ for k in kind) if isinstance(kind, tuple) else kind.__name__
-
-
-def _check_value(path: str, spec: dict, value):
-    kind = spec["kind"]
-    if kind is float and isinstance(value, int) and not isinstance(value, bool):
-        value = float(value)
-    if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
-        raise SceneError(f"{path} = {value!r}: expected {kind_name(kind)}")
-    if spec["choices"] is not None and value not in spec["choices"]:
-        raise SceneError(f"{path} = {value!r}: accepted values are {', '.join(spec['choices'])}")
-    if spec["range"] is not None:
-        lo, hi, lo_in, hi_in = spec["range"]
-        ok = ((value >= lo if lo_in else value > lo) and (value <= hi if hi_in else value < hi)
-              and math.isfinite(value))
-        if not ok:
-            raise SceneError(f"{path} = {value!r}: accepted range {range_text(spec['range'])} "
-                             f"{spec['unit']}".rstrip())
-    return value
-
-
 def validate(scene: dict) -> dict:
     """A complete scene (defaults filled in) or SceneError (a height file is opened to read its
     metadata; no rank talks to another: every rank reaches the same verdict on a shared file)."""
@@ -226,7 +187,7 @@ def validate(scene: dict) -> dict:
             raise SceneError(f"unknown key {key!r}; accepted: {', '.join(spec_all)}")
     for key, spec in spec_all.items():
         if "kind" in spec and isinstance(spec["kind"], type):  # a top-level key
-            out[key] = _check_value(key, spec, scene.get(key, spec["default"]))
+            out[key] = check_value(key, spec, scene.get(key, spec["default"]))
             continue
         given = scene.get(key, {})
         if not isinstance(given, dict):
@@ -237,13 +198,13 @@ def validate(scene: dict) -> dict:
         section = {}
         for sub, s in spec.items():
             value = given.get(sub, s["default"])
-            section[sub] = None if value is None else _check_value(f"{key}.{sub}", s, value)
+            section[sub] = None if value is None else check_value(f"{key}.{sub}", s, value)
         out[key] = section
     g = out["geometry"]
     if g["kind"] == "file":
         if g["path"] is None:
             raise SceneError("geometry.path is required for geometry.kind = file")
-        _read_height_file(g, {k for k, v in scene.get("geometry", {}).items() if v is not None})
+        read_height_file(g, {k for k, v in scene.get("geometry", {}).items() if v is not None})
     for required in ("geometry.dx", "protocol.values"):
         sec, sub = required.split(".")
         if out[sec][sub] is None:
@@ -253,13 +214,13 @@ def validate(scene: dict) -> dict:
     if g["periodic"] is None:
         g["periodic"] = g["kind"] == "self-affine"
     _check_geometry(g, _given(scene, "geometry"))
-    _check_material(out, _given(scene, "material"))
+    check_material(out, _given(scene, "material"))
     if out["output"]["atom_forces"] and g["kind"] != "tip":
         raise SceneError("output.atom_forces needs geometry.kind = tip (forces per atom of a tip)")
     _check_interaction(out, _given(scene, "interaction"))
     _check_fields(out, _given(scene, "output"))
     _check_protocol(out)
-    _check_hardness(out)
+    check_hardness(out, adhesive(out))
     steps = len(out["protocol"]["values"])
     if out["output"]["plot_step"] is not None and out["output"]["plot_step"] > steps:
         raise SceneError(f"output.plot_step = {out['output']['plot_step']}: accepted range [1, {steps}] "
@@ -314,69 +275,6 @@ def _check_geometry(g: dict, given: set) -> None:
             raise SceneError(f"geometry.radius = {g['radius']!r}: accepted range ({need:g}, inf) m for "
                              f"this window (half of max(nx dx, ny dy) plus 2 atom radii): the tip must "
                              f"be wider than the grid")
-
-
-def e_star(scene: dict) -> float:
-    """E* [Pa] of a validated scene: material.e_star, or E / (1 - nu^2) from youngs_modulus and
-    poisson_ratio (the elastic body against a rigid one)."""
-    m = scene["material"]
-    if m["e_star"] is not None:
-        return m["e_star"]
-    return m["youngs_modulus"] / (1.0 - m["poisson_ratio"] ** 2)
-
-
-def layer(scene: dict):
-    """The scene's ``operators.Layer`` (material.layer_thickness), or None for a half-space."""
-    from ..operators.layer import Layer
-    m = scene["material"]
-    if m["layer_thickness"] is None:
-        return None
-    return Layer(m["layer_thickness"], m["layer_interface"], m["poisson_ratio"])
-
-
-def _check_material(out: dict, given: set) -> None:
-    m = out["material"]
-    if m["e_star"] is None and m["youngs_modulus"] is None:
-        raise SceneError("material.e_star is required (or material.youngs_modulus with material.poisson_ratio)")
-    if m["e_star"] is not None and m["youngs_modulus"] is not None:
-        raise SceneError("give exactly one of material.e_star or material.youngs_modulus (with "
-                         "material.poisson_ratio): both are given")
-    if m["youngs_modulus"] is not None and m["poisson_ratio"] is None:
-        raise SceneError(f"material.youngs_modulus needs material.poisson_ratio, in {range_text(POISSON)}")
-    if m["e_star"] is not None and m["poisson_ratio"] is not None:
-        raise SceneError("material.poisson_ratio goes with material.youngs_modulus, not with material.e_star "
-                         "(E* = E / (1 - nu^2)); give youngs_modulus and poisson_ratio instead of e_star")
-    if m["layer_thickness"] is None:
-        if "layer_interface" in given:
-            raise SceneError("material.layer_interface needs material.layer_thickness (a layer on a rigid base)")
-        return
-    m["layer_interface"] = m["layer_interface"] or "bonded"
-    if not out["geometry"]["periodic"]:
-        raise SceneError(f"material.layer_thickness = {m['layer_thickness']!r} needs a periodic cell "
-                         f"(geometry.periodic = true): the layer's kernel is a Fourier kernel")
-    if m["layer_interface"] == "bonded" and m["poisson_ratio"] is None:
-        raise SceneError("material.layer_interface = 'bonded' needs Poisson's ratio: give material.youngs_modulus "
-                         "and material.poisson_ratio instead of material.e_star (or layer_interface = "
-                         "'frictionless', which does not depend on it)")
-
-
-def _check_hardness(out: dict) -> None:
-    """A hardness is an upper bound of the non-adhesive problem; a load must stay below it."""
-    hardness = out["material"]["hardness"]
-    if hardness is None:
-        return
-    if adhesive(out):
-        raise SceneError("material.hardness with adhesion (interaction.law and interaction.work_of_adhesion > 0) "
-                         "is not supported: the hardness caps the pressure of the non-adhesive problem")
-    control, values, g = out["protocol"]["control"], out["protocol"]["values"], out["geometry"]
-    if control in ("mean_pressure", "force"):
-        high, unit = ((hardness, "Pa") if control == "mean_pressure"
-                      else (hardness * g["nx"] * g["dx"] * g["ny"] * g["dy"], "N"))
-        above = [v for v in values if v >= high]
-        if above:
-            raise SceneError(f"protocol.values: {above[0]!r} {unit} is not below material.hardness = {hardness!r} Pa"
-                             + (" times the window area nx dx ny dy" if control == "force" else "")
-                             + f" (no node carries more than H); accepted: (0, {high:.6g}) {unit}")
 
 
 def _check_interaction(out: dict, given: set) -> None:
@@ -460,49 +358,6 @@ def _check_protocol(out: dict) -> None:
     if tiny:
         raise SceneError(f"protocol.values: {tiny[0]!r} {unit} is below {what} (round-off, not a "
                          f"{control.replace('_', ' ')}); accepted: [{smallest:.3g}, inf) {unit}")
-
-
-def _read_height_file(g: dict, given: set) -> None:
-    """A ``kind = file`` scene's grid from its height file, read once here (the metadata only,
-    for .npy and HDF5) so that a run, and a dry run, start only on a file that fits: nx, ny
-    and, where the file gives them, dx, dy, periodic and the format are filled in; the keys
-    given must agree with the file."""
-    from ..topography import format_of, grid_mismatch, read_topography
-
-    def fail(message):
-        raise SceneError(f"geometry.path = {g['path']!r}: {message}")
-
-    try:
-        g["format"] = format_of(g["path"], g["format"])
-    except ValueError as exc:
-        fail(exc)
-    if "dataset" in given and g["format"] not in ("hdf5", "gwy") and g["dataset"] != "heights":
-        raise SceneError(f"geometry.dataset = {g['dataset']!r} is used by HDF5 and .gwy files only; "
-                         f"{g['path']!r} is {g['format']}")
-    try:
-        topo = read_topography(g["path"], format=g["format"], dataset=g["dataset"], metadata_only=True)
-    except (OSError, ValueError, KeyError) as exc:
-        fail(exc.args[0] if isinstance(exc, KeyError) and exc.args else exc)
-    if topo.unit_stated and g["height_unit"] is not None and g["height_unit"] != topo.height_unit:
-        raise SceneError(f"geometry.height_unit = {g['height_unit']!r}, but {g['path']!r} states its "
-                         f"heights in {topo.height_unit!r}: remove the key")
-    if g["height_unit"] is None and topo.height_unit in HEIGHT_UNITS:
-        g["height_unit"] = topo.height_unit          # the file's own (or metres): for the plan
-    for key, value in zip(("nx", "ny"), topo.shape):
-        if value < 2:
-            fail(f"{key} = {value}: a height map needs 2 or more nodes along x and y")
-        g[key] = g[key] if key in given else value
-    if topo.dx is None and "dx" not in given:
-        raise SceneError(f"geometry.dx is required: {g['path']!r} ({g['format']}) does not give its spacing")
-    if topo.dx is not None:
-        g["dx"] = g["dx"] if "dx" in given else topo.dx
-        g["dy"] = g["dy"] if "dy" in given else topo.dy
-    g["dy"] = g["dy"] or g["dx"]
-    problem = grid_mismatch(topo, (g["nx"], g["ny"]), (g["dx"], g["dy"]))
-    if problem:
-        fail(problem)
-    if g["periodic"] is None:
-        g["periodic"] = bool(topo.periodic)
 
 
 def adhesive(scene: dict) -> bool:

@@ -1,0 +1,48 @@
+"""A ``kind = "file"`` scene's height file: its metadata fills in and checks the grid keys."""
+from __future__ import annotations
+
+from ..topography import HEIGHT_UNITS
+from .scene_values import SceneError
+
+
+def read_height_file(g: dict, given: set) -> None:
+    """A ``kind = file`` scene's grid from its height file, read once here (the metadata only,
+    for .npy and HDF5) so that a run, and a dry run, start only on a file that fits: nx, ny
+    and, where the file gives them, dx, dy, periodic and the format are filled in; the keys
+    given must agree with the file."""
+    from ..topography import format_of, grid_mismatch, read_topography
+
+    def fail(message):
+        raise SceneError(f"geometry.path = {g['path']!r}: {message}")
+
+    try:
+        g["format"] = format_of(g["path"], g["format"])
+    except ValueError as exc:
+        fail(exc)
+    if "dataset" in given and g["format"] not in ("hdf5", "gwy") and g["dataset"] != "heights":
+        raise SceneError(f"geometry.dataset = {g['dataset']!r} is used by HDF5 and .gwy files only; "
+                         f"{g['path']!r} is {g['format']}")
+    try:
+        topo = read_topography(g["path"], format=g["format"], dataset=g["dataset"], metadata_only=True)
+    except (OSError, ValueError, KeyError) as exc:
+        fail(exc.args[0] if isinstance(exc, KeyError) and exc.args else exc)
+    if topo.unit_stated and g["height_unit"] is not None and g["height_unit"] != topo.height_unit:
+        raise SceneError(f"geometry.height_unit = {g['height_unit']!r}, but {g['path']!r} states its "
+                         f"heights in {topo.height_unit!r}: remove the key")
+    if g["height_unit"] is None and topo.height_unit in HEIGHT_UNITS:
+        g["height_unit"] = topo.height_unit          # the file's own (or metres): for the plan
+    for key, value in zip(("nx", "ny"), topo.shape):
+        if value < 2:
+            fail(f"{key} = {value}: a height map needs 2 or more nodes along x and y")
+        g[key] = g[key] if key in given else value
+    if topo.dx is None and "dx" not in given:
+        raise SceneError(f"geometry.dx is required: {g['path']!r} ({g['format']}) does not give its spacing")
+    if topo.dx is not None:
+        g["dx"] = g["dx"] if "dx" in given else topo.dx
+        g["dy"] = g["dy"] if "dy" in given else topo.dy
+    g["dy"] = g["dy"] or g["dx"]
+    problem = grid_mismatch(topo, (g["nx"], g["ny"]), (g["dx"], g["dy"]))
+    if problem:
+        fail(problem)
+    if g["periodic"] is None:
+        g["periodic"] = bool(topo.periodic)
