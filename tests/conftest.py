@@ -4,11 +4,16 @@ Every rank runs every test.  Assertions must therefore be collective: compute
 the error on each rank, reduce it over COMM_WORLD (``Collective.max``,
 ``Collective.all``) and assert the reduced value on every rank.  Tests that only
 make sense on one rank are marked ``@pytest.mark.serial`` and skipped under MPI.
+A test that fails on some ranks only (a non-collective assertion or exception)
+leaves the others in a collective: the failed rank then aborts the job after
+``CONTACTPETSC_LONE_FAILURE_WAIT`` seconds (default 120) with its failure printed,
+instead of a silent hang to the stage's time limit.
 """
 import shutil
 import os
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 import petsc4py
@@ -22,6 +27,9 @@ from mpi4py import MPI  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
 WORLD = PETSc.COMM_WORLD.tompi4py()
+#: the test harness's own synchronisation: a communicator of its own, so that its barrier can
+#: never be matched with a collective that a test left unfinished on another rank
+STEP = WORLD.Dup()
 
 if WORLD.Get_size() > 1:
     # pytest prunes old numbered temp dirs under one root per user: give each rank its own
@@ -32,6 +40,7 @@ if WORLD.Get_size() > 1:
 
 @pytest.hookimpl(trylast=True)
 def pytest_configure(config):
+    _session_config.append(config)
     config.addinivalue_line(
         "markers", "serial: only meaningful on one MPI rank (skipped when COMM_WORLD has > 1 rank)")
     config.addinivalue_line(
@@ -95,6 +104,45 @@ class Collective:
         return messages
 
 
+#: how long a rank on which a test failed waits for the others at the next synchronisation
+#: point before it aborts the job (seconds): a failure on some ranks only leaves the others
+#: in a collective the failed rank never joins, and without this the job hangs to its timeout
+LONE_FAILURE_WAIT = float(os.environ.get("CONTACTPETSC_LONE_FAILURE_WAIT", "120"))
+_failed_here = []      # (test id, report) of tests that failed on this rank, not yet in step
+_session_config = []
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    report = (yield).get_result()
+    if report.failed and WORLD.Get_size() > 1:
+        _failed_here.append((item.nodeid, report.longreprtext))
+
+
+def step_together():
+    """Barrier on COMM_WORLD; after a failure on this rank, one that gives up after
+    LONE_FAILURE_WAIT and aborts the job with the failure printed (ranks other than 0 print
+    nothing else, so a failure on them alone would otherwise be silent as well as a hang)."""
+    if not _failed_here:
+        STEP.Barrier()
+        return
+    request, start = STEP.Ibarrier(), time.monotonic()
+    while not request.Test():
+        if time.monotonic() - start > LONE_FAILURE_WAIT:
+            nodeid, text = _failed_here[-1]
+            capture = _session_config[0].pluginmanager.getplugin("capturemanager")
+            if capture is not None:         # pytest captures stderr inside fixtures, at fd level
+                capture.suspend_global_capture(in_=True)
+            sys.stderr.write((f"\nrank {WORLD.Get_rank()} of {WORLD.Get_size()}: {nodeid} failed here, and the "
+                             f"other ranks did not follow within {LONE_FAILURE_WAIT:g} s (they wait in a "
+                             f"collective the test left on this rank): aborting the job.\n{text}\n"))
+            sys.stderr.flush()
+            time.sleep(1.0)         # let the launcher forward it before the abort kills the job
+            WORLD.Abort(1)
+        time.sleep(0.01)
+    _failed_here.clear()
+
+
 @pytest.fixture(scope="session")
 def coll() -> Collective:
     return Collective(WORLD)
@@ -106,7 +154,7 @@ def shared_tmp():
     path = tempfile.mkdtemp(prefix="contactpetsc-test-") if WORLD.Get_rank() == 0 else None
     path = WORLD.bcast(path, root=0)
     yield Path(path)
-    WORLD.Barrier()
+    step_together()
     if WORLD.Get_rank() == 0:
         shutil.rmtree(path, ignore_errors=True)
 
@@ -114,6 +162,6 @@ def shared_tmp():
 @pytest.fixture(autouse=True)
 def _keep_ranks_in_step():
     """Start every test on all ranks together: a rank that skipped ahead cannot mix collectives."""
-    WORLD.Barrier()
+    step_together()
     yield
 
