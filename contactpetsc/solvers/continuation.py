@@ -55,7 +55,7 @@ class Continuation:
             # a coarse grid of the nested iteration resolves less than the fine one by design
             warnings.simplefilter("ignore", UnderResolvedWarning)
             coarse = type(self)(gc, hc, self.e_star, self.law, element_integration=self.element_integration,
-                                prefix=self.prefix, operator=op, preconditioner=self.preconditioner,
+                                prefix=self.prefix, operator=op, preconditioner=self.preconditioner_choice,
                                 stability_check=False, petsc_options=self.petsc_options)
         coarse._build()
         coarse._budget_start = self._budget_start   # one budget for the nested solves

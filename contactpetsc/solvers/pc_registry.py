@@ -18,6 +18,17 @@ ADHESIVE_PRECONDITIONERS = {
     "mlmi": "contactpetsc.solvers.AdhesiveMLMIPC",
     "none": None,
 }
+#: the snap numbers K_ii max da/dg where ``auto`` picks the multilevel cycle for an adhesive
+#: problem (spectral elsewhere; docs/performance.md, "Preconditioners for the adhesive Newton
+#: system"): below the window the block preconditioner is nearly exact at one FFT pair per
+#: application, above it the cycle's local rows lose diagonal dominance
+AUTO_MLMI_SNAP = (0.01, 0.2)
+
+
+def auto_adhesive_preconditioner(snap_number: float) -> str:
+    """``auto``: the adhesive preconditioner for a problem of this snap number K_ii max da/dg."""
+    lo, hi = AUTO_MLMI_SNAP
+    return "mlmi" if lo <= snap_number <= hi else "spectral"
 
 
 def resolve(path: str):
