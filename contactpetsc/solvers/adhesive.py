@@ -272,7 +272,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         # auto: chosen from this grid's own snap number, so each level of the nested
         # iteration (whose snap number doubles per coarsening) chooses for itself
         self.preconditioner_choice = choice
-        self.preconditioner = auto_adhesive_preconditioner(self.snap_number) if choice == "auto" else choice
+        self.preconditioner = auto_adhesive_preconditioner(self.snap_number, self.hard_wall) if choice == "auto" else choice
         self._jac = AdhesiveJacobian(self)
         from ..lifetime import destroy_at_exit
         J = destroy_at_exit(PETSc.Mat().createPython(((self.n_local, self.n_global),) * 2,

@@ -126,12 +126,12 @@ def describe_solver(law=None, method: str = "newton", prefix: str | None = None,
         note = f"  preconditioner {choice} (-{prefix}preconditioner)"
         if choice == "auto":
             lo, hi = AUTO_MLMI_SNAP
-            rule = (f"per grid from its snap number K_ii max da/dg: mlmi for {lo:g} to {hi:g}, spectral "
-                    f"elsewhere; the snap number doubles on each coarser grid of the nested iteration")
+            rule = (f"per grid from its snap number K_ii max da/dg: mlmi for {lo:g} to {hi:g} with a hard wall, "
+                    f"spectral elsewhere; the snap number doubles on each coarser grid of the nested iteration")
             if snap is None:
                 note += f": {rule}"
             else:
-                choice = auto_adhesive_preconditioner(snap)
+                choice = auto_adhesive_preconditioner(snap, law.hard_wall)
                 note += f" -> {choice} on the finest grid (snap number {snap:.3g}); {rule}"
         pc_path = ADHESIVE_PRECONDITIONERS.get(choice, ADHESIVE_PRECONDITIONERS["spectral"])
         lines = _describe_snes(opts, prefix, newton_linesearch(law.hard_wall), newton_ksp_type(law.hard_wall),

@@ -19,33 +19,15 @@ ADHESIVE_PRECONDITIONERS = {
     "none": None,
 }
 #: the snap numbers K_ii max da/dg where ``auto`` picks the multilevel cycle for an adhesive
-#: problem (spectral elsewhere; docs/performance.md, "Preconditioners for the adhesive Newton
-#: system"): below the window the block preconditioner is nearly exact at one FFT pair per
-#: application, above it the cycle's local rows lose diagonal dominance
+#: problem with a hard wall (spectral elsewhere; docs/performance.md, "Preconditioners for the
+#: adhesive Newton system"): below the window the block preconditioner is nearly exact at one
+#: FFT pair per application, above it the cycle fails where spectral converges
 AUTO_MLMI_SNAP = (0.01, 0.2)
 
 
-def auto_adhesive_preconditioner(snap_number: float) -> str:
-    """``auto``: the adhesive preconditioner for a problem of this snap number K_ii max da/dg."""
+def auto_adhesive_preconditioner(snap_number: float, hard_wall: bool) -> str:
+    """``auto``: the adhesive preconditioner of a grid with this snap number K_ii max da/dg.
+    The full LJ curve always gets spectral: its repulsive rows are in gap form, K-like, and
+    the block preconditioner needs so few Krylov iterations that a cycle does not pay."""
     lo, hi = AUTO_MLMI_SNAP
-    return "mlmi" if lo <= snap_number <= hi else "spectral"
-
-
-def resolve(path: str):
-    """The object a dotted ``pc_python_type`` path names (None when it names nothing)."""
-    module, _, name = path.rpartition(".")
-    try:
-        return getattr(importlib.import_module(module), name)
-    except (ImportError, AttributeError, ValueError):
-        return None
-
-
-def preconditioner_name(python_type: str | None, pc_type: str) -> str:
-    """The registry name of a PC in use (its Python type under any path), else its own type."""
-    if python_type:
-        cls = resolve(python_type)
-        for name, path in PRECONDITIONERS.items():
-            if path and (path == python_type or (cls is not None and resolve(path) is cls)):
-                return name
-        return python_type
-    return pc_type
+    return "mlmi" if hard_wall and lo <= snap_number <= hi else "spectral"
