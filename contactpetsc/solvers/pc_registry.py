@@ -31,3 +31,23 @@ def auto_adhesive_preconditioner(snap_number: float, hard_wall: bool) -> str:
     the block preconditioner needs so few Krylov iterations that a cycle does not pay."""
     lo, hi = AUTO_MLMI_SNAP
     return "mlmi" if hard_wall and lo <= snap_number <= hi else "spectral"
+
+
+def resolve(path: str):
+    """The object a dotted ``pc_python_type`` path names (None when it names nothing)."""
+    module, _, name = path.rpartition(".")
+    try:
+        return getattr(importlib.import_module(module), name)
+    except (ImportError, AttributeError, ValueError):
+        return None
+
+
+def preconditioner_name(python_type: str | None, pc_type: str) -> str:
+    """The registry name of a PC in use (its Python type under any path), else its own type."""
+    if python_type:
+        cls = resolve(python_type)
+        for name, path in PRECONDITIONERS.items():
+            if path and (path == python_type or (cls is not None and resolve(path) is cls)):
+                return name
+        return python_type
+    return pc_type
