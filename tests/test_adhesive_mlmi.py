@@ -110,8 +110,8 @@ def test_snap_number_is_the_closed_form(coll):
 
 
 def test_auto_picks_per_grid_from_the_snap_number_and_gives_the_same_state(coll):
-    """``auto`` (the default): with a hard wall mlmi where the grid's snap number is in the
-    window, spectral elsewhere -- per grid, so the nested iteration's coarse grid (dx doubled: snap doubled) may
+    """``auto`` (the default): mlmi where the grid's snap number is in the window (the full LJ
+    curve: above its lower end), spectral elsewhere -- per grid, so the nested iteration's coarse grid (dx doubled: snap doubled) may
     choose otherwise; recorded in the state's solver and the history.  The converged state is
     the one the spectral preconditioner gives."""
     lo, hi = AUTO_MLMI_SNAP
@@ -120,9 +120,9 @@ def test_auto_picks_per_grid_from_the_snap_number_and_gives_the_same_state(coll)
     soft = sphere_problem(0.1, n=32, dx=1.0, radius=100.0, prefix="amlmi_auto_soft_")
     soft.snes()
     assert lj_tail_snap_number(work_for(0.1, 100.0), 1.0, 1.0) < lo and soft.preconditioner == "spectral"
-    wallless = sphere_problem(0.9, law="lj", n=32, dx=1.0, radius=100.0, prefix="amlmi_auto_lj_")
+    wallless = sphere_problem(2.0, law="lj", n=32, dx=1.0, radius=100.0, prefix="amlmi_auto_lj_")
     wallless.snes()
-    assert wallless.preconditioner == "spectral"      # the full LJ curve: spectral at any snap number
+    assert wallless.snap_number > hi and wallless.preconditioner == "mlmi"   # the full LJ curve: no upper end
     states = []
     for pc in ("auto", "spectral"):
         pb = sphere_problem(0.9, n=64, dx=1.0, radius=100.0, preconditioner=pc, prefix=f"amlmi_auto_{pc}_",

@@ -126,8 +126,9 @@ def describe_solver(law=None, method: str = "newton", prefix: str | None = None,
         note = f"  preconditioner {choice} (-{prefix}preconditioner)"
         if choice == "auto":
             lo, hi = AUTO_MLMI_SNAP
-            rule = (f"per grid from its snap number K_ii max da/dg: mlmi for {lo:g} to {hi:g} with a hard wall, "
-                    f"spectral elsewhere; the snap number doubles on each coarser grid of the nested iteration")
+            rule = (f"per grid from its snap number K_ii max da/dg: mlmi from {lo:g} (with a hard wall up to "
+                    f"{hi:g}), spectral elsewhere; the snap number doubles on each coarser grid of the nested "
+                    f"iteration")
             if snap is None:
                 note += f": {rule}"
             else:
