@@ -113,11 +113,11 @@ def test_snap_number_is_the_closed_form(coll):
 
 
 def test_auto_picks_per_grid_from_the_snap_number_and_gives_the_same_state(coll):
-    """``auto`` (the default): mlmi where the grid's snap number is in the window (the full LJ
-    curve: above its lower end), spectral elsewhere -- per grid, so the nested iteration's coarse grid (dx doubled: snap doubled) may
+    """``auto`` (the default): mlmi where the grid's snap number is in the window of its law
+    (hard wall, full LJ curve), spectral elsewhere -- per grid, so the nested iteration's coarse grid (dx doubled: snap doubled) may
     choose otherwise; recorded in the state's solver and the history.  The converged state is
     the one the spectral preconditioner gives."""
-    lo, hi = AUTO_MLMI_SNAP
+    lo, hi = AUTO_MLMI_SNAP["hard wall"]
     snap = lj_tail_snap_number(work_for(0.9, 100.0), 1.0, 1.0)
     assert lo <= snap <= hi < 2 * snap      # this fine grid: mlmi; its 2x coarser grid: spectral
     soft = sphere_problem(0.1, n=32, dx=1.0, radius=100.0, prefix="amlmi_auto_soft_")
@@ -126,8 +126,13 @@ def test_auto_picks_per_grid_from_the_snap_number_and_gives_the_same_state(coll)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UnderResolvedWarning)   # stiff by design
         wallless = sphere_problem(2.0, law="lj", n=32, dx=1.0, radius=100.0, prefix="amlmi_auto_lj_")
+        mild = sphere_problem(0.9, law="lj", n=32, dx=1.0, radius=100.0, prefix="amlmi_auto_ljmild_")
     wallless.snes()
-    assert wallless.snap_number > hi and wallless.preconditioner == "mlmi"   # the full LJ curve: no upper end
+    mild.snes()
+    lj_lo, lj_hi = AUTO_MLMI_SNAP["full LJ"]
+    # the full LJ curve: spectral below its window, mlmi in it
+    assert mild.snap_number < lj_lo and mild.preconditioner == "spectral"
+    assert lj_lo <= wallless.snap_number <= lj_hi and wallless.preconditioner == "mlmi"
     states = []
     for pc in ("auto", "spectral"):
         pb = sphere_problem(0.9, n=64, dx=1.0, radius=100.0, preconditioner=pc, prefix=f"amlmi_auto_{pc}_",

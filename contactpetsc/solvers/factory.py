@@ -125,10 +125,9 @@ def describe_solver(law=None, method: str = "newton", prefix: str | None = None,
             return [f"relaxation-mlmi (the reference paper's MLMI relaxation; options prefix -{prefix}relax_)"]
         note = f"  preconditioner {choice} (-{prefix}preconditioner)"
         if choice == "auto":
-            lo, hi = AUTO_MLMI_SNAP
-            rule = (f"per grid from its snap number K_ii max da/dg: mlmi from {lo:g} (with a hard wall up to "
-                    f"{hi:g}), spectral elsewhere; the snap number doubles on each coarser grid of the nested "
-                    f"iteration")
+            lo, hi = AUTO_MLMI_SNAP["hard wall" if law.hard_wall else "full LJ"]
+            rule = (f"per grid from its snap number K_ii max da/dg: mlmi for {lo:g} to {hi:g}, spectral "
+                    f"elsewhere; the snap number doubles on each coarser grid of the nested iteration")
             if snap is None:
                 note += f": {rule}"
             else:

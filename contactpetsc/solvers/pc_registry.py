@@ -18,20 +18,20 @@ ADHESIVE_PRECONDITIONERS = {
     "mlmi": "contactpetsc.solvers.AdhesiveMLMIPC",
     "none": None,
 }
-#: the snap numbers K_ii max da/dg from which ``auto`` picks the multilevel cycle for an
-#: adhesive problem, and (hard-wall laws) up to which (docs/performance.md, "Preconditioners for
-#: the adhesive Newton system"): below the window the block preconditioner is nearly exact at
-#: one FFT pair per application; above it, with a hard wall, the cycle failed on the nested
-#: iteration's coarse grids where spectral converged.  The full LJ curve has no upper end: its
-#: stiffest measured cases (rough, snap 0.28 and 2x-8x that on the coarse grids) converged with
-#: the cycle and failed or needed the fallback with spectral
-AUTO_MLMI_SNAP = (0.01, 0.2)
+#: the snap numbers K_ii max da/dg where ``auto`` picks the multilevel cycle, for hard-wall laws
+#: and for the full LJ curve (docs/performance.md, "Preconditioners for the adhesive Newton
+#: system").  Hard wall: below the window the block preconditioner is nearly exact at one FFT
+#: pair per application; above it the cycle failed on the nested iteration's coarse grids where
+#: spectral converged.  Full LJ curve: its repulsive rows are in gap form, K-like, and below the
+#: window the block preconditioner needs so few Krylov iterations that the cycle costs more time
+#: (and on a sphere more FFT pairs); above it the cycle converged the rough cases spectral failed
+AUTO_MLMI_SNAP = {"hard wall": (0.01, 0.2), "full LJ": (0.2, float("inf"))}
 
 
 def auto_adhesive_preconditioner(snap_number: float, hard_wall: bool) -> str:
     """``auto``: the adhesive preconditioner of a grid with this snap number K_ii max da/dg."""
-    lo, hi = AUTO_MLMI_SNAP
-    return "mlmi" if lo <= snap_number and (snap_number <= hi or not hard_wall) else "spectral"
+    lo, hi = AUTO_MLMI_SNAP["hard wall" if hard_wall else "full LJ"]
+    return "mlmi" if lo <= snap_number <= hi else "spectral"
 
 
 def resolve(path: str):
