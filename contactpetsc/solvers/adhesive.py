@@ -99,7 +99,8 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
     tol : float
         Code default of ``-<prefix>tol``: the errors above, in z0 (1e-8).
     preconditioner : str
-        Code default of ``-<prefix>preconditioner``: spectral (default), mlmi or none.
+        Code default of ``-<prefix>preconditioner``: auto (default: mlmi or spectral per grid from
+        its snap number, ``pc_registry.auto_adhesive_preconditioner``), spectral, mlmi or none.
     stability_check : bool
         Code default of ``-<prefix>stability_check`` (on).
     centre : (i, j), optional
