@@ -114,7 +114,7 @@ def test_snap_number_is_the_closed_form(coll):
 
 def test_auto_picks_per_grid_from_the_snap_number_and_gives_the_same_state(coll):
     """``auto`` (the default): mlmi where the grid's snap number is in the window of its law
-    (hard wall, full LJ curve), spectral elsewhere -- per grid, so the nested iteration's coarse grid (dx doubled: snap doubled) may
+    (hard wall, full LJ curve), spectral elsewhere -- with a hard wall per grid, so the nested iteration's coarse grid (dx doubled: snap doubled) may
     choose otherwise; recorded in the state's solver and the history.  The converged state is
     the one the spectral preconditioner gives."""
     lo, hi = AUTO_MLMI_SNAP["hard wall"]
@@ -126,12 +126,14 @@ def test_auto_picks_per_grid_from_the_snap_number_and_gives_the_same_state(coll)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UnderResolvedWarning)   # stiff by design
         wallless = sphere_problem(2.0, law="lj", n=32, dx=1.0, radius=100.0, prefix="amlmi_auto_lj_")
-        mild = sphere_problem(0.9, law="lj", n=32, dx=1.0, radius=100.0, prefix="amlmi_auto_ljmild_")
-    wallless.snes()
-    mild.snes()
+        mild = sphere_problem(0.9, law="lj", n=64, dx=1.0, radius=100.0, prefix="amlmi_auto_ljmild_")
+        wallless.snes()
+        mild.snes()
+        mild_coarse = mild._coarse_problem()
     lj_lo, lj_hi = AUTO_MLMI_SNAP["full LJ"]
-    # the full LJ curve: spectral below its window, mlmi in it
+    # the full LJ curve: spectral below its window, mlmi in it; its coarse grids follow the finest
     assert mild.snap_number < lj_lo and mild.preconditioner == "spectral"
+    assert mild_coarse.snap_number >= lj_lo and mild_coarse.preconditioner == "spectral"
     assert lj_lo <= wallless.snap_number <= lj_hi and wallless.preconditioner == "mlmi"
     states = []
     for pc in ("auto", "spectral"):

@@ -126,8 +126,9 @@ def describe_solver(law=None, method: str = "newton", prefix: str | None = None,
         note = f"  preconditioner {choice} (-{prefix}preconditioner)"
         if choice == "auto":
             lo, hi = AUTO_MLMI_SNAP["hard wall" if law.hard_wall else "full LJ"]
-            rule = (f"per grid from its snap number K_ii max da/dg: mlmi for {lo:g} to {hi:g}, spectral "
-                    f"elsewhere; the snap number doubles on each coarser grid of the nested iteration")
+            rule = f"from the snap number K_ii max da/dg: mlmi for {lo:g} to {hi:g}, spectral elsewhere; " + (
+                "each coarser grid of the nested iteration (twice the snap number) chooses for itself"
+                if law.hard_wall else "the coarser grids of the nested iteration take the finest grid's pick")
             if snap is None:
                 note += f": {rule}"
             else:
