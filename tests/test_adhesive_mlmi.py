@@ -125,7 +125,7 @@ def test_auto_picks_per_grid_from_the_snap_number_and_gives_the_same_state(coll)
     assert lj_tail_snap_number(work_for(0.1, 100.0), 1.0, 1.0) < lo and soft.preconditioner == "spectral"
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UnderResolvedWarning)   # stiff by design
-        wallless = sphere_problem(2.0, law="lj", n=32, dx=1.0, radius=100.0, prefix="amlmi_auto_lj_")
+        wallless = sphere_problem(1.6, law="lj", n=32, dx=1.0, radius=100.0, prefix="amlmi_auto_lj_")
         mild = sphere_problem(0.9, law="lj", n=64, dx=1.0, radius=100.0, prefix="amlmi_auto_ljmild_")
         wallless.snes()
         mild.snes()

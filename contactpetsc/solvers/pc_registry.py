@@ -24,8 +24,9 @@ ADHESIVE_PRECONDITIONERS = {
 #: pair per application; above it the cycle failed on the nested iteration's coarse grids where
 #: spectral converged.  Full LJ curve: its repulsive rows are in gap form, K-like, and below the
 #: window the block preconditioner needs so few Krylov iterations that the cycle costs more time
-#: (and on a sphere more FFT pairs); above it the cycle converged the rough cases spectral failed
-AUTO_MLMI_SNAP = {"hard wall": (0.01, 0.2), "full LJ": (0.2, float("inf"))}
+#: (and on a sphere more FFT pairs); in it the cycle converged the rough cases spectral failed
+#: (snap 0.28); at 0.7 (a flat periodic cell near the law's peak) it failed a path spectral follows
+AUTO_MLMI_SNAP = {"hard wall": (0.01, 0.2), "full LJ": (0.2, 0.4)}
 
 
 def auto_adhesive_preconditioner(snap_number: float, hard_wall: bool) -> str:
