@@ -99,6 +99,11 @@ def test_describe_solver_reports_types_and_prefixes(coll):
     text = "\n".join(describe_solver(LJ))
     assert "KSP bcgs" in text and "line search basic" in text and "-adhesion_ptc_" in text
     assert "KSP gmres" in "\n".join(describe_solver(HARD))
+    # auto (the adhesive default) names its pick on the finest grid from the snap number given
+    stiff, soft = "\n".join(describe_solver(HARD, snap=0.1)), "\n".join(describe_solver(HARD, snap=0.5))
+    assert "preconditioner auto" in stiff and "-> mlmi" in stiff and "AdhesiveMLMIPC" in stiff
+    assert "-> spectral" in soft and "AdhesivePC" in soft and "-> mlmi" in "\n".join(describe_solver(LJ, snap=0.3))
+    assert "-> spectral" in "\n".join(describe_solver(LJ, snap=0.1))
     assert _left("popt_d_") == [] and not any(k.startswith("adhesion_") for k in PETSc.Options().getAll())
 
 

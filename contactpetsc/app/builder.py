@@ -91,6 +91,13 @@ def resolution_nodes(scene: dict, law: InteractionLaw | None) -> float | None:
                             rms_slope=g["rms_slope"] if g["kind"] == "self-affine" else None)
 
 
+def scene_preconditioner(scene: dict) -> str:
+    """The scene's ``solver.preconditioner`` as its problem takes it: ``auto`` is the adhesive
+    problem's own choice (per grid, from the snap number) and spectral without adhesion."""
+    choice = scene["solver"]["preconditioner"]
+    return "spectral" if choice == "auto" and not adhesive(scene) else choice
+
+
 def build_problem(scene: dict, grid: SurfaceGrid, heights: PETSc.Vec, law: InteractionLaw | None):
     """(problem, relaxation solver or None) of the scene, by ``solvers.factory.make_problem``:
     ``ContactProblem`` without adhesion, ``AdhesiveProblem`` with it (and the paper's
@@ -107,7 +114,7 @@ def build_problem(scene: dict, grid: SurfaceGrid, heights: PETSc.Vec, law: Inter
                  and control == "approach")
         problem = make_problem(grid, heights, modulus, prefix=CONTACT_PREFIX, petsc_options=options, layer=body,
                                hardness=scene["material"]["hardness"],
-                               tol=sol["tol"] or 1e-10, preconditioner=sol["preconditioner"],
+                               tol=sol["tol"] or 1e-10, preconditioner=scene_preconditioner(scene),
                                length_scale=max(scene["protocol"]["values"]) if hertz else None)
         return problem, None
     relax = sol["method"] == "relaxation"

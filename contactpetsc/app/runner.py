@@ -25,7 +25,8 @@ __all__ = ["run", "plan", "CURVE_COLUMNS"]
 def plan(scene: dict, grid: SurfaceGrid, law=None, out_dir: str | None = None) -> list[str]:
     """What a run will do: grid, decomposition, solver chain, memory, outputs (dry run and log
     header); ``law`` the builder's (``builder.build_law``), None without adhesion."""
-    from ..solvers.factory import describe_solver
+    from ..solvers.factory import describe_solver, grid_snap_number
+    from .scenes import e_star
     g, sol = scene["geometry"], scene["solver"]
     if law is not None:
         law_text = f"law {law.name}, w = {law.work_of_adhesion:g} J/m^2" + (
@@ -33,8 +34,10 @@ def plan(scene: dict, grid: SurfaceGrid, law=None, out_dir: str | None = None) -
     else:
         law_text = "no adhesion (Signorini)"
     # the solver stack as built from the code defaults, the scene and the command line
+    snap = None if law is None else grid_snap_number(law, grid, e_star(scene))
     stack = describe_solver(law, sol["method"], builder.ADHESION_PREFIX if law is not None else builder.CONTACT_PREFIX,
-                            petsc_options={**sol["options"], "preconditioner": sol["preconditioner"]})
+                            petsc_options={**sol["options"], "preconditioner": builder.scene_preconditioner(scene)},
+                            snap=snap)
     chain = "\n".join("  solver: " + line if k == 0 else "          " + line for k, line in enumerate(stack))
     per_rank = builder.memory_per_rank(scene, grid.mpi_comm.Get_size())
     heights = [] if g["kind"] != "file" else [

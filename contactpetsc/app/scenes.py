@@ -106,8 +106,9 @@ _SCHEMA = {
         "method": _k(str, "newton", "", "with adhesion: SNES VI Newton, or the reference paper's MLMI "
                      "relaxation (eq. 7 for hard-wall laws, eq. 8 for lj with the nodal rule)",
                      choices=("newton", "relaxation")),
-        "preconditioner": _k(str, "spectral", "", "reduced-system preconditioner",
-                             choices=("spectral", "mlmi", "none")),
+        "preconditioner": _k(str, "auto", "", "reduced-system preconditioner; auto: with adhesion chosen "
+                             "per grid from its snap number (docs/formulation.md), without adhesion spectral",
+                             choices=("auto", "spectral", "mlmi", "none")),
         "tol": _k(float, None, "", "error tolerance: complementarity error relative to the rms height "
                   "(default 1e-10); with adhesion, the errors in z0 (default 1e-8; relaxation: E_Total, 1e-4)", TOL),
         "options": _k(dict, {}, "", "further PETSc options under the solver's prefix (contact_, or "

@@ -43,6 +43,19 @@ def adhesive_zone_length(law: InteractionLaw, e_star: float, *, radius: float | 
     return out
 
 
+def snap_number(law: InteractionLaw, self_influence: float) -> float:
+    """K_ii max da/dg of the pointwise law (dimensionless; K_ii [m/Pa] the self-influence).
+
+    Above one a single node is unstable on its own (its adhesive stiffness beats its elastic
+    one): the discrete problem has an equilibrium for every subset of snapped nodes, the
+    adhesive range is under-resolved.  Well below one the adhesive rows of the Newton system
+    are nearly local (the preconditioner's choice, ``pc_registry.auto_adhesive_preconditioner``).
+    The maximum lies on the attractive tail, g > 0, probed to 20 ranges.
+    """
+    probe = np.linspace(0.0, 20.0, 20001)[1:] * law.length_scale()
+    return float(self_influence * max(0.0, float(np.max(law.derivative(probe)))))
+
+
 def check_resolution(law: InteractionLaw, e_star: float, dx: float, *, radius: float | None = None,
                      rms_slope: float | None = None, warn: bool = True) -> float:
     """Nodes per adhesive zone, l_zone / dx (``adhesive_zone_length``, dx the larger spacing).

@@ -40,7 +40,7 @@ from petsc4py import PETSc
 from ..grid import SurfaceGrid
 from ..operators.elastic import HalfSpaceOperator
 from ..physics.interactions import InteractionLaw
-from ..physics.resolution import RESOLUTION_NODES, check_resolution
+from ..physics.resolution import RESOLUTION_NODES, check_resolution, snap_number
 from ..physics.traction import AdhesiveTraction
 from .adhesive_jacobian import AdhesiveJacobian, minloc
 from .adhesive_residual import AdhesiveCallbacks
@@ -49,7 +49,7 @@ from .continuation import Continuation
 from .history import SolveHistory
 from .load_control import solve_force
 from .options import LINESEARCH_MAX_STEP, code_default, print_help
-from .pc_registry import ADHESIVE_PRECONDITIONERS
+from .pc_registry import ADHESIVE_PRECONDITIONERS, auto_adhesive_preconditioner
 from .states import AdhesiveState
 from .tangent import TangentAndState
 
@@ -99,7 +99,8 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
     tol : float
         Code default of ``-<prefix>tol``: the errors above, in z0 (1e-8).
     preconditioner : str
-        Code default of ``-<prefix>preconditioner``: spectral (default), mlmi or none.
+        Code default of ``-<prefix>preconditioner``: auto (default: mlmi or spectral per grid from
+        its snap number, ``pc_registry.auto_adhesive_preconditioner``), spectral, mlmi or none.
     stability_check : bool
         Code default of ``-<prefix>stability_check`` (on).
     centre : (i, j), optional
@@ -129,11 +130,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
                 else code_default("adhesion", "element_integration"))
         self.traction = AdhesiveTraction(law, grid, self.element_integration)
         self.zone_nodes = check_resolution(law, self.e_star, max(grid.dx, grid.dy))
-        # K_ii max da/dg: above one a single node is unstable on its own (its adhesive
-        # stiffness beats its elastic one), so the discrete problem has an equilibrium for
-        # every subset of snapped nodes -- the adhesive range is under-resolved by the grid
-        probe = np.linspace(0.0, 20.0, 20001) * law.length_scale()
-        self.snap_number = float(self.kappa * max(0.0, float(np.max(self.traction.nodal_derivative(probe)))))
+        self.snap_number = snap_number(law, self.kappa)   # K_ii max da/dg
         self.hard_wall = law.hard_wall
         self.n_blocks = 2 if self.hard_wall else 1
         self._defaults = dict(tol=tol, preconditioner=preconditioner, stability_check=stability_check)
@@ -271,9 +268,12 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self.fmg_tol = opts.getReal("fmg_tol", code_default("adhesion", "fmg_tol"))
         self.fmg_steps = opts.getBool("fmg_steps", code_default("adhesion", "fmg_steps"))
         choice = opts.getString("preconditioner", self._default("preconditioner")).lower()
-        if choice not in ADHESIVE_PRECONDITIONERS:
-            raise ValueError(f"-{self.prefix}preconditioner must be spectral, mlmi or none, got {choice!r}")
-        self.preconditioner = choice
+        if choice != "auto" and choice not in ADHESIVE_PRECONDITIONERS:
+            raise ValueError(f"-{self.prefix}preconditioner must be auto, spectral, mlmi or none, got {choice!r}")
+        # auto: chosen from this grid's own snap number, so each level of the nested
+        # iteration (whose snap number doubles per coarsening) chooses for itself
+        self.preconditioner_choice = choice
+        self.preconditioner = auto_adhesive_preconditioner(self.snap_number, self.hard_wall) if choice == "auto" else choice
         self._jac = AdhesiveJacobian(self)
         from ..lifetime import destroy_at_exit
         J = destroy_at_exit(PETSc.Mat().createPython(((self.n_local, self.n_global),) * 2,

@@ -124,8 +124,8 @@ class AdhesivePC:
     scaled by 1 / (-kappa A_ii) (their row is ~ -kappa A_ii (K da)_i).  The
     remaining a rows are near the identity and get the local (Jacobi) factor
     1 / (kappa (1 - A_ii K_ii)), kept away from zero where A_ii > 0.
-    ``-<prefix>preconditioner spectral`` (the default); ``mlmi`` is the cycle on the whole
-    system (``adhesive_mlmi.py``).
+    ``-<prefix>preconditioner spectral`` (or ``auto``'s pick); ``mlmi`` is the cycle on the
+    whole system (``adhesive_mlmi.py``).
     """
 
     inner_pc = None       # the pressure-space PC of the contact-like rows, made at the first set-up

@@ -17,12 +17,15 @@ a half-space operator plus the local stiffness of the law, which a spectral
 K^-1 cannot see.  MLMI solves it by a multilevel cycle in the manner of Venner
 & Lubrecht's multilevel multi-integration with distributive relaxation:
 
-* smoother: where K dominates the row (|c_i| < K_ii, contact and stiff wall-side
-  rows) distributive Jacobi (``mlmi.py``: the correction spread over the node
-  and its K-dominated neighbours with D = [1, -1/4 x 4], local diagonal
-  lambda_i + c_i); elsewhere plain Jacobi with the diagonal K_ii + c_i.
+* smoother: distributive Jacobi (``mlmi.py``: the correction spread over the
+  node and its distributive neighbours with D = [1, -1/4 x 4], local diagonal
+  lambda_i + c_i) on the contact rows and the wall side of the law
+  (-K_ii < c_i < 1e4 K_ii: a smooth error there still sees K's large smooth
+  eigenvalues); plain Jacobi with the diagonal K_ii + c_i on the attractive
+  tail (c_i <= -K_ii) and on rows local whatever the mode (c_i larger).
   Both from one residual, damped so that a power-iteration estimate of the
-  smoothing operator's spectral radius times 1.1 stays below 1.6;
+  smoothing operator's spectral radius times 1.1 stays below 1.6 (the
+  estimate of each Newton step starts from the last one's vector);
 * coarse grids: the hierarchy of ``mlmi.py`` (the half-space operator
   rediscretised on the 2x coarser grid, as the nested iteration's coarse
   problems), c restricted by 2 x 2 means (the Galerkin product R C P of the
@@ -31,13 +34,15 @@ K^-1 cannot see.  MLMI solves it by a multilevel cycle in the manner of Venner
 * coarsest grid: an exact dense solve of K_c + C_c (K_c built once from the
   operator; on a periodic cell its mean mode gets the lowest mode's stiffness
   so that it stays regular where c vanishes), gathered on every rank;
-* a V(1, 1)-cycle: a fixed linear operator, for GMRES or BiCGStab (L is not
-  symmetric in general: c < 0 on the attractive tail).
+* a V(0, 1)-cycle (the coarse correction straight from the right-hand side,
+  then one sweep: one residual per level, 1.33 fine-grid FFT pairs a cycle; V(1, 1) cost
+  twice that for at most 10 % fewer Krylov iterations): a fixed linear operator, for
+  GMRES or BiCGStab (L is not symmetric in general: c < 0 on the attractive tail).
 
 Options (the adhesive prefix, the names of ``mlmi.py``): ``mlmi_levels``,
-``mlmi_min_size`` (the hierarchy), ``mlmi_pre``/``mlmi_post`` (sweeps, 1),
+``mlmi_min_size`` (the hierarchy), ``mlmi_pre``/``mlmi_post`` (sweeps, 0 and 1),
 ``mlmi_coarse_sweeps`` (4, where the coarsest grid is too large to invert),
-``mlmi_power_its`` (6) and ``mlmi_rho_bound`` (1.6).
+``mlmi_power_its`` (2 per set-up, 3x that at the first) and ``mlmi_rho_bound`` (1.6).
 """
 from __future__ import annotations
 
@@ -54,6 +59,20 @@ from .transfer import prolong_constant, restrict
 DENSE_MAX = 1024
 #: c above this multiple of K_ii: the row is a pure local one (the law nearly flat, A ~ 0)
 C_CAP = 1e8
+#: c from this multiple of K_ii on: the smoother treats the row as local (Jacobi)
+DIST_MAX = 1e4
+#: the first set-up's power iterations, in multiples of ``mlmi_power_its`` (no vector to start from)
+FIRST_POWER_ITS = 3
+
+
+def distributive(c: np.ndarray, k_ii: float) -> np.ndarray:
+    """The rows the smoother relaxes distributively: -K_ii < c < DIST_MAX K_ii.  Where c >= 0
+    (contact, the wall side of the law) a smooth error over a zone still sees K's large smooth
+    eigenvalues, which Jacobi with K_ii + c over-corrects many times (the cycle's damping then
+    fell to ~0.14 on every row); D localises them.  Jacobi on the attractive tail (c <= -K_ii)
+    and on rows with c so large that they are local whatever the mode (held at a bound,
+    a flat law)."""
+    return (c > -k_ii) & (c < DIST_MAX * k_ii)
 
 
 class _Level:
@@ -66,13 +85,14 @@ class _Level:
         self.x, self.r, self.ku = np.zeros(shape), np.zeros(shape), np.zeros(shape)
         self.s1, self.s2 = np.zeros(shape), np.zeros(shape)
         self.dense = None           # (K_c as a dense matrix, lowest mode term) on the coarsest
+        self.v = None               # the last power iteration's vector (unit norm)
 
     def set_c(self, c: np.ndarray, power_its: int, bound: float) -> None:
         """c on this level; the smoother's split, scalings and damping."""
         b = self.base
         self.c = c
         k_ii = b.k0
-        self.kdom = np.abs(c) < k_ii
+        self.kdom = distributive(c, k_ii)
         kd = self.kdom.astype(float)
         sx, sy = b.neighbour_sums(kd, self.s1, self.s2)
         lam = b.k0 - 0.25 * (b.kx * sx + b.ky * sy) + c
@@ -81,19 +101,22 @@ class _Level:
         self.jac = np.where(self.kdom, 0.0, 1.0 / np.where(diag != 0, diag, 1.0))
         self.theta = 1.0
         comm = self.grid.mpi_comm
-        i = np.arange(self.grid.nx)[None, :]
-        j = np.arange(self.grid.ys, self.grid.ye)[:, None]
-        v = np.where((i + j) % 2 == 0, 1.0, 0.0)
-        norm = np.sqrt(comm.allreduce(float(np.vdot(v, v))))
+        v = self.v
+        if v is None:
+            # first set-up: every other node, both the smooth and the rough modes of each zone
+            i = np.arange(self.grid.nx)[None, :]
+            j = np.arange(self.grid.ys, self.grid.ye)[:, None]
+            v = np.where((i + j) % 2 == 0, 1.0, 0.0)
+            v /= np.sqrt(comm.allreduce(float(np.vdot(v, v))))
         rho = 0.0
-        if norm > 0:
-            v = v / norm
-            for _ in range(power_its):
-                w = self.correction(self.apply(v, self.ku).copy(), np.zeros_like(v))
-                rho = np.sqrt(comm.allreduce(float(np.vdot(w, w))))
-                if rho == 0:
-                    break
-                v = w / rho
+        for _ in range(power_its if self.v is not None else FIRST_POWER_ITS * power_its):
+            w = self.correction(self.apply(v, self.ku).copy(), np.zeros_like(v))
+            rho = np.sqrt(comm.allreduce(float(np.vdot(w, w))))
+            if rho == 0:
+                break
+            v = w / rho
+        # the next Newton step's estimate starts from this one's vector: its rows change little
+        self.v = v if rho > 0 else None
         if 1.1 * rho > bound:
             self.theta = bound / (1.1 * rho)
 
@@ -173,10 +196,10 @@ class AdhesiveMLMIPC:
             data.mlmi_levels = build_levels(ctx.parent.op, opts.getInt("mlmi_levels", 8),
                                             opts.getInt("mlmi_min_size", 8))
         self.levels = [_Level(b) for b in data.mlmi_levels]
-        self.power_its = opts.getInt("mlmi_power_its", 6)
+        self.power_its = opts.getInt("mlmi_power_its", 2)
         self.bound = opts.getReal("mlmi_rho_bound", 1.6)
         self.coarse_sweeps = opts.getInt("mlmi_coarse_sweeps", 4)
-        self.pre = opts.getInt("mlmi_pre", 1)
+        self.pre = opts.getInt("mlmi_pre", 0)
         self.post = opts.getInt("mlmi_post", 1)
         last = self.levels[-1]
         if last.grid.nx * last.grid.ny <= DENSE_MAX:
@@ -209,7 +232,7 @@ class AdhesiveMLMIPC:
         c = np.where(free, c, C_CAP * k_ii)   # unknowns held at a bound: dp = 0
         self.inv_beta = np.where(self.q_set, 1.0, np.where(free, 1.0 / beta, 0.0))
         self.a_gain = kappa * d
-        kind = np.where(np.abs(c) < k_ii, 0, np.sign(c))   # K-dominated 0, local rows by the sign of c
+        kind = np.where(distributive(c, k_ii), 0, np.sign(c))   # distributive 0, local rows by the sign of c
         for l, lev in enumerate(self.levels):
             if l:
                 # a coarse node whose children mix K-dominated rows with local ones (or local

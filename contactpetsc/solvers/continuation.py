@@ -54,8 +54,11 @@ class Continuation:
         with warnings.catch_warnings():
             # a coarse grid of the nested iteration resolves less than the fine one by design
             warnings.simplefilter("ignore", UnderResolvedWarning)
+            # auto: a hard-wall grid chooses from its own snap number (the cycle fails near one);
+            # the full LJ curve's coarse grids take the finest grid's pick (docs/formulation.md)
             coarse = type(self)(gc, hc, self.e_star, self.law, element_integration=self.element_integration,
-                                prefix=self.prefix, operator=op, preconditioner=self.preconditioner,
+                                prefix=self.prefix, operator=op,
+                                preconditioner=self.preconditioner_choice if self.hard_wall else self.preconditioner,
                                 stability_check=False, petsc_options=self.petsc_options)
         coarse._build()
         coarse._budget_start = self._budget_start   # one budget for the nested solves

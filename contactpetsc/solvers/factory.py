@@ -9,7 +9,8 @@ from ..operators.layer import Layer
 from ..physics.interactions import relaxation_laws
 from .adhesive import PTC_LINESEARCH, AdhesiveProblem, newton_ksp_type, newton_linesearch
 from .base import VIProblem
-from .pc_registry import ADHESIVE_PRECONDITIONERS, PRECONDITIONERS
+from .options import code_default
+from .pc_registry import ADHESIVE_PRECONDITIONERS, AUTO_MLMI_SNAP, PRECONDITIONERS, auto_adhesive_preconditioner
 from .problem import NEWTON_KSP, NEWTON_LINESEARCH, ContactProblem
 from .relaxation import RelaxationSolver
 
@@ -55,6 +56,16 @@ def make_problem(grid, heights, e_star: float, law=None, *, method: str = "newto
     return RelaxationSolver(problem, **relax) if method == "relaxation" else problem
 
 
+def grid_snap_number(law, grid, e_star: float) -> float:
+    """The snap number K_ii max da/dg of ``law`` on ``grid`` without building its operator: K_ii
+    by Love's coefficient of a uniformly loaded dx x dy element (the isolated half-space's own;
+    for a periodic cell or a layer an estimate, good to the images' share of order dx / L)."""
+    from ..operators.love import love_displacement
+    from ..physics.resolution import snap_number
+    k_ii = float(love_displacement(0.0, 0.0, 0.5 * grid.dx, 0.5 * grid.dy, e_star))
+    return snap_number(law, k_ii)
+
+
 class _Options(VIProblem):
     """Only the options push and pop of ``VIProblem`` (no grid, no operator)."""
 
@@ -89,10 +100,11 @@ def _describe_snes(opts: _Options, prefix: str, linesearch: str, ksp_type: str, 
 
 
 def describe_solver(law=None, method: str = "newton", prefix: str | None = None,
-                    petsc_options: dict | None = None) -> list[str]:
+                    petsc_options: dict | None = None, snap: float | None = None) -> list[str]:
     """The SNES/KSP/PC types and options prefixes that ``make_problem`` would solve with, from
     the code defaults and the options (``petsc_options`` under the prefix, the command line);
-    builds only those PETSc objects, no grid vectors."""
+    builds only those PETSc objects, no grid vectors.  ``snap``: the finest grid's snap number
+    (``grid_snap_number``), for the preconditioner ``auto`` picks there."""
     _check_method(law, method)
     adhesive = not _no_adhesion(law)
     prefix = prefix or ("adhesion_" if adhesive else "contact_")
@@ -105,16 +117,27 @@ def describe_solver(law=None, method: str = "newton", prefix: str | None = None,
                 raise ValueError(f"-{prefix}preconditioner must be one of {sorted(PRECONDITIONERS)}, got {choice!r}")
             return (_describe_snes(opts, prefix, NEWTON_LINESEARCH, NEWTON_KSP, PRECONDITIONERS[choice])
                     + [f"  preconditioner {choice} (-{prefix}preconditioner)"])
-        choice = db.getString("preconditioner", "spectral").lower()
-        if choice not in ADHESIVE_PRECONDITIONERS:
-            raise ValueError(f"-{prefix}preconditioner must be one of {', '.join(ADHESIVE_PRECONDITIONERS)}, "
-                             f"got {choice!r}")
-        pc_path = ADHESIVE_PRECONDITIONERS[choice]
+        choice = db.getString("preconditioner", code_default("adhesion", "preconditioner")).lower()
+        if choice != "auto" and choice not in ADHESIVE_PRECONDITIONERS:
+            raise ValueError(f"-{prefix}preconditioner must be auto or one of "
+                             f"{', '.join(ADHESIVE_PRECONDITIONERS)}, got {choice!r}")
         if method == "relaxation":
             return [f"relaxation-mlmi (the reference paper's MLMI relaxation; options prefix -{prefix}relax_)"]
+        note = f"  preconditioner {choice} (-{prefix}preconditioner)"
+        if choice == "auto":
+            lo, hi = AUTO_MLMI_SNAP["hard wall" if law.hard_wall else "full LJ"]
+            rule = f"from the snap number K_ii max da/dg: mlmi for {lo:g} to {hi:g}, spectral elsewhere; " + (
+                "each coarser grid of the nested iteration (twice the snap number) chooses for itself"
+                if law.hard_wall else "the coarser grids of the nested iteration take the finest grid's pick")
+            if snap is None:
+                note += f": {rule}"
+            else:
+                choice = auto_adhesive_preconditioner(snap, law.hard_wall)
+                note += f" -> {choice} on the finest grid (snap number {snap:.3g}); {rule}"
+        pc_path = ADHESIVE_PRECONDITIONERS.get(choice, ADHESIVE_PRECONDITIONERS["spectral"])
         lines = _describe_snes(opts, prefix, newton_linesearch(law.hard_wall), newton_ksp_type(law.hard_wall),
                                pc_path)
-        lines.append(f"  preconditioner {choice} (-{prefix}preconditioner)")
+        lines.append(note)
         lines += ["fallback " + line for line in _describe_snes(opts, prefix + "ptc_", PTC_LINESEARCH,
                                                                  newton_ksp_type(law.hard_wall), pc_path)]
         return lines

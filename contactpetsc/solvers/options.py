@@ -64,7 +64,8 @@ ADHESION = (
     Option(("step_limit",), "0.5 (full LJ), 0", "largest fall of a gap below min(g, 0) per Newton step (z0)"),
     Option(("fmg", "fmg_min_size", "fmg_tol", "fmg_steps"), (True, 32, 1e-3, True),
            "nested iteration and the coarse-grid predictor"),
-    Option(("preconditioner",), ("spectral",), "spectral (block: spectral on the contact-like rows), mlmi "
+    Option(("preconditioner",), ("auto",), "auto (from the snap number K_ii max da/dg: mlmi for 0.01-0.2 "
+           "with a hard wall, per grid, and 0.2-0.4 with the full LJ curve, else spectral), spectral (block: spectral on the contact-like rows), mlmi "
            "(multilevel cycle on the whole system) or none"),
     Option(("element_integration",), (False,), "the paper's element integration"),
     Option(("stability_check", "stability_steps"), (True, 30), "Lanczos stability check"),

@@ -18,6 +18,21 @@ ADHESIVE_PRECONDITIONERS = {
     "mlmi": "contactpetsc.solvers.AdhesiveMLMIPC",
     "none": None,
 }
+#: the snap numbers K_ii max da/dg where ``auto`` picks the multilevel cycle, for hard-wall laws
+#: and for the full LJ curve (docs/performance.md, "Preconditioners for the adhesive Newton
+#: system").  Hard wall: below the window the block preconditioner is nearly exact at one FFT
+#: pair per application; above it the cycle failed on the nested iteration's coarse grids where
+#: spectral converged.  Full LJ curve: its repulsive rows are in gap form, K-like, and below the
+#: window the block preconditioner needs so few Krylov iterations that the cycle costs more time
+#: (and on a sphere more FFT pairs); in it the cycle converged the rough cases spectral failed
+#: (snap 0.28); at 0.7 (a flat periodic cell near the law's peak) it failed a path spectral follows
+AUTO_MLMI_SNAP = {"hard wall": (0.01, 0.2), "full LJ": (0.2, 0.4)}
+
+
+def auto_adhesive_preconditioner(snap_number: float, hard_wall: bool) -> str:
+    """``auto``: the adhesive preconditioner of a grid with this snap number K_ii max da/dg."""
+    lo, hi = AUTO_MLMI_SNAP["hard wall" if hard_wall else "full LJ"]
+    return "mlmi" if lo <= snap_number <= hi else "spectral"
 
 
 def resolve(path: str):

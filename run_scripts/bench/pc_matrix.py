@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """Benchmark: the preconditioners of the adhesive Newton system on a matrix of cases.
 
-Every case is solved once per preconditioner (``-<prefix>preconditioner``), each in its own
-problem, and reports: converged, FFT pairs (fine-grid units, deterministic), Newton steps,
+Every case is solved once per preconditioner (``-<prefix>preconditioner``: spectral, mlmi, and
+auto, which picks one per grid of the nested iteration from its snap number; the table gives the
+finest grid's pick in brackets), each in its own problem, and reports: converged, FFT pairs (fine-grid units, deterministic), Newton steps,
 Krylov iterations per Newton step, wall time, and the snap number K_ii max da/dg.
 
 Cases
@@ -19,7 +20,7 @@ The markdown table goes to stdout (``--out``: also to a file); one JSON line per
 stderr.
 
     .venv/bin/python run_scripts/bench/pc_matrix.py [--quick] [--sizes 256 512 1024]
-        [--pcs spectral mlmi] [--out table.md]
+        [--pcs spectral mlmi auto] [--out table.md]
 
 ``--quick``: 256^2 only, the rough benchmark at z0 = dx and the spheres at Tabor 1 and 5.
 """
@@ -35,7 +36,7 @@ ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
 ap.add_argument("--quick", action="store_true")
 ap.add_argument("--sizes", type=int, nargs="+", default=[256, 512, 1024])
 ap.add_argument("--cases", nargs="+", default=["sphere", "rough"])
-ap.add_argument("--pcs", nargs="+", default=["spectral", "mlmi"])
+ap.add_argument("--pcs", nargs="+", default=["spectral", "mlmi", "auto"])
 ap.add_argument("--tabor", type=float, nargs="+", default=[0.1, 1.0, 2.0, 5.0])
 ap.add_argument("--z0", type=float, nargs="+", default=[1.0, 0.5], help="z0 / dx")
 ap.add_argument("--areas", type=float, nargs="+", default=[0.02, 0.10, 0.25])
@@ -78,7 +79,8 @@ def solve_path(grid, h, law, pc, approaches):
         out.append(dict(pc=pc, approach=d, time=time.perf_counter() - t, fft_pairs=st.fft_pairs,
                         newton=st.newton_iterations, linear=st.linear_iterations,
                         converged=bool(st.converged), fallback=bool(st.fallback),
-                        area=st.contact_fraction, snap=pb.snap_number, reason=st.reason[:120]))
+                        area=st.contact_fraction, snap=pb.snap_number, chosen=pb.preconditioner,
+                        reason=st.reason[:120]))
     return out
 
 
@@ -140,7 +142,8 @@ if comm.rank == 0:
                 continue
             kn = r["linear"] / max(r["newton"], 1)
             cells += [f"{r['fft_pairs']:.0f}", str(r["newton"]), f"{kn:.1f}", f"{r['time']:.2f}",
-                      ("yes" if r["converged"] else "**no**") + (" (fallback)" if r["fallback"] else "")]
+                      ("yes" if r["converged"] else "**no**") + (" (fallback)" if r["fallback"] else "")
+                      + (f" [{r['chosen']}]" if pc == "auto" else "")]
         lines.append("| " + " | ".join(cells) + " |")
     text = "\n".join(lines) + "\n"
     sys.stdout.write(text)
