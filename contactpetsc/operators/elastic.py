@@ -38,6 +38,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..fft import SlabRFFT
+from ..pencil_fft import PencilRFFT
 from ..log_events import log_event
 from ..collective import collective_guard
 from ..grid import SurfaceGrid
@@ -62,8 +63,12 @@ class HalfSpaceOperator:
         threads = opts.getInt("fft_threads", 1 if threads is None else threads)
         planner = opts.getString("fft_planner", "measure" if planner is None else planner)
         self.grid, self.e_star, self.prefix = grid, float(e_star), prefix
-        self.fft = SlabRFFT(grid.mpi_comm, grid.nx, grid.ny, grid.y_ranges, pad=pad,
-                            threads=threads, planner=planner)
+        if grid.px > 1:   # a block grid: transposes within its rows and columns of ranks
+            self.fft = PencilRFFT(grid.mpi_comm, grid.nx, grid.ny, grid.x_ranges, grid.y_ranges,
+                                  pad=pad, threads=threads, planner=planner)
+        else:
+            self.fft = SlabRFFT(grid.mpi_comm, grid.nx, grid.ny, grid.y_ranges, pad=pad,
+                                threads=threads, planner=planner)
 
     def on_grid(self, grid: SurfaceGrid, **kw) -> "HalfSpaceOperator":
         """The same elastic body discretised on another grid (the coarse grids of the nested
@@ -100,7 +105,7 @@ class HalfSpaceOperator:
         return self.fft.backward(rows_out)
 
     def apply(self, pressure_rows: np.ndarray, out_rows: np.ndarray) -> np.ndarray:
-        """Displacement v = K p [m] for pressure p [Pa], both local (ny_loc, nx) rows."""
+        """Displacement v = K p [m] for pressure p [Pa], both local (ny_loc, nx_loc) rows."""
         ev = log_event("CPElasticMult")
         ev.begin()
         self.convolve(self._kernel_pairs, pressure_rows, out_rows)
@@ -119,7 +124,7 @@ class HalfSpaceOperator:
 
     def as_mat(self, inverse: bool = False) -> PETSc.Mat:
         """K (or K^-1) as a matrix-free Python-context Mat on the grid's global Vecs."""
-        n_local = self.grid.nx * self.grid.ny_local
+        n_local = self.grid.n_local
         n = self.grid.nx * self.grid.ny
         mat = PETSc.Mat().createPython(((n_local, n), (n_local, n)),
                                        _OperatorContext(self, inverse), comm=self.grid.comm)
