@@ -89,13 +89,15 @@ def aligned_split(n: int, parts: int, alignment: int = 1) -> list[int]:
     return rows
 
 
-def block_grid_fits(nx: int, ny: int, px: int, py: int) -> bool:
+def block_grid_fits(nx: int, ny: int, px: int, py: int, rows=None) -> bool:
     """Whether a px x py process grid can carry an nx x ny grid and its pencil FFT: every
-    rank >= 1 column, every y-block >= px rows (one row per rank in the x transform) and
-    every x-block of Fourier columns (of the unpadded transform) >= py columns."""
+    rank >= 1 column, every y-block (``rows`` per block, default balanced) >= px rows (one
+    row per rank in the x transform) and every x-block of Fourier columns (of the unpadded
+    transform) >= py columns."""
     from .fft import split_range
     nkx = nx // 2 + 1
-    return (nx >= px and ny >= py and ny // py >= px
+    rows = [ny // py] if rows is None else rows
+    return (nx >= px and ny >= py and min(rows) >= px
             and min(b - a for a, b in split_range(nkx, px)) >= py)
 
 
@@ -178,17 +180,18 @@ class SurfaceGrid:
             raise GridError(
                 f"{size} MPI ranks but only ny = {self.ny} grid rows (geometry.ny): the grid is split "
                 f"along y, so use at most {self.ny} ranks (or a block grid, -grid_px)")
-        if self.px > 1 and not block_grid_fits(self.nx, self.ny, self.px, self.py):
-            raise GridError(
-                f"a {self.px} x {self.py} process grid (grid_px = {self.px}) does not fit a "
-                f"{self.nx} x {self.ny} grid: the pencil FFT needs >= {self.px} rows per y-block "
-                f"and >= {self.py} Fourier columns per x-block")
         if y_ownership is None:
             y_ownership = aligned_split(self.ny, self.py, row_alignment)
         if x_ownership is None:
             x_ownership = aligned_split(self.nx, self.px, row_alignment)
         self.y_ranges = self._ranges(y_ownership, self.py, self.ny, "y_ownership", "row")
         self.x_ranges = self._ranges(x_ownership, self.px, self.nx, "x_ownership", "column")
+        if self.px > 1 and not block_grid_fits(self.nx, self.ny, self.px, self.py,
+                                               [b - a for a, b in self.y_ranges]):
+            raise GridError(
+                f"a {self.px} x {self.py} process grid (grid_px = {self.px}) does not fit a "
+                f"{self.nx} x {self.ny} grid: the pencil FFT needs >= {self.px} rows per y-block "
+                f"and >= {self.py} Fourier columns per x-block")
         rank = self.mpi_comm.Get_rank()
         self.xs, self.xe = self.x_ranges[rank % self.px]
         self.ys, self.ye = self.y_ranges[rank // self.px]

@@ -217,3 +217,12 @@ class PencilRFFT(SlabRFFT):
         ev.end()
         self.fft_pairs += 1
         return out_rows
+
+
+def grid_rfft(grid, *, pad: bool = False, threads: int = 1, planner: str = "measure") -> SlabRFFT:
+    """The distributed FFT of a ``SurfaceGrid``'s split: slabs, or pencils on a block grid."""
+    if grid.px > 1:
+        return PencilRFFT(grid.mpi_comm, grid.nx, grid.ny, grid.x_ranges, grid.y_ranges,
+                          pad=pad, threads=threads, planner=planner)
+    return SlabRFFT(grid.mpi_comm, grid.nx, grid.ny, grid.y_ranges, pad=pad, threads=threads,
+                    planner=planner)

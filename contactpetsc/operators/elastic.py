@@ -37,8 +37,7 @@ import pyfftw
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..fft import SlabRFFT
-from ..pencil_fft import PencilRFFT
+from ..pencil_fft import grid_rfft
 from ..log_events import log_event
 from ..collective import collective_guard
 from ..grid import SurfaceGrid
@@ -63,12 +62,7 @@ class HalfSpaceOperator:
         threads = opts.getInt("fft_threads", 1 if threads is None else threads)
         planner = opts.getString("fft_planner", "measure" if planner is None else planner)
         self.grid, self.e_star, self.prefix = grid, float(e_star), prefix
-        if grid.px > 1:   # a block grid: transposes within its rows and columns of ranks
-            self.fft = PencilRFFT(grid.mpi_comm, grid.nx, grid.ny, grid.x_ranges, grid.y_ranges,
-                                  pad=pad, threads=threads, planner=planner)
-        else:
-            self.fft = SlabRFFT(grid.mpi_comm, grid.nx, grid.ny, grid.y_ranges, pad=pad,
-                                threads=threads, planner=planner)
+        self.fft = grid_rfft(grid, pad=pad, threads=threads, planner=planner)
 
     def on_grid(self, grid: SurfaceGrid, **kw) -> "HalfSpaceOperator":
         """The same elastic body discretised on another grid (the coarse grids of the nested

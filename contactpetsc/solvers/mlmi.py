@@ -56,6 +56,7 @@ class Level:
     def __init__(self, op):
         self.op = op
         self.grid = g = op.grid
+        g.require_slabs("the MLMI preconditioner (its smoother's x-neighbours)")
         f = op.fft
         qx, qy = f.wavevectors(f.Nx * g.dx, f.Ny * g.dy)
         k_hat = op.kernel * (f.Nx * f.Ny)
