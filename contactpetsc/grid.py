@@ -9,10 +9,10 @@ Block (pencil) grids.  With ``px`` > 1 ranks along x the ranks form a px x py
 process grid (rank = b + px a for x-block b and y-block a, PETSc's order) and
 rank (a, b) owns the block [xs, xe) x [ys, ye); its part of a Vec is that block,
 (ny_loc, nx_loc) in C order.  The elastic operator transforms it with
-``contactpetsc.pencil_fft``.  Chosen with ``px`` or the option ``-grid_px``;
-automatic (the most square process grid that fits) only when there are more
-ranks than rows.  Only the non-adhesive solve with the spectral preconditioner
-runs on block grids; what needs whole rows refuses them (``require_slabs``).
+``contactpetsc.pencil_fft``.  Chosen with ``px`` or the option ``-grid_px``
+(docs/performance.md says when blocks pay).  Only the non-adhesive solve with
+the spectral preconditioner runs on block grids; what needs whole rows refuses
+them (``require_slabs``).
 
 User-facing arrays are indexed [i, j] = [x, y] with shape (nx, ny), as in
 contact.engineering; ``local_array`` returns the rank's part as an (nx_loc, ny_loc)
@@ -101,14 +101,6 @@ def block_grid_fits(nx: int, ny: int, px: int, py: int, rows=None) -> bool:
             and min(b - a for a, b in split_range(nkx, px)) >= py)
 
 
-def pencil_px(size: int, nx: int, ny: int) -> int | None:
-    """Ranks along x of the most square px x py process grid that fits (``block_grid_fits``),
-    None if none does."""
-    fits = [px for px in range(1, size + 1)
-            if size % px == 0 and block_grid_fits(nx, ny, px, size // px)]
-    return min(fits, key=lambda px: abs(np.log(px / (size // px)))) if fits else None
-
-
 class SurfaceGrid:
     """Uniform nx x ny surface grid of spacing (dx, dy) in metres, distributed along y
     (or in px x py blocks).
@@ -133,8 +125,7 @@ class SurfaceGrid:
         Rows per y-block of ranks, overriding the balanced split (coarse grids use it).
     px : int, optional
         Ranks along x (a divisor of the rank count): 1 is the slab split, > 1 a block
-        grid.  Default: the option ``-grid_px``, else 1 while every rank can own a row,
-        else the most square process grid that fits.
+        grid.  Default: the option ``-grid_px``, else 1.
     x_ownership : sequence of int, optional
         Columns per x-block of ranks (block grids; coarse grids use it).
     """
@@ -165,21 +156,16 @@ class SurfaceGrid:
         if px is None and x_ownership is not None:
             px = len(x_ownership)
         if px is None:
-            px = PETSc.Options().getInt("grid_px", 0)
-        if not px:
-            px = 1 if size <= self.ny else pencil_px(size, self.nx, self.ny)
-            if px is None:
-                raise GridError(
-                    f"{size} MPI ranks but only ny = {self.ny} grid rows (geometry.ny): no slab "
-                    f"split (at most {self.ny} ranks) and no px x py block grid fits this "
-                    f"{self.nx} x {self.ny} grid; use fewer ranks")
+            px = PETSc.Options().getInt("grid_px", 1)
         if int(px) != px or px < 1 or size % px:
             raise GridError(f"grid_px (ranks along x) must be a divisor of the {size} MPI ranks, got {px!r}")
         self.px, self.py = int(px), size // int(px)
-        if self.px == 1 and size > self.ny:
+        if size > self.ny:
+            # every 1-D transform along x is one whole row: no layout of the 2-D FFT
+            # (slabs or blocks) gives work to more ranks than there are rows
             raise GridError(
-                f"{size} MPI ranks but only ny = {self.ny} grid rows (geometry.ny): the grid is split "
-                f"along y, so use at most {self.ny} ranks (or a block grid, -grid_px)")
+                f"{size} MPI ranks but only ny = {self.ny} grid rows (geometry.ny): the FFT transforms "
+                f"whole rows, so use at most {self.ny} ranks")
         if y_ownership is None:
             y_ownership = aligned_split(self.ny, self.py, row_alignment)
         if x_ownership is None:
