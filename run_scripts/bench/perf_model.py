@@ -51,10 +51,10 @@ import sys
 #: periodic apply (docs/journal/performance.md, 2026-11-22): 1-D FFT batches 19.4 ms per rank
 #: on 2 ranks; a 16.8 MB copy 2.3 ms per rank with both cores copying (7.3 GB/s), 3.3 ms for
 #: 33.5 MB alone (10 GB/s); Alltoallv 8.4 MB per rank in 2.3 ms (3.6 GB/s = b(2)/2); the VI's
-#: per-Newton-step work from the 1- and 2-rank solves at 1024^2 and 2048^2
+#: per-Newton-step work fitted to the quiet 1-rank solves at 1024^2 (6.7 s) and 2048^2 (26.8 s)
 HERE = dict(k_fft=19.4e-3 * 2 / (2048 ** 2 * 22), b_core=10e9, B_node=14.6e9, cores_per_node=2,
             alpha_shm=1.0e-6, alpha_net=1.0e-6, B_net=14.6e9, w_local=3.0,
-            q_vec=330.0, t_step=16e-3)
+            q_vec=425.0, t_step=1.5e-3)
 
 #: a typical cluster: nodes of 2 x 32 x86 cores (c = 64) with ~350 GB/s of memory traffic
 #: (B_node = 120 GB/s copied, read + write-allocate + write), one HDR InfiniBand port per node (200 Gb/s, B_net ~ 20 GB/s
