@@ -169,19 +169,22 @@ def calibrate(args) -> None:
     t_rows = timed(lambda: (fwd(), bwd()))
     # a pair along x and along y is twice this, for n^2/P points
     k_fft = 2 * t_rows / (rows * n * math.log2(float(n) * n))
-    src = np.ones(max(8 * n * n // (8 * P), 2 ** 20))
+    src = np.ones(max(n * n // P, 2 ** 23))     # >= 64 MB: beyond the caches
     dst = np.empty_like(src)
     b_core = src.nbytes / timed(lambda: np.copyto(dst, src), together=False)
     b_all = src.nbytes / timed(lambda: np.copyto(dst, src))
     res = dict(ranks=P, n=n, k_fft=k_fft, b_core=b_core, b_all=b_all,
                load=float(open("/proc/loadavg").read().split()[0]))
-    m = dict(HERE, k_fft=k_fft, b_core=b_core, B_node=b_all * P, cores_per_node=max(P, 1))
+    import os
+    cores = len(os.sched_getaffinity(0))
+    shared = max(1.0, P / cores)           # ranks beyond the cores time-share them
+    m = dict(HERE, k_fft=k_fft / shared, b_core=b_core, B_node=b_all * P, cores_per_node=cores)
     if P > 1:
         one, out = np.zeros(P), np.zeros(P)
         reps = 200
         alpha = timed(lambda: [comm.Alltoall(one, out) for _ in range(reps)]) / reps / (P - 1)
         res["alpha_shm"] = alpha
-        m.update(alpha_shm=alpha, alpha_net=alpha, B_net=b_all * P / 2)
+        m.update(alpha_shm=alpha, alpha_net=alpha)
     res["apply"] = {}
     options = pencil_options(n, P)
     for px in [1] + ([min(options, key=lambda p: abs(math.log(p / (P // p))))] if options else []):
@@ -190,7 +193,7 @@ def calibrate(args) -> None:
         x = np.random.default_rng(1).random(g.local_shape)
         y = np.empty_like(x)
         res["apply"][f"{px}x{P // px}"] = dict(measured=timed(lambda: op.apply(x, y)),
-                                               model=t_apply(m, n, P, px))
+                                               model=t_apply(m, n, P, px) * shared)
     if rank == 0:
         print(json.dumps(res), flush=True)
 
