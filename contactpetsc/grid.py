@@ -10,8 +10,8 @@ process grid (rank = b + px a for x-block b and y-block a, PETSc's order) and
 rank (a, b) owns the block [xs, xe) x [ys, ye); its part of a Vec is that block,
 (ny_loc, nx_loc) in C order.  The elastic operator transforms it with
 ``contactpetsc.pencil_fft``.  Chosen with ``px`` or the option ``-grid_px``
-(docs/performance.md says when blocks pay).  Only the non-adhesive solve with
-the spectral preconditioner runs on block grids; what needs whole rows refuses
+(docs/performance.md says when blocks pay).  The non-adhesive solve (spectral
+or MLMI preconditioner) runs on block grids; what needs whole rows refuses
 them (``require_slabs``).
 
 User-facing arrays are indexed [i, j] = [x, y] with shape (nx, ny), as in
@@ -339,13 +339,16 @@ class SurfaceGrid:
         return v
 
     def halo_rows(self, rows: np.ndarray, lo: np.ndarray, hi: np.ndarray, *,
-                  edge: str = "zero") -> tuple[np.ndarray, np.ndarray]:
-        """Fill ``lo`` with row ys - 1 and ``hi`` with row ye of a (ny_loc, nx_loc) array.
+                  edge: str = "zero", left: np.ndarray | None = None,
+                  right: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Fill ``lo`` with row ys - 1 and ``hi`` with row ye of a (ny_loc, nx_loc) array, and
+        ``left``/``right`` (if given) with columns xs - 1 and xe.
 
-        Rows come from the neighbouring ranks through the DMDA's ghost exchange
+        Rows and columns come from the neighbouring ranks through the DMDA's ghost exchange
         (``globalToLocal``; periodic wrap-around on a periodic grid).  Beyond an isolated grid's edge: zeros
-        (``edge="zero"``) or the edge row repeated (``edge="repeat"``).
-        Collective; ``lo`` and ``hi`` are caller-owned buffers of length nx_loc.
+        (``edge="zero"``) or the edge row (column) repeated (``edge="repeat"``).
+        Collective; ``lo`` and ``hi`` are caller-owned buffers of length nx_loc, ``left`` and
+        ``right`` of length ny_loc.
         """
         if edge not in ("zero", "repeat"):
             raise ValueError(f"edge must be 'zero' or 'repeat', got {edge!r}")
@@ -368,6 +371,17 @@ class SurfaceGrid:
             hi[...] = ghosted[self.ye - gys, x0:x0 + self.nx_local]
         else:
             hi[...] = 0.0 if edge == "zero" else rows[-1]
+        y0 = self.ys - gys
+        if left is not None:
+            if gxs < self.xs:
+                left[...] = ghosted[y0:y0 + self.ny_local, x0 - 1]
+            else:
+                left[...] = 0.0 if edge == "zero" else rows[:, 0]
+        if right is not None:
+            if gxe > self.xe:
+                right[...] = ghosted[y0:y0 + self.ny_local, x0 + self.nx_local]
+            else:
+                right[...] = 0.0 if edge == "zero" else rows[:, -1]
         return lo, hi
 
     def gather(self, vec: PETSc.Vec, root: int | None = None) -> np.ndarray | None:
