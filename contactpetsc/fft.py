@@ -123,6 +123,14 @@ class SlabRFFT:
                                 for q in self.peers]
             self.recv_blocks = [self.recvbuf[recv_off[q]:recv_off[q + 1]].reshape(nkx_loc, heights[q])
                                 for q in self.peers]
+            # backward, the same memory the other way round: to rank q its rows of my kx
+            # columns, packed y-major (ny_q, nkx_loc); from rank q my rows of its columns,
+            # (ny_loc, nkx_q).  The transpose is a strided read on the sender, cheaper than
+            # the strided write an unpack would make.
+            self.send_blocks_bwd = [self.recvbuf[recv_off[q]:recv_off[q + 1]].reshape(heights[q], nkx_loc)
+                                    for q in self.peers]
+            self.recv_blocks_bwd = [self.sendbuf[send_off[q]:send_off[q + 1]].reshape(ny_loc, widths[q])
+                                    for q in self.peers]
             z = MPI.C_DOUBLE_COMPLEX
             self._fwd = ([self.sendbuf, (send_counts, send_off[:-1]), z],
                          [self.recvbuf, (recv_counts, recv_off[:-1]), z])
@@ -193,17 +201,17 @@ class SlabRFFT:
             np.copyto(out_rows, self.real_out[:self.ny, :self.nx])
         else:
             self._plans_bwd[0].execute()
-            for q, blk in zip(self.peers, self.recv_blocks):
+            for q, blk in zip(self.peers, self.send_blocks_bwd):
                 a, b = self.y_ranges[q]
-                np.copyto(blk, self.cols[:, a:b])
+                np.copyto(blk, self.cols[:, a:b].T)
             np.copyto(self.rows[:, self.kx0:self.kx1], self.cols[:, self.ys:self.ye].T)
             if self.pad:
                 self.cols[:, self.ny:] = 0  # the y stage's output overwrote the padding
             self.comm.Alltoallv(*self._bwd)
             self.alltoall_bytes += self._sent_bwd
-            for q, blk in zip(self.peers, self.send_blocks):
+            for q, blk in zip(self.peers, self.recv_blocks_bwd):
                 a, b = self.kx_ranges[q]
-                np.copyto(self.rows[:, a:b], blk.T)
+                np.copyto(self.rows[:, a:b], blk)
             self._plans_bwd[1].execute()
             np.copyto(out_rows, self.real_out[:, :self.nx])
         ev.end()
