@@ -46,6 +46,26 @@ from .layer import Layer
 from .love import love_displacement
 
 
+def fft_threads(comm, value, name: str = "fft_threads") -> int:
+    """FFTW threads per rank: an integer >= 1, or ``auto``: the cores this rank may run on
+    (its CPU affinity), shared with the other ranks of its node when they see the same cores;
+    1 for ranks bound to one core each, all of a node's cores for one rank per node."""
+    if str(value).lower() == "auto":
+        import os
+        cores = len(os.sched_getaffinity(0))
+        node = comm.Split_type(MPI.COMM_TYPE_SHARED)
+        ranks = node.Get_size()
+        node.Free()
+        return max(1, cores // ranks if cores >= (os.cpu_count() or cores) else cores)
+    try:
+        n = int(value)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise ValueError(f"{name} must be an integer >= 1 or auto, got {value!r}")
+    return n
+
+
 class HalfSpaceOperator:
     """Common part: v = K p and its inverse through one distributed FFT pair.
 
@@ -59,7 +79,8 @@ class HalfSpaceOperator:
         if not (np.isfinite(e_star) and e_star > 0):
             raise ValueError(f"e_star (effective modulus E*, Pa) must be finite and > 0, got {e_star!r}")
         opts = PETSc.Options(prefix)
-        threads = opts.getInt("fft_threads", 1 if threads is None else threads)
+        threads = opts.getString("fft_threads", str(1 if threads is None else threads))
+        threads = fft_threads(grid.mpi_comm, threads, f"{prefix}fft_threads")
         planner = opts.getString("fft_planner", "measure" if planner is None else planner)
         self.grid, self.e_star, self.prefix = grid, float(e_star), prefix
         self.fft = grid_rfft(grid, pad=pad, threads=threads, planner=planner)
