@@ -126,7 +126,7 @@ class PencilRFFT(SlabRFFT):
         self.kbuf = empty(m * self.nkx, "complex128")          # x-pencil spectrum, per kx-block
         self.tbuf = empty(nyb * nkb, "complex128")             # the band transposed, per rank of the column
         self.ybuf = empty(nkx_loc * ny, "complex128")          # column pieces, per y-block
-        self._out = empty(nyb * nxb, "float64")                # backward output when out_rows is not contiguous
+        self._out = None                                       # backward output when out_rows is not contiguous
 
         widths = [e - s for s, e in self.x_ranges]
         kwidths = [e - s for s, e in self.kxb_ranges]
@@ -209,6 +209,8 @@ class PencilRFFT(SlabRFFT):
         for (a, b), blk in zip(self.x_ranges, self.x_blocks):
             np.copyto(blk, self.real_out[:, a:b])
         direct = out_rows.flags.c_contiguous and out_rows.dtype == np.float64
+        if not direct and self._out is None:
+            self._out = pyfftw.empty_aligned(self.block_shape[0] * self.block_shape[1], "float64")
         target = out_rows if direct else self._out
         self._exchange(self.row_comm, self.xbuf, s1[1], target, s1[0])
         if not direct:
