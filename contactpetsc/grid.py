@@ -119,13 +119,14 @@ class SurfaceGrid:
     stencil_width : int
         Ghost width of the DMDA (1 serves the 4-neighbour stencils).
     row_alignment : int
-        Make every rank's first row a multiple of this (a power of two lets
-        the multilevel solver halve the grid with rank-local transfers).
+        Make every rank's first row (and, on a block grid, first column) a multiple
+        of this (a power of two lets the multilevel solver halve the grid with
+        rank-local transfers).
     y_ownership : sequence of int, optional
         Rows per y-block of ranks, overriding the balanced split (coarse grids use it).
     px : int, optional
         Ranks along x (a divisor of the rank count): 1 is the slab split, > 1 a block
-        grid.  Default: the option ``-grid_px``, else 1.
+        grid.  Default: the option ``-grid_px`` (on more than one rank), else 1.
     x_ownership : sequence of int, optional
         Columns per x-block of ranks (block grids; coarse grids use it).
     """
@@ -155,8 +156,8 @@ class SurfaceGrid:
         size = self.mpi_comm.Get_size()
         if px is None and x_ownership is not None:
             px = len(x_ownership)
-        if px is None:
-            px = PETSc.Options().getInt("grid_px", 1)
+        if px is None:   # one rank has no blocks: the option is for the job's grids
+            px = PETSc.Options().getInt("grid_px", 1) if size > 1 else 1
         if int(px) != px or px < 1 or size % px:
             raise GridError(f"grid_px (ranks along x) must be a divisor of the {size} MPI ranks, got {px!r}")
         self.px, self.py = int(px), size // int(px)
