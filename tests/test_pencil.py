@@ -12,7 +12,7 @@ from contactpetsc.grid import GridError, SurfaceGrid
 from contactpetsc.operators.elastic import half_space
 from contactpetsc.pencil_fft import PencilRFFT
 from contactpetsc.solvers import ContactProblem
-from contactpetsc.solvers.transfer import halved, prolong_bilinear
+from contactpetsc.solvers.transfer import can_halve, halved, prolong_bilinear
 
 WORLD = PETSc.COMM_WORLD.tompi4py()
 PX = [px for px in range(1, WORLD.Get_size() + 1) if WORLD.Get_size() % px == 0]
@@ -119,3 +119,17 @@ def test_process_grid_checked(coll):
     if WORLD.Get_size() == 4:   # 2 x 2: the first y-block's one row cannot feed 2 x transforms
         coll.raises(GridError, ["process grid", "rows per y-block"], SurfaceGrid, 16, 4, 1.0, px=2,
                     y_ownership=[1, 3])
+
+
+@pytest.mark.parametrize("px", PX)
+def test_every_coarse_grid_can_halve_admits_has_its_fft(coll, px):
+    """Halving as far as ``can_halve`` allows (4 rows per y-block, 4 columns per x-block):
+    every coarse grid gets an operator, i.e. its FFT has a line for every rank (on 4 ranks
+    the slab hierarchy of a 16 x 16 grid used to reach 4 x 4, 3 Fourier columns for 4 ranks)."""
+    n = 4 * WORLD.Get_size()
+    g = SurfaceGrid(n, n, 1.0, px=px, row_alignment=2)
+    levels = [g]
+    while can_halve(levels[-1]):
+        levels.append(halved(levels[-1]))
+    ops = [half_space(level, 1.0, planner="estimate") for level in levels]
+    assert coll.all(len(ops) == len(levels) >= 1)

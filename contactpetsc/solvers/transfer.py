@@ -15,12 +15,13 @@ from ..grid import SurfaceGrid, block_grid_fits
 
 def can_halve(grid: SurfaceGrid) -> bool:
     """Whether ``grid`` has a 2x coarser grid with rank-local transfers (even sizes, rows and
-    columns per rank) on which the FFT still fits (a block grid's ``block_grid_fits``)."""
+    columns per rank) on which the FFT still gives every rank a line (``block_grid_fits``;
+    on slabs: at least as many Fourier columns as ranks)."""
     blocks = [b - a for a, b in grid.y_ranges + grid.x_ranges]
-    if grid.nx % 2 or grid.ny % 2 or any(r % 2 or r < 2 for r in blocks):
+    if grid.nx % 2 or grid.ny % 2 or min(grid.nx, grid.ny) < 4 or any(r % 2 or r < 2 for r in blocks):
         return False
-    return grid.px == 1 or block_grid_fits(grid.nx // 2, grid.ny // 2, grid.px, grid.py,
-                                           [(b - a) // 2 for a, b in grid.y_ranges])
+    return block_grid_fits(grid.nx // 2, grid.ny // 2, grid.px, grid.py,
+                           [(b - a) // 2 for a, b in grid.y_ranges])
 
 
 def halved(grid: SurfaceGrid) -> SurfaceGrid:
