@@ -41,8 +41,9 @@ _SUBCOMMS: dict = {}
 
 
 def _sub_communicators(comm: MPI.Comm, px: int):
-    """(row, column) communicators of the px x py process grid; made once per communicator."""
-    key = (comm.py2f(), px)
+    """(row, column) communicators of the px x py process grid; made once per communicator
+    (every grid of a hierarchy, every operator shares them)."""
+    key = (comm.py2f(), comm.Get_size(), px)
     if key not in _SUBCOMMS:
         rank = comm.Get_rank()
         b, a = rank % px, rank // px
