@@ -31,7 +31,7 @@ Usage::
 
     mpirun -n P python perf_model.py calibrate [--n 1024] [--repeats 5]     # one JSON line
     python perf_model.py predict [--calibration cal.json] [--markdown]
-    python perf_model.py check --calibration cal.json --solves solves.jsonl  # model vs solves
+    python perf_model.py check [--calibration cal.json] --solves solves.jsonl  # model vs solves
 
 ``calibrate`` measures, on every rank at once: FFTW 1-D batches of the slab's x stage (k_fft),
 array copies (b_core, or B_node with every rank copying), MPI_Alltoall of one double per peer
@@ -271,7 +271,7 @@ def main():
     p = sub.add_parser("predict")
     p.add_argument("--calibration", default=None)
     k = sub.add_parser("check")
-    k.add_argument("--calibration", required=True)
+    k.add_argument("--calibration", default=None, help="calibrate output (default: the constants HERE)")
     k.add_argument("--solves", required=True)
     k.add_argument("--cores-per-node", type=int, default=None,
                    help="cores per node of the solves' machine (default: this machine's)")
