@@ -12,7 +12,8 @@ One rank
 
 Several ranks
     1. a batch of real FFTs along x on the local rows (contiguous),
-    2. pack: each destination's kx columns, transposed to (nkx_q, ny_loc),
+    2. pack: each other rank's kx columns, transposed to (nkx_q, ny_loc); the
+       rank's own columns are copied (transposed) straight into its y-range,
     3. a contiguous all-to-all, then each received (nkx_loc, ny_q) block is
        copied into its y-range of the (nkx_loc, Ny) array,
     4. a batch of complex FFTs along y (contiguous).
@@ -104,28 +105,39 @@ class SlabRFFT:
             self.cols = empty((nkx_loc, self.Ny), "complex128")   # y-stage input, zero beyond ny
             self.spectrum = empty((nkx_loc, self.Ny), "complex128")
             # Contiguous all-to-all with local (un)packing: on shared memory faster than
-            # Alltoallw with strided datatypes (docs/performance.md).
-            self.sendbuf = empty(ny_loc * self.nkx, "complex128")
-            self.recvbuf = empty(nkx_loc * ny, "complex128")
+            # Alltoallw with strided datatypes (docs/performance.md).  The rank's own block
+            # is copied straight between rows and cols, not through the buffers and MPI.
             widths = [b - a for a, b in self.kx_ranges]
             heights = [b - a for a, b in self.y_ranges]
-            send_counts = [ny_loc * w for w in widths]
-            recv_counts = [nkx_loc * h for h in heights]
+            own = [q == self.rank for q in range(self.size)]
+            send_counts = [0 if mine else ny_loc * w for w, mine in zip(widths, own)]
+            recv_counts = [0 if mine else nkx_loc * h for h, mine in zip(heights, own)]
             send_off = np.concatenate([[0], np.cumsum(send_counts)]).tolist()
             recv_off = np.concatenate([[0], np.cumsum(recv_counts)]).tolist()
+            self.sendbuf = empty(send_off[-1], "complex128")
+            self.recvbuf = empty(recv_off[-1], "complex128")
             # to rank q: my rows' kx columns of q, transposed to (nkx_q, ny_loc);
             # from rank q: my kx columns of q's rows, (nkx_loc, ny_q)
+            self.peers = [q for q in range(self.size) if q != self.rank]
             self.send_blocks = [self.sendbuf[send_off[q]:send_off[q + 1]].reshape(widths[q], ny_loc)
-                                for q in range(self.size)]
+                                for q in self.peers]
             self.recv_blocks = [self.recvbuf[recv_off[q]:recv_off[q + 1]].reshape(nkx_loc, heights[q])
-                                for q in range(self.size)]
+                                for q in self.peers]
+            # backward, the same memory the other way round: to rank q its rows of my kx
+            # columns, packed y-major (ny_q, nkx_loc); from rank q my rows of its columns,
+            # (ny_loc, nkx_q).  The transpose is a strided read on the sender, cheaper than
+            # the strided write an unpack would make.
+            self.send_blocks_bwd = [self.recvbuf[recv_off[q]:recv_off[q + 1]].reshape(heights[q], nkx_loc)
+                                    for q in self.peers]
+            self.recv_blocks_bwd = [self.sendbuf[send_off[q]:send_off[q + 1]].reshape(ny_loc, widths[q])
+                                    for q in self.peers]
             z = MPI.C_DOUBLE_COMPLEX
             self._fwd = ([self.sendbuf, (send_counts, send_off[:-1]), z],
                          [self.recvbuf, (recv_counts, recv_off[:-1]), z])
             self._bwd = (self._fwd[1], self._fwd[0])
             itemsize = self.sendbuf.itemsize
-            self._sent_fwd = itemsize * (sum(send_counts) - send_counts[self.rank])
-            self._sent_bwd = itemsize * (sum(recv_counts) - recv_counts[self.rank])
+            self._sent_fwd = itemsize * sum(send_counts)
+            self._sent_bwd = itemsize * sum(recv_counts)
             self._plans = (pyfftw.FFTW(self.real_in, self.rows, axes=(1,), **keep),
                            pyfftw.FFTW(self.cols, self.spectrum, axes=(1,), **keep))
             self._plans_bwd = (pyfftw.FFTW(self.spectrum, self.cols, axes=(1,),
@@ -167,11 +179,14 @@ class SlabRFFT:
         else:
             self.real_in[:, :self.nx] = rows
             self._plans[0].execute()
-            for (a, b), blk in zip(self.kx_ranges, self.send_blocks):
+            for q, blk in zip(self.peers, self.send_blocks):
+                a, b = self.kx_ranges[q]
                 np.copyto(blk, self.rows[:, a:b].T)
+            np.copyto(self.cols[:, self.ys:self.ye], self.rows[:, self.kx0:self.kx1].T)
             self.comm.Alltoallv(*self._fwd)
             self.alltoall_bytes += self._sent_fwd
-            for (a, b), blk in zip(self.y_ranges, self.recv_blocks):
+            for q, blk in zip(self.peers, self.recv_blocks):
+                a, b = self.y_ranges[q]
                 np.copyto(self.cols[:, a:b], blk)
             self._plans[1].execute()
         ev.end()
@@ -186,14 +201,17 @@ class SlabRFFT:
             np.copyto(out_rows, self.real_out[:self.ny, :self.nx])
         else:
             self._plans_bwd[0].execute()
-            for (a, b), blk in zip(self.y_ranges, self.recv_blocks):
-                np.copyto(blk, self.cols[:, a:b])
+            for q, blk in zip(self.peers, self.send_blocks_bwd):
+                a, b = self.y_ranges[q]
+                np.copyto(blk, self.cols[:, a:b].T)
+            np.copyto(self.rows[:, self.kx0:self.kx1], self.cols[:, self.ys:self.ye].T)
             if self.pad:
                 self.cols[:, self.ny:] = 0  # the y stage's output overwrote the padding
             self.comm.Alltoallv(*self._bwd)
             self.alltoall_bytes += self._sent_bwd
-            for (a, b), blk in zip(self.kx_ranges, self.send_blocks):
-                np.copyto(self.rows[:, a:b], blk.T)
+            for q, blk in zip(self.peers, self.recv_blocks_bwd):
+                a, b = self.kx_ranges[q]
+                np.copyto(self.rows[:, a:b], blk)
             self._plans_bwd[1].execute()
             np.copyto(out_rows, self.real_out[:, :self.nx])
         ev.end()

@@ -1,13 +1,22 @@
-"""Distributed surface grid: a 2-D PETSc DMDA decomposed along y only.
+"""Distributed surface grid: a 2-D PETSc DMDA, by default decomposed along y only.
 
 A surface field f(x_i, y_j) on an nx x ny grid is stored in PETSc's natural
 order, index i + nx*j, so each rank owns whole rows j in [ys, ye).  That is a
 slab decomposition: the rows of one rank are one contiguous block of memory,
 which the FFT (``contactpetsc.fft``) transforms along x without communication.
 
+Block (pencil) grids.  With ``px`` > 1 ranks along x the ranks form a px x py
+process grid (rank = b + px a for x-block b and y-block a, PETSc's order) and
+rank (a, b) owns the block [xs, xe) x [ys, ye); its part of a Vec is that block,
+(ny_loc, nx_loc) in C order.  The elastic operator transforms it with
+``contactpetsc.pencil_fft``.  Chosen with ``px`` or the option ``-grid_px``
+(docs/performance.md says when blocks pay).  The non-adhesive solve (spectral
+or MLMI preconditioner) runs on block grids; what needs whole rows refuses
+them (``require_slabs``).
+
 User-facing arrays are indexed [i, j] = [x, y] with shape (nx, ny), as in
-contact.engineering; ``local_array`` returns the rank's part as an (nx, ny_loc)
-view of the Vec (Fortran order), ``rows`` the same memory as (ny_loc, nx).
+contact.engineering; ``local_array`` returns the rank's part as an (nx_loc, ny_loc)
+view of the Vec (Fortran order), ``rows`` the same memory as (ny_loc, nx_loc).
 """
 from __future__ import annotations
 
@@ -80,8 +89,21 @@ def aligned_split(n: int, parts: int, alignment: int = 1) -> list[int]:
     return rows
 
 
+def block_grid_fits(nx: int, ny: int, px: int, py: int, rows=None) -> bool:
+    """Whether a px x py process grid can carry an nx x ny grid and its pencil FFT: every
+    rank >= 1 column, every y-block (``rows`` per block, default balanced) >= px rows (one
+    row per rank in the x transform) and every x-block of Fourier columns (of the unpadded
+    transform) >= py columns."""
+    from .fft import split_range
+    nkx = nx // 2 + 1
+    rows = [ny // py] if rows is None else rows
+    return (nx >= px and ny >= py and min(rows) >= px
+            and min(b - a for a, b in split_range(nkx, px)) >= py)
+
+
 class SurfaceGrid:
-    """Uniform nx x ny surface grid of spacing (dx, dy) in metres, distributed along y.
+    """Uniform nx x ny surface grid of spacing (dx, dy) in metres, distributed along y
+    (or in px x py blocks).
 
     Parameters
     ----------
@@ -97,15 +119,22 @@ class SurfaceGrid:
     stencil_width : int
         Ghost width of the DMDA (1 serves the 4-neighbour stencils).
     row_alignment : int
-        Make every rank's first row a multiple of this (a power of two lets
-        the multilevel solver halve the grid with rank-local transfers).
+        Make every rank's first row (and, on a block grid, first column) a multiple
+        of this (a power of two lets the multilevel solver halve the grid with
+        rank-local transfers).
     y_ownership : sequence of int, optional
-        Rows per rank, overriding the balanced split (coarse grids use it).
+        Rows per y-block of ranks, overriding the balanced split (coarse grids use it).
+    px : int, optional
+        Ranks along x (a divisor of the rank count): 1 is the slab split, > 1 a block
+        grid.  Default: the option ``-grid_px`` (on more than one rank), else 1.
+    x_ownership : sequence of int, optional
+        Columns per x-block of ranks (block grids; coarse grids use it).
     """
 
     def __init__(self, nx: int, ny: int, dx: float, dy: float | None = None, *,
                  periodic: bool = True, comm=None, stencil_width: int = 1,
-                 row_alignment: int = 1, y_ownership=None):
+                 row_alignment: int = 1, y_ownership=None, px: int | None = None,
+                 x_ownership=None):
         dy = dx if dy is None else dy
         for name, n in (("nx", nx), ("ny", ny)):
             if int(n) != n or n < 2:
@@ -125,23 +154,54 @@ class SurfaceGrid:
         self.comm = comm
         self.mpi_comm = comm.tompi4py()
         size = self.mpi_comm.Get_size()
+        if px is None and x_ownership is not None:
+            px = len(x_ownership)
+        if px is None:   # one rank has no blocks: the option is for the job's grids
+            px = PETSc.Options().getInt("grid_px", 1) if size > 1 else 1
+        if int(px) != px or px < 1 or size % px:
+            raise GridError(f"grid_px (ranks along x) must be a divisor of the {size} MPI ranks, got {px!r}")
+        self.px, self.py = int(px), size // int(px)
         if size > self.ny:
+            # every 1-D transform along x is one whole row: no layout of the 2-D FFT
+            # (slabs or blocks) gives work to more ranks than there are rows
             raise GridError(
-                f"{size} MPI ranks but only ny = {self.ny} grid rows (geometry.ny): the grid is split "
-                f"along y, so use at most {self.ny} ranks")
+                f"{size} MPI ranks but only ny = {self.ny} grid rows (geometry.ny): the FFT transforms "
+                f"whole rows, so use at most {self.ny} ranks")
         if y_ownership is None:
-            y_ownership = aligned_split(self.ny, size, row_alignment)
-        y_ownership = [int(r) for r in y_ownership]
-        if len(y_ownership) != size or sum(y_ownership) != self.ny or min(y_ownership) < 1:
-            raise GridError(f"y_ownership {y_ownership} must give >= 1 row to each of {size} ranks, "
-                            f"{self.ny} rows in all")
-        starts = np.concatenate([[0], np.cumsum(y_ownership)])
-        self.y_ranges = [(int(starts[r]), int(starts[r + 1])) for r in range(size)]
-        self.xs, self.xe = 0, self.nx
-        self.ys, self.ye = self.y_ranges[self.mpi_comm.Get_rank()]
+            y_ownership = aligned_split(self.ny, self.py, row_alignment)
+        if x_ownership is None:
+            x_ownership = aligned_split(self.nx, self.px, row_alignment)
+        self.y_ranges = self._ranges(y_ownership, self.py, self.ny, "y_ownership", "row")
+        self.x_ranges = self._ranges(x_ownership, self.px, self.nx, "x_ownership", "column")
+        if self.px > 1 and not block_grid_fits(self.nx, self.ny, self.px, self.py,
+                                               [b - a for a, b in self.y_ranges]):
+            raise GridError(
+                f"a {self.px} x {self.py} process grid (grid_px = {self.px}) does not fit a "
+                f"{self.nx} x {self.ny} grid: the pencil FFT needs >= {self.px} rows per y-block "
+                f"and >= {self.py} Fourier columns per x-block")
+        rank = self.mpi_comm.Get_rank()
+        self.xs, self.xe = self.x_ranges[rank % self.px]
+        self.ys, self.ye = self.y_ranges[rank // self.px]
         self._stencil_width = int(stencil_width)
         self._da = None
         self._halo = None    # (global, local) work Vecs of halo_rows
+
+    @staticmethod
+    def _ranges(ownership, parts: int, n: int, name: str, what: str) -> list[tuple[int, int]]:
+        counts = [int(r) for r in ownership]
+        if len(counts) != parts or sum(counts) != n or min(counts) < 1:
+            raise GridError(f"{name} {counts} must give >= 1 {what} to each of {parts} blocks of ranks, "
+                            f"{n} {what}s in all")
+        starts = np.concatenate([[0], np.cumsum(counts)])
+        return [(int(starts[r]), int(starts[r + 1])) for r in range(parts)]
+
+    def require_slabs(self, what: str) -> None:
+        """GridError unless the grid is split along y only (``what`` needs whole rows)."""
+        if self.px > 1:
+            raise GridError(
+                f"{what} needs a grid split along y only (whole rows per rank), but this grid is "
+                f"split over a {self.px} x {self.py} process grid (grid_px = {self.px}); run with "
+                f"-grid_px 1 and at most ny = {self.ny} ranks")
 
     @property
     def da(self) -> PETSc.DMDA:
@@ -154,9 +214,10 @@ class SurfaceGrid:
             self.check_memory()
             bt = PETSc.DM.BoundaryType.PERIODIC if self.periodic else PETSc.DM.BoundaryType.NONE
             rows = tuple(b - a for a, b in self.y_ranges)
+            cols = tuple(b - a for a, b in self.x_ranges)
             da = PETSc.DMDA().create(
-                dim=2, dof=1, sizes=(self.nx, self.ny), proc_sizes=(1, len(rows)),
-                ownership_ranges=((self.nx,), rows),
+                dim=2, dof=1, sizes=(self.nx, self.ny), proc_sizes=(len(cols), len(rows)),
+                ownership_ranges=(cols, rows),
                 boundary_type=(bt, bt), stencil_type=PETSc.DMDA.StencilType.STAR,
                 stencil_width=self._stencil_width, comm=self.comm, setup=False)
             da.setUp()
@@ -174,8 +235,9 @@ class SurfaceGrid:
         if need is None:
             sw = self._stencil_width
             rows = max(b - a for a, b in self.y_ranges)
-            need = ((self.nx + 2 * sw) * (rows + 2 * sw) * 5 * np.dtype(PETSc.IntType).itemsize
-                    + 8 * self.nx * rows)
+            cols = max(b - a for a, b in self.x_ranges)
+            need = ((cols + 2 * sw) * (rows + 2 * sw) * 5 * np.dtype(PETSc.IntType).itemsize
+                    + 8 * cols * rows)
         need = self.mpi_comm.allreduce(float(need), op=MPI.MAX)
         avail = available_memory(self.mpi_comm)
         if need > avail:
@@ -193,6 +255,26 @@ class SurfaceGrid:
     @property
     def ny_local(self) -> int:
         return self.ye - self.ys
+
+    @property
+    def nx_local(self) -> int:
+        return self.xe - self.xs
+
+    @property
+    def local_shape(self) -> tuple[int, int]:
+        """(ny_loc, nx_loc): the shape of ``rows``."""
+        return (self.ny_local, self.nx_local)
+
+    @property
+    def n_local(self) -> int:
+        return self.nx_local * self.ny_local
+
+    @property
+    def offset(self) -> int:
+        """Global index of the rank's first Vec entry (PETSc's order: rank by rank)."""
+        rank = self.mpi_comm.Get_rank()
+        sizes = [(xe - xs) * (ye - ys) for ys, ye in self.y_ranges for xs, xe in self.x_ranges]
+        return int(sum(sizes[:rank]))
 
     @property
     def lengths(self) -> tuple[float, float]:
@@ -224,7 +306,7 @@ class SurfaceGrid:
         dm = vec.query("__PETSc_dm")
         if isinstance(dm, PETSc.DMDA) and dm.getDim() == 2 and dm.getDof() == 1:
             shape = tuple(int(n) for n in dm.getSizes())  # PETSc lists x first: (nx, ny)
-        fits = (vec.getSize() == self.nx * self.ny and vec.getLocalSize() == self.nx * self.ny_local
+        fits = (vec.getSize() == self.nx * self.ny and vec.getLocalSize() == self.n_local
                 and (shape is None or shape == self.shape))
         if not self.mpi_comm.allreduce(fits, op=MPI.LAND):
             got = (f"a field of a {shape[0]} x {shape[1]} grid" if shape is not None
@@ -234,37 +316,40 @@ class SurfaceGrid:
         return vec
 
     def rows(self, vec: PETSc.Vec, readonly: bool = False) -> np.ndarray:
-        """The rank's part of ``vec`` as a C-ordered (ny_loc, nx) view (row j = one y)."""
+        """The rank's part of ``vec`` as a C-ordered (ny_loc, nx_loc) view (row j = one y)."""
         a = vec.getArray(readonly=readonly)
-        return a.reshape(self.ny_local, self.nx)
+        return a.reshape(self.ny_local, self.nx_local)
 
     def local_array(self, vec: PETSc.Vec, readonly: bool = False) -> np.ndarray:
-        """The rank's part of ``vec`` as an (nx, ny_loc) view indexed [i, j - ys]."""
+        """The rank's part of ``vec`` as an (nx_loc, ny_loc) view indexed [i - xs, j - ys]."""
         return self.rows(vec, readonly).T
 
     def coordinates(self) -> tuple[np.ndarray, np.ndarray]:
-        """Local node coordinates (x, y) [m], each of shape (nx, ny_loc); node (i, j) at (i dx, j dy)."""
-        x = np.arange(self.nx) * self.dx
+        """Local node coordinates (x, y) [m], each of shape (nx_loc, ny_loc); node (i, j) at (i dx, j dy)."""
+        x = np.arange(self.xs, self.xe) * self.dx
         y = np.arange(self.ys, self.ye) * self.dy
         return np.meshgrid(x, y, indexing="ij")
 
     def vec_from_array(self, array: np.ndarray, name: str = "array") -> PETSc.Vec:
-        """A Vec holding the global (nx, ny) ``array``; each rank copies only its rows."""
+        """A Vec holding the global (nx, ny) ``array``; each rank copies only its block."""
         array = np.asarray(array)
         if array.shape != self.shape:
             raise GridError(f"{name} has shape {array.shape}, the grid needs (nx, ny) = {self.shape}")
         v = self.create_vec()
-        self.local_array(v)[...] = array[:, self.ys:self.ye]
+        self.local_array(v)[...] = array[self.xs:self.xe, self.ys:self.ye]
         return v
 
     def halo_rows(self, rows: np.ndarray, lo: np.ndarray, hi: np.ndarray, *,
-                  edge: str = "zero") -> tuple[np.ndarray, np.ndarray]:
-        """Fill ``lo`` with row ys - 1 and ``hi`` with row ye of a (ny_loc, nx) array.
+                  edge: str = "zero", left: np.ndarray | None = None,
+                  right: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Fill ``lo`` with row ys - 1 and ``hi`` with row ye of a (ny_loc, nx_loc) array, and
+        ``left``/``right`` (if given) with columns xs - 1 and xe.
 
-        Rows come from the neighbouring ranks through the DMDA's ghost exchange
+        Rows and columns come from the neighbouring ranks through the DMDA's ghost exchange
         (``globalToLocal``; periodic wrap-around on a periodic grid).  Beyond an isolated grid's edge: zeros
-        (``edge="zero"``) or the edge row repeated (``edge="repeat"``).
-        Collective; ``lo`` and ``hi`` are caller-owned buffers of length nx.
+        (``edge="zero"``) or the edge row (column) repeated (``edge="repeat"``).
+        Collective; ``lo`` and ``hi`` are caller-owned buffers of length nx_loc, ``left`` and
+        ``right`` of length ny_loc.
         """
         if edge not in ("zero", "repeat"):
             raise ValueError(f"edge must be 'zero' or 'repeat', got {edge!r}")
@@ -280,13 +365,24 @@ class SurfaceGrid:
         ghosted = local_vec.getArray(readonly=True).reshape(gye - gys, gxe - gxs)
         x0 = self.xs - gxs
         if gys < self.ys:
-            lo[...] = ghosted[self.ys - 1 - gys, x0:x0 + self.nx]
+            lo[...] = ghosted[self.ys - 1 - gys, x0:x0 + self.nx_local]
         else:
             lo[...] = 0.0 if edge == "zero" else rows[0]
         if gye > self.ye:
-            hi[...] = ghosted[self.ye - gys, x0:x0 + self.nx]
+            hi[...] = ghosted[self.ye - gys, x0:x0 + self.nx_local]
         else:
             hi[...] = 0.0 if edge == "zero" else rows[-1]
+        y0 = self.ys - gys
+        if left is not None:
+            if gxs < self.xs:
+                left[...] = ghosted[y0:y0 + self.ny_local, x0 - 1]
+            else:
+                left[...] = 0.0 if edge == "zero" else rows[:, 0]
+        if right is not None:
+            if gxe > self.xe:
+                right[...] = ghosted[y0:y0 + self.ny_local, x0 + self.nx_local]
+            else:
+                right[...] = 0.0 if edge == "zero" else rows[:, -1]
         return lo, hi
 
     def gather(self, vec: PETSc.Vec, root: int | None = None) -> np.ndarray | None:
@@ -298,9 +394,11 @@ class SurfaceGrid:
             parts = self.mpi_comm.gather(rows, root=root)
             if parts is None:
                 return None
-        return np.concatenate(parts, axis=0).T.copy()
+        bands = [np.concatenate(parts[a * self.px:(a + 1) * self.px], axis=1) for a in range(self.py)]
+        return np.concatenate(bands, axis=0).T.copy()
 
     def __repr__(self) -> str:
         kind = "periodic" if self.periodic else "isolated"
+        split = f", {self.px} x {self.py} blocks" if self.px > 1 else ""
         return (f"SurfaceGrid({self.nx} x {self.ny}, dx={self.dx:g} m, dy={self.dy:g} m, {kind}, "
-                f"{self.mpi_comm.Get_size()} rank(s))")
+                f"{self.mpi_comm.Get_size()} rank(s){split})")

@@ -53,3 +53,31 @@ def test_the_sweep_job_prints_the_stack_passes_options_and_resumes_on_resubmissi
     assert "SNES Function norm" not in second.stdout         # nothing left to solve
     with open(out / "curve.csv") as f:
         assert list(csv.DictReader(f)) == rows
+
+
+MODEL = Path(__file__).resolve().parents[1] / "run_scripts" / "cluster" / "model.slurm"
+
+
+@pytest.mark.serial
+def test_the_model_job_calibrates_measures_and_predicts(tmp_path):
+    """The model job with a stand-in srun on one task: the calibration (FFT rate, copy rate, the
+    apply beside its model), the benchmark solve, the model beside it, and the predictions."""
+    import json
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    _stand_in(bin_dir / "srun", 'while [[ "$1" == --* ]]; do shift; done; exec "$@"')
+    _stand_in(bin_dir / "python3", f'exec "{sys.executable}" "$@"')
+    out = tmp_path / "model"
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("OMPI_COMM_WORLD", "PMI", "PMIX"))}
+    env.update(PATH=f"{bin_dir}:{env['PATH']}", SLURM_JOB_ID="7", SLURM_NTASKS="1", SIZES="64", CAL_N="64",
+               PX="1", OUT=str(out), REPO=str(MODEL.parents[2]), PYTHONPATH=str(MODEL.parents[2]))
+    run = subprocess.run(["bash", str(MODEL)], env=env, capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert run.returncode == 0, run.stdout + run.stderr
+    cal = json.loads((out / "calibration.jsonl").read_text().splitlines()[0])
+    assert cal["ranks"] == 1 and cal["k_fft"] > 0 and cal["b_core"] > 0
+    assert cal["apply"]["1x1"]["measured"] > 0 and cal["apply"]["1x1"]["model"] > 0
+    solve = json.loads((out / "solves.jsonl").read_text().splitlines()[0])
+    assert solve["n"] == 64 and solve["converged"] and solve["px"] == 1
+    assert "| 64 | 1 | 1 |" in (out / "check.md").read_text()
+    predicted = (out / "predict.md").read_text()
+    assert "| 8192 | 1024 |" in predicted and "| 16384 | 16 |" in predicted

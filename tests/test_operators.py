@@ -355,3 +355,21 @@ def test_slab_fft_matches_numpy(coll, pad):
     assert coll.max(err_q) <= 1e-13
     assert coll.max(abs(parseval / (f.Nx * f.Ny) / np.sum(a ** 2) - 1)) <= 1e-13
     assert coll.max(err_bwd) <= 1e-14
+
+
+def test_fft_threads_auto_and_checked(coll):
+    """-elastic_fft_threads auto: between 1 and the rank's cores, and K p equal to the
+    single-threaded one to round-off; a bad value is refused naming the option."""
+    import os
+
+    from contactpetsc.operators.elastic import fft_threads
+    g = SurfaceGrid(24, 20, 0.1)
+    n = fft_threads(g.mpi_comm, "auto")
+    assert coll.all(1 <= n <= len(os.sched_getaffinity(0)))
+    p = np.random.default_rng(2).standard_normal(g.local_shape)
+    one, auto = np.empty_like(p), np.empty_like(p)
+    PeriodicHalfSpace(g, 1.0, threads=1, planner=PLANNER).apply(p, one)
+    PeriodicHalfSpace(g, 1.0, threads=n, planner=PLANNER).apply(p, auto)
+    assert coll.max(np.max(np.abs(auto - one)) / np.max(np.abs(one))) < 1e-14
+    coll.raises(ValueError, ["elastic_fft_threads", "auto"], fft_threads, g.mpi_comm, "two",
+                "elastic_fft_threads")

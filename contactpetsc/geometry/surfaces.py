@@ -14,7 +14,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from ..collective import collective_call
-from ..fft import SlabRFFT
+from ..pencil_fft import grid_rfft
 from ..grid import GridError, SurfaceGrid
 from ..topography import centred_coordinates, grid_mismatch, read_topography, trend
 
@@ -80,6 +80,7 @@ def from_file(grid: SurfaceGrid, path: str, dataset: str = "heights", *, format:
                                rows=(grid.ys, grid.ye))
         return np.asarray(topo.heights, dtype=float)
 
+    grid.require_slabs("reading heights from a file (by rows)")
     v = grid.create_vec()
     local = collective_call(grid.mpi_comm, GridError, f"cannot read heights from {path}: {{error}}", read)
     grid.local_array(v)[...] = local
@@ -91,6 +92,7 @@ def detrended(grid: SurfaceGrid, h: PETSc.Vec, mode: str = "none") -> PETSc.Vec:
     "curvature"; ``topography.detrend``), shifted so that min h = 0 (assumption 1: approach 0
     is first touch).  The fit is made from every rank's rows (an all-reduce)."""
     grid.check_vec(h, "heights")
+    grid.require_slabs("detrending")
     local = grid.local_array(h, readonly=True)
     u, v = centred_coordinates(grid.nx, grid.ny, slice(grid.ys, grid.ye))
     fit = collective_call(grid.mpi_comm, GridError, "detrend: {error}", trend, local, u, v, mode,
@@ -111,7 +113,7 @@ def from_topography(grid: SurfaceGrid, path: str, dataset: str = "heights", *, f
 
 
 def from_function(grid: SurfaceGrid, func) -> PETSc.Vec:
-    """Heights [m] = func(x, y) on the local nodes; x, y [m] arrays of shape (nx, ny_local)."""
+    """Heights [m] = func(x, y) on the local nodes; x, y [m] arrays of shape (nx_local, ny_local)."""
     v = grid.create_vec()   # first: a grid too big for memory is refused in its own terms
     x, y = grid.coordinates()
     values = collective_call(grid.mpi_comm, GridError, "height function failed: {error!r}", func, x, y)
@@ -190,7 +192,7 @@ def gaussian_correlated(grid: SurfaceGrid, *, rms_height: float, correlation_len
 
 def _random_surface(grid: SurfaceGrid, seed: int, psd_amplitude, rms_height, rms_slope) -> PETSc.Vec:
     h = grid.create_vec()   # first: a grid too big for memory is refused in its own terms
-    fft = SlabRFFT(grid.mpi_comm, grid.nx, grid.ny, grid.y_ranges, planner="estimate")
+    fft = grid_rfft(grid, planner="estimate")
     qx, qy = fft.wavevectors(*grid.lengths)
     # draw per kx column, [kx_local, ky], from a stream keyed by (seed, kx): rank-independent
     cols = np.empty((fft.kx1 - fft.kx0, fft.Ny), complex)

@@ -37,13 +37,33 @@ import pyfftw
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..fft import SlabRFFT
+from ..pencil_fft import grid_rfft
 from ..log_events import log_event
 from ..collective import collective_guard
 from ..grid import SurfaceGrid
 from ..lifetime import destroy_at_exit
 from .layer import Layer
 from .love import love_displacement
+
+
+def fft_threads(comm, value, name: str = "fft_threads") -> int:
+    """FFTW threads per rank: an integer >= 1, or ``auto``: the cores this rank may run on
+    (its CPU affinity), shared with the other ranks of its node when they see the same cores;
+    1 for ranks bound to one core each, all of a node's cores for one rank per node."""
+    if str(value).lower() == "auto":
+        import os
+        cores = len(os.sched_getaffinity(0))
+        node = comm.Split_type(MPI.COMM_TYPE_SHARED)
+        ranks = node.Get_size()
+        node.Free()
+        return max(1, cores // ranks if cores >= (os.cpu_count() or cores) else cores)
+    try:
+        n = int(value)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise ValueError(f"{name} must be an integer >= 1 or auto, got {value!r}")
+    return n
 
 
 class HalfSpaceOperator:
@@ -59,11 +79,11 @@ class HalfSpaceOperator:
         if not (np.isfinite(e_star) and e_star > 0):
             raise ValueError(f"e_star (effective modulus E*, Pa) must be finite and > 0, got {e_star!r}")
         opts = PETSc.Options(prefix)
-        threads = opts.getInt("fft_threads", 1 if threads is None else threads)
+        threads = opts.getString("fft_threads", str(1 if threads is None else threads))
+        threads = fft_threads(grid.mpi_comm, threads, f"{prefix}fft_threads")
         planner = opts.getString("fft_planner", "measure" if planner is None else planner)
         self.grid, self.e_star, self.prefix = grid, float(e_star), prefix
-        self.fft = SlabRFFT(grid.mpi_comm, grid.nx, grid.ny, grid.y_ranges, pad=pad,
-                            threads=threads, planner=planner)
+        self.fft = grid_rfft(grid, pad=pad, threads=threads, planner=planner)
 
     def on_grid(self, grid: SurfaceGrid, **kw) -> "HalfSpaceOperator":
         """The same elastic body discretised on another grid (the coarse grids of the nested
@@ -100,7 +120,7 @@ class HalfSpaceOperator:
         return self.fft.backward(rows_out)
 
     def apply(self, pressure_rows: np.ndarray, out_rows: np.ndarray) -> np.ndarray:
-        """Displacement v = K p [m] for pressure p [Pa], both local (ny_loc, nx) rows."""
+        """Displacement v = K p [m] for pressure p [Pa], both local (ny_loc, nx_loc) rows."""
         ev = log_event("CPElasticMult")
         ev.begin()
         self.convolve(self._kernel_pairs, pressure_rows, out_rows)
@@ -119,7 +139,7 @@ class HalfSpaceOperator:
 
     def as_mat(self, inverse: bool = False) -> PETSc.Mat:
         """K (or K^-1) as a matrix-free Python-context Mat on the grid's global Vecs."""
-        n_local = self.grid.nx * self.grid.ny_local
+        n_local = self.grid.n_local
         n = self.grid.nx * self.grid.ny
         mat = PETSc.Mat().createPython(((n_local, n), (n_local, n)),
                                        _OperatorContext(self, inverse), comm=self.grid.comm)

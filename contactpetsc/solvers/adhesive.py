@@ -118,6 +118,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
                  centre: tuple[int, int] | None = None, petsc_options: dict | None = None):
         if not law.adhesive:
             raise ValueError(f"law {law.name!r} has no adhesion: use ContactProblem")
+        grid.require_slabs("the adhesive solver")
         if tol is not None:
             check_tolerance(tol, "tol")
         super().__init__(grid, heights, e_star, prefix=prefix, operator=operator, petsc_options=petsc_options)

@@ -40,7 +40,7 @@ class ContactLoadControl:
             self._dp.set(0.0)
             self._slope_cache = (inactive, 0.0, self._dp)
             return 0.0, self._dp
-        local = (np.flatnonzero(inactive) + grid.nx * grid.ys).astype(PETSc.IntType)
+        local = (np.flatnonzero(inactive) + grid.offset).astype(PETSc.IntType)
         index_set = PETSc.IS().createGeneral(local, comm=grid.comm)
         J = self._snes.getJacobian()[0]
         A = J.createSubMatrix(index_set, index_set)

@@ -71,11 +71,13 @@ class Level:
         lo = comm.allreduce(float(kd[high].min()) if high.any() else np.inf, op=MPI.MIN)
         hi = comm.allreduce(float(kd[high].max()) if high.any() else 0.0, op=MPI.MAX)
         self.omega = 2.0 / (lo + hi)
-        self.halo_lo = np.zeros(g.nx)
-        self.halo_hi = np.zeros(g.nx)
-        self.work = np.zeros((g.ny_local, g.nx))
-        self.work2 = np.zeros((g.ny_local, g.nx))
-        self.ku = np.zeros((g.ny_local, g.nx))
+        self.halo_lo = np.zeros(g.nx_local)
+        self.halo_hi = np.zeros(g.nx_local)
+        self.halo_left = np.zeros(g.ny_local)
+        self.halo_right = np.zeros(g.ny_local)
+        self.work = np.zeros(g.local_shape)
+        self.work2 = np.zeros(g.local_shape)
+        self.ku = np.zeros(g.local_shape)
         self.mask = None
 
     def set_mask(self, mask: np.ndarray, power_its: int, bound: float) -> None:
@@ -101,7 +103,7 @@ class Level:
         with np.errstate(divide="ignore", invalid="ignore"):
             self.scale = np.where(self.mask > 0, np.sqrt(self.omega / np.where(lam > 0, lam, 1.0)), 0.0)
         comm = grid.mpi_comm
-        i = np.arange(grid.nx)[None, :]
+        i = np.arange(grid.xs, grid.xe)[None, :]
         j = np.arange(grid.ys, grid.ye)[:, None]
         v = np.where((i + j) % 2 == 0, 1.0, 0.0) * self.mask
         norm = np.sqrt(comm.allreduce(float(np.vdot(v, v))))
@@ -121,16 +123,15 @@ class Level:
             self.scale *= np.sqrt(bound / self.rho)
 
     def neighbour_sums(self, r: np.ndarray, sx: np.ndarray, sy: np.ndarray):
-        """(sum over the 2 x-neighbours, sum over the 2 y-neighbours) of r; halo rows from adjacent ranks."""
+        """(sum over the 2 x-neighbours, sum over the 2 y-neighbours) of r; halo rows and
+        columns from adjacent ranks (or, periodic, the wrap-around)."""
         grid = self.grid
-        grid.halo_rows(r, self.halo_lo, self.halo_hi, edge="zero")
+        grid.halo_rows(r, self.halo_lo, self.halo_hi, edge="zero", left=self.halo_left, right=self.halo_right)
         sx[...] = 0.0
-        if grid.periodic:
-            sx += np.roll(r, 1, axis=1)
-            sx += np.roll(r, -1, axis=1)
-        else:
-            sx[:, 1:] += r[:, :-1]
-            sx[:, :-1] += r[:, 1:]
+        sx[:, 1:] += r[:, :-1]
+        sx[:, :-1] += r[:, 1:]
+        sx[:, 0] += self.halo_left
+        sx[:, -1] += self.halo_right
         sy[...] = 0.0
         sy[1:] += r[:-1]
         sy[:-1] += r[1:]

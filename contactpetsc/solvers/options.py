@@ -52,7 +52,8 @@ CONTACT = (
     Option(("mlmi_cycle", "mlmi_pre", "mlmi_post", "mlmi_coarse_sweeps"), ("v", 1, 1, 4), "cycle"),
     Option(("mlmi_power_its", "mlmi_rho_bound"), (6, 1.6), "smoother damping bound"),
     Option(("fft_threads", "-fft_planner"), (1, "measure"),
-           "FFTW threads per rank, planner effort (a standalone operator reads `-elastic_fft_*`)"),
+           "FFTW threads per rank (or auto: the rank's cores), planner effort (a standalone operator "
+           "reads `-elastic_fft_*`)"),
 )
 
 ADHESION = (

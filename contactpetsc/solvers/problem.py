@@ -139,7 +139,7 @@ class ContactProblem(ContactLoadControl, VIProblem):
         self.load_tol = check_tolerance(opts.getReal("load_tol", self._default("load_tol")),
                                         f"load_tol (-{self.prefix}load_tol)")
         self._jac = ContactJacobian(self.op, self.prefix)
-        n_local, n = grid.nx * grid.ny_local, grid.nx * grid.ny
+        n_local, n = grid.n_local, grid.nx * grid.ny
         self._J = J = destroy_at_exit(PETSc.Mat().createPython(((n_local, n), (n_local, n)), self._jac,
                                                                comm=grid.comm))
         J.setUp()

@@ -105,13 +105,13 @@ class ReducedJacobian:
         self.parent = parent
         self.op = parent.op
         g = self.grid = self.op.grid
-        self.set = InactiveSet(index_set, g.nx * g.ys, g.nx * g.ny_local)
+        self.set = InactiveSet(index_set, g.offset, g.n_local)
         self.n_local = self.set.n_local
         # SNES VI asks for a new sub-matrix at every Newton step: the grid-sized work
         # arrays are the parent's (one reduced Mat is in use at a time)
         buffers = parent.pc_data.reduced_buffers
         if buffers is None:
-            shape = (g.ny_local, g.nx)
+            shape = g.local_shape
             buffers = parent.pc_data.reduced_buffers = (np.empty(shape, bool), np.empty(shape), np.empty(shape))
         self.mask, self.full_in, self.full_out = buffers
         self.mask.fill(False)

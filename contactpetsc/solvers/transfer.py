@@ -2,25 +2,33 @@
 
 Coarse node (I, J) is the 2 x 2 block of fine nodes (2I..2I+1, 2J..2J+1).
 Rows per rank are aligned to even numbers (``SurfaceGrid(row_alignment=...)``),
-so every transfer but the bilinear one is rank-local.
+so every transfer but the bilinear one is rank-local.  On a block grid
+(``grid.px`` > 1) the columns per rank are even too; the bilinear one needs
+whole rows.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from ..grid import SurfaceGrid
+from ..grid import SurfaceGrid, block_grid_fits
 
 
 def can_halve(grid: SurfaceGrid) -> bool:
-    """Whether ``grid`` has a 2x coarser grid with rank-local transfers (even sizes and rows per rank)."""
-    rows = [b - a for a, b in grid.y_ranges]
-    return not (grid.nx % 2 or grid.ny % 2 or any(r % 2 or r < 2 for r in rows))
+    """Whether ``grid`` has a 2x coarser grid with rank-local transfers (even sizes, rows and
+    columns per rank) on which the FFT still gives every rank a line (``block_grid_fits``;
+    on slabs: at least as many Fourier columns as ranks)."""
+    blocks = [b - a for a, b in grid.y_ranges + grid.x_ranges]
+    if grid.nx % 2 or grid.ny % 2 or min(grid.nx, grid.ny) < 4 or any(r % 2 or r < 2 for r in blocks):
+        return False
+    return block_grid_fits(grid.nx // 2, grid.ny // 2, grid.px, grid.py,
+                           [(b - a) // 2 for a, b in grid.y_ranges])
 
 
 def halved(grid: SurfaceGrid) -> SurfaceGrid:
-    """The 2x coarser grid (spacing doubled), each rank owning the parents of its rows."""
+    """The 2x coarser grid (spacing doubled), each rank owning the parents of its nodes."""
     return SurfaceGrid(grid.nx // 2, grid.ny // 2, 2 * grid.dx, 2 * grid.dy, periodic=grid.periodic,
-                       comm=grid.comm, y_ownership=[(b - a) // 2 for a, b in grid.y_ranges])
+                       comm=grid.comm, y_ownership=[(b - a) // 2 for a, b in grid.y_ranges],
+                       px=grid.px, x_ownership=[(b - a) // 2 for a, b in grid.x_ranges])
 
 
 def restrict(fine: np.ndarray) -> np.ndarray:
@@ -43,6 +51,7 @@ def prolong_bilinear(coarse: np.ndarray, grid: SurfaceGrid) -> np.ndarray:
     so the mean is kept; at an isolated window's edge the edge value is
     repeated.  One halo row from each neighbour rank (``grid`` is the coarse grid).
     """
+    grid.require_slabs("bilinear prolongation (-contact_fmg_prolong bilinear)")
     lo, hi = grid.halo_rows(coarse, np.empty(coarse.shape[1]), np.empty(coarse.shape[1]), edge="repeat")
     ext = np.concatenate([lo[None], coarse, hi[None]])
     if grid.periodic:

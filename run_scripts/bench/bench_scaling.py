@@ -18,9 +18,10 @@ height.  One JSON line per (n, solver) case with
   (peak_solve - rss_base) / (8 B * n^2 / ranks), summed over ranks on a
   node, i.e. per grid point of the whole problem;
 * MPI: ``alltoall_bytes_per_apply`` measured (the payload the FFT passed to
-  Alltoallv, summed over ranks, one forward + one backward transpose,
-  self-blocks excluded) against ``alltoall_bytes_model`` = 2 * 16 B *
-  (N_kx * N_y - sum_r nkx_r * ny_r), computed from the slab sizes alone.
+  Alltoallv, summed over ranks, one forward + one backward transform,
+  self-blocks excluded) against ``alltoall_bytes_model``, computed from the
+  decomposition alone (``transpose_bytes.py``: slabs, or px x py blocks with
+  ``-grid_px``); ``px``, ``py`` the process grid.
 
 Usage (one process per size keeps the memory figures clean)::
 
@@ -28,6 +29,7 @@ Usage (one process per size keeps the memory figures clean)::
     mpirun -n 2 .venv/bin/python run_scripts/bench/bench_scaling.py --sizes 1024 2048
     .venv/bin/python run_scripts/bench/bench_scaling.py --sizes 4096 -log_view
     .venv/bin/python run_scripts/bench/bench_scaling.py --sizes 8192 --solvers spectral --check-error
+    mpirun -n 4 .venv/bin/python run_scripts/bench/bench_scaling.py --sizes 1024 -grid_px 2   # 2 x 2 blocks
 
 ``--separate`` runs every size in a fresh process of the same launcher
 (serial only).  Timed runs belong behind ``flock /tmp/contactpetsc-bench.lock``.
@@ -73,6 +75,7 @@ from petsc4py import PETSc  # noqa: E402
 from contactpetsc.solvers import ContactProblem  # noqa: E402
 
 from rough_surface import rough_scene, rough_surface  # noqa: E402
+from transpose_bytes import transpose_bytes  # noqa: E402
 
 E_STAR, L = rough_scene(64)["material"]["e_star"], 1.0
 comm = PETSc.COMM_WORLD.tompi4py()
@@ -96,13 +99,6 @@ def reset_peak() -> None:
 
 def node_sum_mb(kb: int) -> float:
     return comm.allreduce(kb) / 1024.0
-
-
-def alltoall_model(fft) -> int:
-    """Bytes all ranks send per apply (forward + backward transpose), self-blocks excluded."""
-    nkx = [b - a for a, b in fft.kx_ranges]
-    ny = [b - a for a, b in fft.y_ranges]
-    return 2 * 16 * (fft.nkx * fft.ny - sum(k * h for k, h in zip(nkx, ny)))
 
 
 for n in args.sizes:
@@ -136,7 +132,7 @@ for n in args.sizes:
             peak_solve_mb=node_sum_mb(peak_solve),
             doubles_per_point=(comm.allreduce(peak_solve - base) * 1024.0) / (8 * pts),
             alltoall_bytes_per_apply=(sent / applies if applies else 0.0),
-            alltoall_bytes_model=alltoall_model(fft) if size > 1 else 0,
+            alltoall_bytes_model=transpose_bytes(fft), px=g.px, py=g.py,
             fine_applies=applies, time_per_fine_pair=t / max(st.fft_pairs, 1))
         PETSc.Sys.Print(json.dumps(res))
         if args.save_pressure:
