@@ -177,3 +177,73 @@ class ContactLoadControl:
                 inner = max(self.tol, min(self.inner_tol0, self.inner_eta * abs(new - delta) / self.length_scale))
             delta = new
         return False, f"DIVERGED_LOAD_ITERATION ({self.max_outer} approach updates; last SNES {reason})"
+
+
+class JointLoadNewton:
+    """Mixin of ``ContactProblem``: load control as one Newton iteration in (p, delta)."""
+
+    def _joint_gap(self, p: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """g = h + K p - delta(p), delta(p) the mean of h + K p over the loaded nodes (p > 0):
+        the approach at which the present pressure is an equilibrium on its contact set
+        (exact at a solution, where g = 0 there; the multiplier estimate of the joint step)."""
+        grid = self.grid
+        v = self.op.apply(p, out)
+        v += grid.rows(self.heights, readonly=True)
+        loaded = p > 0
+        sums = grid.mpi_comm.allreduce(np.array([float(v[loaded].sum()), float(np.count_nonzero(loaded))]))
+        if sums[1] > 0:
+            delta = sums[0] / sums[1]
+        else:
+            delta = grid.mpi_comm.allreduce(float(v.min()), op=MPI.MIN)
+        self._approach = delta
+        out -= delta
+        return out
+
+    def _step_sum(self) -> float:
+        """c = sum(p) - n W: the sum of the Newton step y (p <- p - y) that restores the load."""
+        grid = self.grid
+        return self._x.sum() - grid.nx * grid.ny * self._target
+
+    def _forcing(self, A, rtol):
+        mask = A.getPythonContext().mask
+        prev = self._last_mask
+        changed = -1 if prev is None else int(np.count_nonzero(prev != mask))
+        changed = self.grid.mpi_comm.allreduce(changed, op=MPI.MAX) if changed >= 0 else -1
+        self._last_mask = mask.copy()
+        err = self._last_gap_error
+        import os
+        mode = os.environ.get("CP_FORCING", "")
+        new = rtol
+        safe = float(os.environ.get("CP_SAFE", "0.2"))
+        floor = max(1e-8, safe * self._inner_tol / err)
+        if mode == "set" and changed == 0:
+            new = min(rtol, floor)
+        if mode == "ew" and self._prev_gap_error is not None:
+            ratio = err / self._prev_gap_error
+            new = min(rtol, max(float(os.environ.get("CP_GAMMA", "1")) * ratio ** float(os.environ.get("CP_ALPHA", "2")), floor))
+        self._prev_gap_error = err
+        if os.environ.get("CP_DEBUG"): print(f"   forcing: changed {changed} err {err:.2e} rtol {new:.2e}")
+        return new
+
+    def _solve_load_joint(self, target: float):
+        """Load control: SNES VI Newton with delta as the load's multiplier; (converged, reason)."""
+        from .projected_cg import ProjectedCG
+        snes = self._build()
+        ksp = snes.getKSP()
+        kind = ksp.getType()
+        ksp.setType("python")
+        ksp.setPythonContext(ProjectedCG(self._step_sum, self._forcing))
+        self._last_mask = None
+        self._prev_gap_error = None
+        p = self._pressure
+        if p.sum() <= 0:
+            p.set(target)   # no load yet: start from full contact at the target
+        self._joint = True
+        try:
+            ok, reason = self._solve_at(self._approach if self._approach is not None else 0.0, p)
+        finally:
+            self._joint = False
+            ksp.setType(kind)
+        if ok:
+            self._x.copy(self._pressure)
+        return ok, reason

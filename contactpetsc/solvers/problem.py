@@ -41,7 +41,7 @@ from ..operators.elastic import HalfSpaceOperator
 from ..geometry.surfaces import rms_height
 from .base import (ContactSolveError, VIProblem, check_tolerance, convergence_verdict, reason_name,
                    weighted_pairs, with_options)
-from .contact_load import MIN_LOAD, ContactLoadControl
+from .contact_load import MIN_LOAD, ContactLoadControl, JointLoadNewton
 from .history import SolveHistory
 from .options import LINESEARCH_MAX_STEP, code_default, print_help
 from .pc_registry import PRECONDITIONERS, preconditioner_name
@@ -56,7 +56,7 @@ from .transfer import can_halve, halved, prolong_bilinear, prolong_constant, res
 NEWTON_LINESEARCH, NEWTON_KSP = "bt", "cg"
 
 
-class ContactProblem(ContactLoadControl, VIProblem):
+class ContactProblem(JointLoadNewton, ContactLoadControl, VIProblem):
     """Contact of an elastic half-space with a rigid composite surface h, no adhesion.
 
     Parameters
@@ -122,6 +122,7 @@ class ContactProblem(ContactLoadControl, VIProblem):
         self._pressure = grid.create_vec(0.0)   # last converged pressure: the next warm start
         self._approach = None
         self._target = None
+        self._joint = False       # load control by the joint Newton step (contact_load.py)
         self._h_min = None
 
     # -- set-up ------------------------------------------------------------------
@@ -208,7 +209,10 @@ class ContactProblem(ContactLoadControl, VIProblem):
     # -- SNES callbacks ------------------------------------------------------------
     @collective_guard
     def _residual(self, snes, x, f):
-        self.gap(self.grid.rows(x, readonly=True), self.grid.rows(f))
+        if self._joint:
+            self._joint_gap(self.grid.rows(x, readonly=True), self.grid.rows(f))
+        else:
+            self.gap(self.grid.rows(x, readonly=True), self.grid.rows(f))
 
     def _jacobian(self, snes, x, J, P):
         pass  # K does not depend on p: nothing to update
@@ -273,10 +277,16 @@ class ContactProblem(ContactLoadControl, VIProblem):
             complementarity_error=err, load_error=load_err, approach=self._approach,
             mean_pressure=mean_p, contact_fraction=frac, solver=solver, interference_error=err_gap)
         self._last_error = err
+        self._last_gap_error = err_gap
         if not err_gap >= self._best[0]:   # NaN never replaces a real iterate
             self._best = (err_gap, it)
             x.copy(self._x_best)
-        return convergence_verdict(snes, it, err_gap, self._inner_tol)
+        verdict = convergence_verdict(snes, it, err_gap, self._inner_tol)
+        if (self._joint and verdict == PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS
+                and not load_err <= self.load_tol):
+            # the load is part of the joint problem's error: the step after the last clip
+            verdict = convergence_verdict(snes, it, np.inf if np.isnan(load_err) else 1.0, self._inner_tol)
+        return verdict
 
     def _operators(self) -> dict:
         ops = {id(self.op): self.op}
@@ -369,7 +379,7 @@ class ContactProblem(ContactLoadControl, VIProblem):
                                 _root=self._root, **d)
         coarse._levels = levels[1:] if levels and len(levels) > 1 else None
         coarse._build()
-        coarse.tol, coarse.load_tol = max(self.fmg_tol, self.tol), max(1e-6, self.load_tol)
+        coarse.tol, coarse.load_tol = max(self.fmg_tol, self.tol), max(self.fmg_tol, self.load_tol)
         coarse.fmg, coarse.fmg_min_size, coarse.fmg_tol = self.fmg, self.fmg_min_size, self.fmg_tol
         self._coarse = coarse
         return coarse
@@ -458,7 +468,7 @@ class ContactProblem(ContactLoadControl, VIProblem):
             if converged:
                 self._x.copy(self._pressure)
         else:
-            converged, reason = self._solve_load(mean_pressure)
+            converged, reason = self._solve_load_joint(mean_pressure)
         p = self._x.copy()
         v, gap = grid.create_vec(), grid.create_vec()
         self.gap(grid.rows(p, readonly=True), grid.rows(gap), displacement=grid.rows(v))
