@@ -180,12 +180,24 @@ class ContactLoadControl:
 
 
 class JointLoadNewton:
-    """Mixin of ``ContactProblem``: load control as one Newton iteration in (p, delta)."""
+    """Mixin of ``ContactProblem``: load control as one Newton iteration in (p, delta).
+
+    The approach is the Lagrange multiplier of the load sum(p) = n W: each SNES VI step
+    solves K_II y - mu 1 = g_I with sum(y) = sum(p) - n W by projected CG
+    (``projected_cg.py``), and the residual takes delta(p), the approach at which the
+    iterate is in equilibrium on its loaded nodes.  No slope solves, no outer iteration.
+    The Krylov tolerance follows the Newton convergence (Eisenstat and Walker's second
+    choice): rtol_k = (e_k / e_(k-1))^2, at most ``-<prefix>newton_ksp_rtol`` and at least
+    what the remaining factor e_k / tol asks (with a safety factor).
+    """
+
+    #: the last step's Krylov tolerance aims at this fraction of the tolerance
+    FORCING_SAFETY = 0.2
 
     def _joint_gap(self, p: np.ndarray, out: np.ndarray) -> np.ndarray:
-        """g = h + K p - delta(p), delta(p) the mean of h + K p over the loaded nodes (p > 0):
-        the approach at which the present pressure is an equilibrium on its contact set
-        (exact at a solution, where g = 0 there; the multiplier estimate of the joint step)."""
+        """g = h + K p - delta(p) [m], delta(p) the mean of h + K p over the loaded nodes
+        (p > 0): exact at a solution, where g = 0 there, and to first order the approach
+        of the joint step's multiplier (the step leaves g_I = mu 1)."""
         grid = self.grid
         v = self.op.apply(p, out)
         v += grid.rows(self.heights, readonly=True)
@@ -193,51 +205,45 @@ class JointLoadNewton:
         sums = grid.mpi_comm.allreduce(np.array([float(v[loaded].sum()), float(np.count_nonzero(loaded))]))
         if sums[1] > 0:
             delta = sums[0] / sums[1]
-        else:
+        else:   # nothing loaded: the approach of first contact
             delta = grid.mpi_comm.allreduce(float(v.min()), op=MPI.MIN)
         self._approach = delta
         out -= delta
         return out
 
     def _step_sum(self) -> float:
-        """c = sum(p) - n W: the sum of the Newton step y (p <- p - y) that restores the load."""
+        """c = sum(p) - n W [Pa]: the sum of the Newton step y (p <- p - y) that restores the load
+        (the projection onto p >= 0 of the last step moved it)."""
         grid = self.grid
         return self._x.sum() - grid.nx * grid.ny * self._target
 
-    def _forcing(self, A, rtol):
-        mask = A.getPythonContext().mask
-        prev = self._last_mask
-        changed = -1 if prev is None else int(np.count_nonzero(prev != mask))
-        changed = self.grid.mpi_comm.allreduce(changed, op=MPI.MAX) if changed >= 0 else -1
-        self._last_mask = mask.copy()
-        err = self._last_gap_error
-        import os
-        mode = os.environ.get("CP_FORCING", "")
-        new = rtol
-        safe = float(os.environ.get("CP_SAFE", "0.2"))
-        floor = max(1e-8, safe * self._inner_tol / err)
-        if mode == "set" and changed == 0:
-            new = min(rtol, floor)
-        if mode == "ew" and self._prev_gap_error is not None:
-            ratio = err / self._prev_gap_error
-            new = min(rtol, max(float(os.environ.get("CP_GAMMA", "1")) * ratio ** float(os.environ.get("CP_ALPHA", "2")), floor))
+    def _forcing(self, rtol: float) -> float:
+        """The Krylov tolerance of this Newton step (Eisenstat-Walker, see the class)."""
+        err, prev = self._last_gap_error, self._prev_gap_error
         self._prev_gap_error = err
-        if os.environ.get("CP_DEBUG"): print(f"   forcing: changed {changed} err {err:.2e} rtol {new:.2e}")
-        return new
+        if prev is None or not (np.isfinite(err) and err > 0 and prev > 0):
+            return rtol
+        floor = self.FORCING_SAFETY * self._inner_tol / err
+        return float(min(rtol, max((err / prev) ** 2, floor)))
 
     def _solve_load_joint(self, target: float):
-        """Load control: SNES VI Newton with delta as the load's multiplier; (converged, reason)."""
+        """Load control by the joint Newton iteration; returns (converged, reason)."""
         from .projected_cg import ProjectedCG
         snes = self._build()
         ksp = snes.getKSP()
         kind = ksp.getType()
         ksp.setType("python")
         ksp.setPythonContext(ProjectedCG(self._step_sum, self._forcing))
-        self._last_mask = None
         self._prev_gap_error = None
         p = self._pressure
-        if p.sum() <= 0:
+        n = self.grid.nx * self.grid.ny
+        total = p.sum()
+        if total <= 0:
             p.set(target)   # no load yet: start from full contact at the target
+        else:
+            # scaled onto the load: the contact set stays, and the line search's merit (the
+            # gap on the inactive set, blind to the load) sees no load error at the start
+            p.scale(n * target / total)
         self._joint = True
         try:
             ok, reason = self._solve_at(self._approach if self._approach is not None else 0.0, p)

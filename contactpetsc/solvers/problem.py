@@ -123,6 +123,7 @@ class ContactProblem(JointLoadNewton, ContactLoadControl, VIProblem):
         self._approach = None
         self._target = None
         self._joint = False       # load control by the joint Newton step (contact_load.py)
+        self._last_gap_error = self._prev_gap_error = None   # the forcing's error history
         self._h_min = None
 
     # -- set-up ------------------------------------------------------------------
@@ -468,7 +469,9 @@ class ContactProblem(JointLoadNewton, ContactLoadControl, VIProblem):
             if converged:
                 self._x.copy(self._pressure)
         else:
-            converged, reason = self._solve_load_joint(mean_pressure)
+            # with a hardness W(delta) is a staircase: the outer iteration on delta handles it
+            solve_load = self._solve_load if np.isfinite(self.hardness) else self._solve_load_joint
+            converged, reason = solve_load(mean_pressure)
         p = self._x.copy()
         v, gap = grid.create_vec(), grid.create_vec()
         self.gap(grid.rows(p, readonly=True), grid.rows(gap), displacement=grid.rows(v))

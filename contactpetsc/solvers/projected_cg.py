@@ -27,7 +27,7 @@ class ProjectedCG:
 
     def __init__(self, constraint, forcing=None):
         self.constraint = constraint   #: callable -> c, the step's required sum
-        self.forcing = forcing         #: callable (A) -> rtol of this step, or None: the KSP's
+        self.forcing = forcing         #: callable (rtol) -> this step's rtol, or None: the KSP's
 
     def setUp(self, ksp):
         pass
@@ -41,7 +41,7 @@ class ProjectedCG:
         pc = ksp.getPC()
         rtol, atol, _, max_it = ksp.getTolerances()
         if self.forcing is not None:
-            rtol = self.forcing(A, rtol)
+            rtol = self.forcing(rtol)
         ones, u = b.duplicate(), b.duplicate()
         r, z, d, q = b.duplicate(), b.duplicate(), b.duplicate(), b.duplicate()
         try:
