@@ -211,17 +211,18 @@ class JointLoadNewton:
         out -= delta
         return out
 
-    def _step_sum(self) -> float:
-        """c = sum(p) - n W [Pa]: the sum of the Newton step y (p <- p - y) that restores the load
-        (the projection onto p >= 0 of the last step moved it)."""
-        grid = self.grid
-        return self._x.sum() - grid.nx * grid.ny * self._target
+    def _step_sum(self) -> tuple:
+        """(c, negligible) [Pa]: c = sum(p) - n W, the sum of the Newton step y (p <- p - y)
+        that restores the load (the projection onto p >= 0 of the last step moved it), and the
+        |c| the step may leave (a hundredth of the load tolerance: saves an FFT pair)."""
+        n = self.grid.nx * self.grid.ny
+        return self._x.sum() - n * self._target, 0.01 * self.load_tol * n * self._target
 
     def _forcing(self, rtol: float) -> float:
         """The Krylov tolerance of this Newton step (Eisenstat-Walker, see the class)."""
         err, prev = self._last_gap_error, self._prev_gap_error
         self._prev_gap_error = err
-        if prev is None or not (np.isfinite(err) and err > 0 and prev > 0):
+        if not self.forcing or prev is None or not (np.isfinite(err) and err > 0 and prev > 0):
             return rtol
         floor = self.FORCING_SAFETY * self._inner_tol / err
         return float(min(rtol, max((err / prev) ** 2, floor)))

@@ -181,6 +181,7 @@ class ContactProblem(JointLoadNewton, ContactLoadControl, VIProblem):
         self.fmg_prolong = opts.getString("fmg_prolong", code_default("contact", "fmg_prolong")).lower()
         if self.fmg_prolong not in ("bilinear", "constant"):
             raise ValueError(f"-{self.prefix}fmg_prolong must be bilinear or constant, got {self.fmg_prolong!r}")
+        self.forcing = opts.getBool("newton_ksp_forcing", code_default("contact", "newton_ksp_forcing"))
         self.slope_warm = opts.getBool("slope_warm_start", code_default("contact", "slope_warm_start"))
         snes.setFromOptions()
         # -<prefix>pc_type ... may have replaced our choice: record what is in use

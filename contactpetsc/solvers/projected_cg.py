@@ -26,7 +26,7 @@ class ProjectedCG:
     """Python-context KSP (``KSPPYTHON``): CG on {1^T y = c}; ``constraint()`` gives c."""
 
     def __init__(self, constraint, forcing=None):
-        self.constraint = constraint   #: callable -> c, the step's required sum
+        self.constraint = constraint   #: callable -> (c, the |c| below which the start is y = 0)
         self.forcing = forcing         #: callable (rtol) -> this step's rtol, or None: the KSP's
 
     def setUp(self, ksp):
@@ -42,16 +42,17 @@ class ProjectedCG:
         rtol, atol, _, max_it = ksp.getTolerances()
         if self.forcing is not None:
             rtol = self.forcing(rtol)
+
         ones, u = b.duplicate(), b.duplicate()
         r, z, d, q = b.duplicate(), b.duplicate(), b.duplicate(), b.duplicate()
         try:
             ones.set(1.0)
             pc.apply(ones, u)
             s = ones.dot(u)
-            c = self.constraint()
+            c, negligible = self.constraint()
             # the start on the plane; its residual b - K_II y0
             y.set(0.0)
-            if c != 0.0:
+            if abs(c) > negligible:
                 y.axpy(c / s, u)
                 A.mult(y, r)
                 r.aypx(-1.0, b)
