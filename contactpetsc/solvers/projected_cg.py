@@ -13,8 +13,9 @@ energy minimisation of 1/2 y^T K_II y - b^T y on the affine plane 1^T y = c.  CG
     M~ r = M r - u (1^T M r) / (1^T u),      u = M 1,
 
 whose range has zero sum, so every search direction stays in the plane; the start
-y0 = c u / (1^T u) is in it.  The residual r = b - K_II y tends to -mu 1, invisible to M~:
-convergence is judged on the preconditioned norm |M~ r|.  Cost: one FFT pair per iteration
+y0 = c u / (1^T u) is in it.  The residual r = b - K_II y would tend to -mu 1, invisible to
+M~: it is kept free of that multiple at every step, and convergence is judged on the
+preconditioned norm |M~ r|.  Cost: one FFT pair per iteration
 for K_II and one for M, plus two per solve (u and the start's residual).
 """
 from __future__ import annotations
@@ -52,7 +53,9 @@ class ProjectedCG:
             c, negligible = self.constraint()
             # the start on the plane; its residual b - K_II y0
             y.set(0.0)
-            if abs(c) > negligible:
+            if abs(c) <= negligible:
+                c = 0.0
+            if c:
                 y.axpy(c / s, u)
                 A.mult(y, r)
                 r.aypx(-1.0, b)
@@ -60,8 +63,13 @@ class ProjectedCG:
                 b.copy(r)
 
             def project(res, out):
+                # M~ r = M (r - t 1), t = 1^T M r / s; r itself is replaced by r - t 1 (the same
+                # M~ r and r^T z), so the growing multiple of 1 in r cannot swamp its projection
+                # in round-off (Gould, Hribar and Nocedal's residual update)
                 pc.apply(res, out)
-                out.axpy(-ones.dot(out) / s, u)
+                t = ones.dot(out) / s
+                out.axpy(-t, u)
+                res.shift(-t)
 
             project(r, z)
             rz = r.dot(z)
@@ -73,7 +81,7 @@ class ProjectedCG:
                 reason = PETSc.KSP.ConvergedReason.CONVERGED_ATOL
             while reason == PETSc.KSP.ConvergedReason.CONVERGED_ITERATING:
                 if its >= max_it:
-                    reason = PETSc.KSP.ConvergedReason.DIVERGED_ITS
+                    reason = PETSc.KSP.ConvergedReason.DIVERGED_MAX_IT
                     break
                 A.mult(d, q)
                 dq = d.dot(q)
@@ -93,6 +101,8 @@ class ProjectedCG:
                 rz_new = r.dot(z)
                 d.aypx(rz_new / rz, z)
                 rz = rz_new
+            # the sum exact: the round-off the directions gather along u (at round-off level)
+            y.axpy((c - ones.dot(y)) / s, u)
             ksp.setIterationNumber(its)
             ksp.setConvergedReason(reason)
         finally:
