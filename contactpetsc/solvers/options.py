@@ -38,7 +38,7 @@ def _text(value) -> str:
 
 CONTACT = (
     Option(("snes_max_it", "-ksp_max_it"), (100, 500), "Newton steps per solve, Krylov steps per Newton step"),
-    Option(("slope_ksp_*",), "cg, rtol 1e-2, max_it 500", "the KSP of the load-control slope solves K_II z = 1"),
+    Option(("slope_ksp_*",), "cg, rtol 1e-2, max_it 500", "the KSP of the load-control slope solves K_II z = 1 (with a hardness)"),
     Option(("preconditioner",), ("spectral",), "`spectral`, `mlmi` or `none`"),
     Option(("tol",), (1e-10,), "complementarity error relative to the length scale"),
     Option(("load_tol",), (1e-10,), "relative load error (floored at what `tol` allows)"),
@@ -46,8 +46,8 @@ CONTACT = (
     Option(("newton_ksp_forcing",), (True,),
            "under load control, the Krylov tolerance follows the Newton convergence (Eisenstat-Walker)"),
     Option(("load_max_it",), (50,), "approach updates under load control"),
-    Option(("load_inner_tol", "load_inner_eta"), (1e-3, 0.1), "inexact intermediate solves"),
-    Option(("slope_warm_start",), (True,), "slope solves start from the previous z"),
+    Option(("load_inner_tol", "load_inner_eta"), (1e-3, 0.1), "inexact intermediate solves (load control with a hardness)"),
+    Option(("slope_warm_start",), (True,), "slope solves start from the previous z (with a hardness)"),
     Option(("fmg", "fmg_min_size", "fmg_tol"), (True, 32, 1e-4), "nested iteration on first solve"),
     Option(("fmg_prolong",), ("constant",), "coarse-to-fine pressure transfer: constant or bilinear"),
     Option(("mlmi_levels", "mlmi_min_size"), (8, 8), "multilevel hierarchy"),
