@@ -1,7 +1,8 @@
-"""Load control of ``ContactProblem``: a safeguarded, inexact Newton iteration on the approach
-around displacement-controlled solves, its slope dW/d delta from one reduced solve K_II z = 1
-on the converged contact set (docs/formulation.md, "The contact problem and the choice of
-unknown")."""
+"""Load control of ``ContactProblem`` (docs/formulation.md, "Controls"): one Newton iteration in
+(p, delta), delta the multiplier of the load (``JointLoadNewton``); with a hardness, where
+W(delta) is a staircase, a safeguarded, inexact Newton iteration on the approach around
+displacement-controlled solves, its slope dW/d delta from one reduced solve K_II z = 1 on the
+converged contact set (``ContactLoadControl``)."""
 from __future__ import annotations
 
 import numpy as np
@@ -15,7 +16,7 @@ MIN_LOAD = 1e-12
 
 
 class ContactLoadControl:
-    """Mixin of ``ContactProblem``: ``_solve_load`` and the slope it steps with."""
+    """Mixin of ``ContactProblem``: ``_solve_load`` (with a hardness) and the slope it steps with."""
 
     def _approach_slope(self):
         """(dW/d delta [Pa/m] as d(mean p)/d delta, z = dp/d delta) on the last solve's inactive set.
@@ -202,7 +203,7 @@ class JointLoadNewton:
         v = self.op.apply(p, out)
         v += grid.rows(self.heights, readonly=True)
         loaded = p > 0
-        sums = grid.mpi_comm.allreduce(np.array([float(v[loaded].sum()), float(np.count_nonzero(loaded))]))
+        sums = grid.mpi_comm.allreduce(np.array([float(np.sum(v, where=loaded)), float(np.count_nonzero(loaded))]))
         if sums[1] > 0:
             delta = sums[0] / sums[1]
         else:   # nothing loaded: the approach of first contact

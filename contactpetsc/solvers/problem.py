@@ -17,10 +17,11 @@ the default) or the multilevel MLMI cycle (``mlmi.py``).
 
 Controls: ``approach`` (displacement control, delta given) or a load
 (``mean_pressure``, or ``force`` for an isolated contact = mean_pressure *
-nx*dx * ny*dy).  Load control is a safeguarded Newton iteration on delta
-around displacement-controlled solves, its slope dW/d delta from one reduced
-solve K_II z = 1 on the contact set (docs/formulation.md); the first solve is
-nested: coarser grids first.  On a periodic cell K has no mean mode, so
+nx*dx * ny*dy).  Load control is one Newton iteration in (p, delta), delta the
+multiplier of the load constraint, each step a projected CG solve
+(``contact_load.JointLoadNewton``); with a hardness, a safeguarded Newton
+iteration on delta around displacement-controlled solves (docs/formulation.md,
+"Controls").  The first solve is nested: coarser grids first.  On a periodic cell K has no mean mode, so
 delta is the approach to the mean plane of the deformed surface and full
 contact is singular under displacement control: load control handles it.
 
