@@ -19,7 +19,7 @@ Usage::
 
     .venv/bin/python run_scripts/bench/bench_signorini.py [--sizes 256 512 1024 2048]
         [--solvers spectral mlmi none] [--none-max-n 1024] [--no-peer] [--tol 1e-8]
-        [PETSc options]
+        [--repeats 3] [--profile] [PETSc options, e.g. -log_view]
     mpirun -n 2 .venv/bin/python run_scripts/bench/bench_signorini.py ...   (ours on 2 ranks;
         the peer runs serially on rank 0)
 
@@ -54,6 +54,8 @@ ap.add_argument("--none-max-n", type=int, default=1024,
                 help="skip the unpreconditioned solver (none) above this n (it is slow)")
 ap.add_argument("--tol", type=float, default=1e-8)
 ap.add_argument("--repeats", type=int, default=3, help="solves per case; the time is their median")
+ap.add_argument("--profile", action="store_true",
+                help="cProfile our solves (rank 0) and print the 25 entries of largest own time")
 ap.add_argument("--mean-pressure", type=float, default=0.005)
 ap.add_argument("--no-peer", action="store_true")
 ap.add_argument("--peer-python", default=os.environ.get(
@@ -110,6 +112,11 @@ def our_measure(op, p_rows, h_rows, delta, scale):
     return op.grid.mpi_comm.allreduce(err, op=MPI.MAX) / scale
 
 
+profiler = None
+if args.profile:
+    import cProfile
+    import pstats
+    profiler = cProfile.Profile()
 results = []
 tmpdir = comm.bcast(tempfile.mkdtemp(prefix="bench-signorini-") if rank == 0 else None)
 for n in args.sizes:
@@ -131,7 +138,11 @@ for n in args.sizes:
             pair_times.append(timer())
             comm.Barrier()
             t0 = time.perf_counter()
+            if profiler:
+                profiler.enable()
             st = prob.solve(mean_pressure=args.mean_pressure * E_STAR, raise_on_failure=False)
+            if profiler:
+                profiler.disable()
             times.append(comm.allreduce(time.perf_counter() - t0, op=MPI.MAX))
             pair_times.append(timer())
             prob.destroy()
@@ -184,3 +195,5 @@ for r in results:
                     f"{r['t_pair'] * 1e3:11.3f} {r['fft_pairs'] * r['t_pair']:9.3f} {r['ratio']:6.2f}")
 for r in results:
     PETSc.Sys.Print(json.dumps({k: r[k] for k in ("n", "solver", "time", "fft_pairs", "error", "ratio")}))
+if profiler and rank == 0:
+    pstats.Stats(profiler).sort_stats("tottime").print_stats(25)
