@@ -68,3 +68,22 @@ def test_load_control_state_is_the_displacement_controlled_state(coll):
     assert coll.max(abs(ref.mean_pressure - target) / target) <= 1e-8
     assert 0.02 < coll.max(st.contact_fraction) < 0.5
     assert g.mpi_comm.allreduce(1) == g.mpi_comm.Get_size() and MPI.COMM_WORLD is not None
+
+
+def test_outer_iteration_takes_over_where_the_joint_iteration_fails(coll, monkeypatch):
+    """A failed joint iteration (simulated) hands over to the outer iteration on delta, which
+    reaches the same state from the same start."""
+    g, h = rough(64)
+    target = 0.004
+    ref = ContactProblem(g, h, 1.0, prefix="pcg_ref_", tol=1e-11).solve(mean_pressure=target)
+
+    def fails(self, target):
+        self._pressure.scale(3.0)         # leaves a spoiled start behind, as a failed solve may
+        return False, "DIVERGED_LINE_SEARCH"
+
+    monkeypatch.setattr(ContactProblem, "_solve_load_joint", fails)
+    st = ContactProblem(g, h, 1.0, prefix="pcg_fallback_", tol=1e-11).solve(mean_pressure=target)
+    assert coll.all(st.converged) and "joint" in st.reason
+    d = st.pressure.copy()
+    d.axpy(-1.0, ref.pressure)
+    assert coll.max(d.norm(PETSc.NormType.INFINITY) / ref.pressure.max()[1]) <= 1e-8

@@ -471,9 +471,20 @@ class ContactProblem(JointLoadNewton, ContactLoadControl, VIProblem):
             if converged:
                 self._x.copy(self._pressure)
         else:
-            # with a hardness W(delta) is a staircase: the outer iteration on delta handles it
-            solve_load = self._solve_load if np.isfinite(self.hardness) else self._solve_load_joint
-            converged, reason = solve_load(mean_pressure)
+            # with a hardness W(delta) is a staircase: the outer iteration on delta handles it;
+            # it also takes over where the joint iteration fails (from the last converged state)
+            converged, reason = False, None
+            if not np.isfinite(self.hardness):
+                start = self._pressure.copy()
+                converged, reason = self._solve_load_joint(mean_pressure)
+                if not converged:
+                    start.copy(self._pressure)
+                start.destroy()
+            if not converged:
+                joint = reason
+                converged, reason = self._solve_load(mean_pressure)
+                if joint is not None:
+                    reason = f"{reason} (after the joint load iteration's {joint})"
         p = self._x.copy()
         v, gap = grid.create_vec(), grid.create_vec()
         self.gap(grid.rows(p, readonly=True), grid.rows(gap), displacement=grid.rows(v))
