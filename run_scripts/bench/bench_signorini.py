@@ -180,7 +180,8 @@ for n in args.sizes:
     p_rows = np.ascontiguousarray(res["_p"].T[g.ys:g.ye])   # (nx, ny) -> our rows (ny_loc, nx)
     err = our_measure(op, p_rows, g.rows(h, readonly=True), res["_delta"], rms)
     results.append(dict(n=n, solver="tamaas-pkr", ranks=1, time=res["time"], t_setup=None,
-                        fft_pairs=res["fft_pairs"], t_pair=t_pair, ratio=res["time"] / (res["fft_pairs"] * t_pair), newton=None, krylov=res["iterations"],
+                        fft_pairs=res["fft_pairs"], t_pair=t_pair, ratio=res["time"] / (res["fft_pairs"] * t_pair),
+                        newton=None, krylov=res["iterations"],
                         error=err, tamaas_error=res["tamaas_error"],
                         load_error=res["mean_pressure_rel_err"], converged=res["converged"],
                         contact_fraction=res["contact_fraction"]))
