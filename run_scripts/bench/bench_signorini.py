@@ -70,7 +70,6 @@ from mpi4py import MPI  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
 from contactpetsc.geometry import surfaces  # noqa: E402
-from contactpetsc.operators.elastic import half_space  # noqa: E402
 from contactpetsc.solvers import ContactProblem  # noqa: E402
 
 from rough_surface import rough_scene, rough_surface  # noqa: E402
