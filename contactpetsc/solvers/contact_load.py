@@ -228,6 +228,14 @@ class JointLoadNewton:
         floor = self.FORCING_SAFETY * self._inner_tol / err
         return float(min(rtol, max((err / prev) ** 2, floor)))
 
+    def _keep_tangent(self, A, u) -> None:
+        """Keep u = M 1 of the present Newton step on the full grid (zero outside its set):
+        the preconditioner's image of dp/d delta, the predictor of the next load's solve."""
+        if self._tangent is None:
+            self._tangent = np.empty((self.grid.ny_local, self.grid.nx))
+        self._tangent.fill(0.0)
+        A.getPythonContext().to_full(u, self._tangent)
+
     def _solve_load_joint(self, target: float):
         """Load control by the joint Newton iteration; returns (converged, reason)."""
         from .projected_cg import ProjectedCG
@@ -235,13 +243,22 @@ class JointLoadNewton:
         ksp = snes.getKSP()
         kind = ksp.getType()
         ksp.setType("python")
-        ksp.setPythonContext(ProjectedCG(self._step_sum, self._forcing))
+        ksp.setPythonContext(ProjectedCG(self._step_sum, self._forcing, self._keep_tangent))
         self._prev_gap_error = None
         p = self._pressure
         n = self.grid.nx * self.grid.ny
         total = p.sum()
         if total <= 0:
             p.set(target)   # no load yet: start from full contact at the target
+        elif self._tangent is not None:
+            # a step of a loading path: along the last solve's M 1 (its set's response to a
+            # uniform gap change, singular at the contact edges like dp/d delta), then onto p >= 0
+            rows = self.grid.rows(p)
+            along = self.grid.mpi_comm.allreduce(float(self._tangent.sum()))
+            rows += (n * target - total) / along * self._tangent
+            np.maximum(rows, 0.0, out=rows)
+            del rows
+            p.scale(n * target / p.sum())
         else:
             # scaled onto the load: the contact set stays, and the line search's merit (the
             # gap on the inactive set, blind to the load) sees no load error at the start

@@ -125,6 +125,7 @@ class ContactProblem(JointLoadNewton, ContactLoadControl, VIProblem):
         self._target = None
         self._joint = False       # load control by the joint Newton step (contact_load.py)
         self._last_gap_error = self._prev_gap_error = None   # the forcing's error history
+        self._tangent = None      # M 1 of the last joint Newton step (full rows): the path's predictor
         self._h_min = None
 
     # -- set-up ------------------------------------------------------------------

@@ -26,9 +26,10 @@ from petsc4py import PETSc
 class ProjectedCG:
     """Python-context KSP (``KSPPYTHON``): CG on {1^T y = c}; ``constraint()`` gives c."""
 
-    def __init__(self, constraint, forcing=None):
+    def __init__(self, constraint, forcing=None, keep_u=None):
         self.constraint = constraint   #: callable -> (c, the |c| below which the start is y = 0)
         self.forcing = forcing         #: callable (rtol) -> this step's rtol, or None: the KSP's
+        self.keep_u = keep_u           #: callable (A, u), given each solve's u = M 1, or None
 
     def setUp(self, ksp):
         pass
@@ -50,6 +51,8 @@ class ProjectedCG:
             ones.set(1.0)
             pc.apply(ones, u)
             s = ones.dot(u)
+            if self.keep_u is not None:
+                self.keep_u(A, u)
             c, negligible = self.constraint()
             # the start on the plane; its residual b - K_II y0
             y.set(0.0)
