@@ -184,6 +184,7 @@ class ContactProblem(JointLoadNewton, ContactLoadControl, VIProblem):
         if self.fmg_prolong not in ("bilinear", "constant"):
             raise ValueError(f"-{self.prefix}fmg_prolong must be bilinear or constant, got {self.fmg_prolong!r}")
         self.forcing = opts.getBool("newton_ksp_forcing", code_default("contact", "newton_ksp_forcing"))
+        self.load_joint = opts.getBool("load_joint", code_default("contact", "load_joint"))
         self.slope_warm = opts.getBool("slope_warm_start", code_default("contact", "slope_warm_start"))
         snes.setFromOptions()
         # -<prefix>pc_type ... may have replaced our choice: record what is in use
@@ -475,7 +476,7 @@ class ContactProblem(JointLoadNewton, ContactLoadControl, VIProblem):
             # with a hardness W(delta) is a staircase: the outer iteration on delta handles it;
             # it also takes over where the joint iteration fails (from the last converged state)
             converged, reason = False, None
-            if not np.isfinite(self.hardness):
+            if self.load_joint and not np.isfinite(self.hardness):
                 start = self._pressure.copy()
                 converged, reason = self._solve_load_joint(mean_pressure)
                 if not converged:
