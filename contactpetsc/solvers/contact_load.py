@@ -189,7 +189,9 @@ class JointLoadNewton:
     iterate is in equilibrium on its loaded nodes.  No slope solves, no outer iteration.
     The Krylov tolerance follows the Newton convergence (Eisenstat and Walker's second
     choice): rtol_k = (e_k / e_(k-1))^2, at most ``-<prefix>newton_ksp_rtol`` and at least
-    what the remaining factor e_k / tol asks (with a safety factor).
+    what the remaining factor e_k / tol asks (with a safety factor).  A solve starts from the
+    previous pressure moved onto the new load along the last step's u = M 1 (a step of a
+    loading path), or scaled onto it (the first solve on a grid: the prolonged coarse state).
     """
 
     #: the last step's Krylov tolerance aims at this fraction of the tolerance
