@@ -1,7 +1,8 @@
-"""Load control of ``ContactProblem``: a safeguarded, inexact Newton iteration on the approach
-around displacement-controlled solves, its slope dW/d delta from one reduced solve K_II z = 1
-on the converged contact set (docs/formulation.md, "The contact problem and the choice of
-unknown")."""
+"""Load control of ``ContactProblem`` (docs/formulation.md, "Controls"): one Newton iteration in
+(p, delta), delta the multiplier of the load (``JointLoadNewton``); with a hardness, where
+W(delta) is a staircase, a safeguarded, inexact Newton iteration on the approach around
+displacement-controlled solves, its slope dW/d delta from one reduced solve K_II z = 1 on the
+converged contact set (``ContactLoadControl``)."""
 from __future__ import annotations
 
 import numpy as np
@@ -15,7 +16,7 @@ MIN_LOAD = 1e-12
 
 
 class ContactLoadControl:
-    """Mixin of ``ContactProblem``: ``_solve_load`` and the slope it steps with."""
+    """Mixin of ``ContactProblem``: ``_solve_load`` (with a hardness) and the slope it steps with."""
 
     def _approach_slope(self):
         """(dW/d delta [Pa/m] as d(mean p)/d delta, z = dp/d delta) on the last solve's inactive set.
@@ -177,3 +178,99 @@ class ContactLoadControl:
                 inner = max(self.tol, min(self.inner_tol0, self.inner_eta * abs(new - delta) / self.length_scale))
             delta = new
         return False, f"DIVERGED_LOAD_ITERATION ({self.max_outer} approach updates; last SNES {reason})"
+
+
+class JointLoadNewton:
+    """Mixin of ``ContactProblem``: load control as one Newton iteration in (p, delta).
+
+    The approach is the Lagrange multiplier of the load sum(p) = n W: each SNES VI step
+    solves K_II y - mu 1 = g_I with sum(y) = sum(p) - n W by projected CG
+    (``projected_cg.py``), and the residual takes delta(p), the approach at which the
+    iterate is in equilibrium on its loaded nodes.  No slope solves, no outer iteration.
+    The Krylov tolerance follows the Newton convergence (Eisenstat and Walker's second
+    choice): rtol_k = (e_k / e_(k-1))^2, at most ``-<prefix>newton_ksp_rtol`` and at least
+    what the remaining factor e_k / tol asks (with a safety factor).  A solve starts from the
+    previous pressure moved onto the new load along the last step's u = M 1 (a step of a
+    loading path), or scaled onto it (the first solve on a grid: the prolonged coarse state).
+    """
+
+    #: the last step's Krylov tolerance aims at this fraction of the tolerance
+    FORCING_SAFETY = 0.2
+
+    def _joint_gap(self, p: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """g = h + K p - delta(p) [m], delta(p) the mean of h + K p over the loaded nodes
+        (p > 0): exact at a solution, where g = 0 there, and to first order the approach
+        of the joint step's multiplier (the step leaves g_I = mu 1)."""
+        grid = self.grid
+        v = self.op.apply(p, out)
+        v += grid.rows(self.heights, readonly=True)
+        loaded = p > 0
+        sums = grid.mpi_comm.allreduce(np.array([float(np.sum(v, where=loaded)), float(np.count_nonzero(loaded))]))
+        if sums[1] > 0:
+            delta = sums[0] / sums[1]
+        else:   # nothing loaded: the approach of first contact
+            delta = grid.mpi_comm.allreduce(float(v.min()), op=MPI.MIN)
+        self._approach = delta
+        out -= delta
+        return out
+
+    def _step_sum(self) -> tuple:
+        """(c, negligible) [Pa]: c = sum(p) - n W, the sum of the Newton step y (p <- p - y)
+        that restores the load (the projection onto p >= 0 of the last step moved it), and the
+        |c| the step may leave (a hundredth of the load tolerance: saves an FFT pair)."""
+        n = self.grid.nx * self.grid.ny
+        return self._x.sum() - n * self._target, 0.01 * self.load_tol * n * self._target
+
+    def _forcing(self, rtol: float) -> float:
+        """The Krylov tolerance of this Newton step (Eisenstat-Walker, see the class)."""
+        err, prev = self._last_gap_error, self._prev_gap_error
+        self._prev_gap_error = err
+        if not self.forcing or prev is None or not (np.isfinite(err) and err > 0 and prev > 0):
+            return rtol
+        floor = self.FORCING_SAFETY * self._inner_tol / err
+        return float(min(rtol, max((err / prev) ** 2, floor)))
+
+    def _keep_tangent(self, A, u) -> None:
+        """Keep u = M 1 of the present Newton step on the full grid (zero outside its set):
+        the preconditioner's image of dp/d delta, the predictor of the next load's solve."""
+        if self._tangent is None:
+            self._tangent = np.empty((self.grid.ny_local, self.grid.nx))
+        self._tangent.fill(0.0)
+        A.getPythonContext().to_full(u, self._tangent)
+
+    def _solve_load_joint(self, target: float):
+        """Load control by the joint Newton iteration; returns (converged, reason)."""
+        from .projected_cg import ProjectedCG
+        snes = self._build()
+        ksp = snes.getKSP()
+        kind = ksp.getType()
+        ksp.setType("python")
+        ksp.setPythonContext(ProjectedCG(self._step_sum, self._forcing, self._keep_tangent))
+        self._prev_gap_error = None
+        p = self._pressure
+        n = self.grid.nx * self.grid.ny
+        total = p.sum()
+        if total <= 0:
+            p.set(target)   # no load yet: start from full contact at the target
+        elif self._tangent is not None:
+            # a step of a loading path: along the last solve's M 1 (its set's response to a
+            # uniform gap change, singular at the contact edges like dp/d delta), then onto p >= 0
+            rows = self.grid.rows(p)
+            along = self.grid.mpi_comm.allreduce(float(self._tangent.sum()))
+            rows += (n * target - total) / along * self._tangent
+            np.maximum(rows, 0.0, out=rows)
+            del rows
+            p.scale(n * target / p.sum())
+        else:
+            # scaled onto the load: the contact set stays, and the line search's merit (the
+            # gap on the inactive set, blind to the load) sees no load error at the start
+            p.scale(n * target / total)
+        self._joint = True
+        try:
+            ok, reason = self._solve_at(self._approach if self._approach is not None else 0.0, p)
+        finally:
+            self._joint = False
+            ksp.setType(kind)
+        if ok:
+            self._x.copy(self._pressure)
+        return ok, reason

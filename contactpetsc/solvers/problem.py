@@ -17,10 +17,11 @@ the default) or the multilevel MLMI cycle (``mlmi.py``).
 
 Controls: ``approach`` (displacement control, delta given) or a load
 (``mean_pressure``, or ``force`` for an isolated contact = mean_pressure *
-nx*dx * ny*dy).  Load control is a safeguarded Newton iteration on delta
-around displacement-controlled solves, its slope dW/d delta from one reduced
-solve K_II z = 1 on the contact set (docs/formulation.md); the first solve is
-nested: coarser grids first.  On a periodic cell K has no mean mode, so
+nx*dx * ny*dy).  Load control is one Newton iteration in (p, delta), delta the
+multiplier of the load constraint, each step a projected CG solve
+(``contact_load.JointLoadNewton``); with a hardness, a safeguarded Newton
+iteration on delta around displacement-controlled solves (docs/formulation.md,
+"Controls").  The first solve is nested: coarser grids first.  On a periodic cell K has no mean mode, so
 delta is the approach to the mean plane of the deformed surface and full
 contact is singular under displacement control: load control handles it.
 
@@ -41,7 +42,7 @@ from ..operators.elastic import HalfSpaceOperator
 from ..geometry.surfaces import rms_height
 from .base import (ContactSolveError, VIProblem, check_tolerance, convergence_verdict, reason_name,
                    weighted_pairs, with_options)
-from .contact_load import MIN_LOAD, ContactLoadControl
+from .contact_load import MIN_LOAD, ContactLoadControl, JointLoadNewton
 from .history import SolveHistory
 from .options import LINESEARCH_MAX_STEP, code_default, print_help
 from .pc_registry import PRECONDITIONERS, preconditioner_name
@@ -56,7 +57,7 @@ from .transfer import can_halve, halved, prolong_bilinear, prolong_constant, res
 NEWTON_LINESEARCH, NEWTON_KSP = "bt", "cg"
 
 
-class ContactProblem(ContactLoadControl, VIProblem):
+class ContactProblem(JointLoadNewton, ContactLoadControl, VIProblem):
     """Contact of an elastic half-space with a rigid composite surface h, no adhesion.
 
     Parameters
@@ -122,6 +123,9 @@ class ContactProblem(ContactLoadControl, VIProblem):
         self._pressure = grid.create_vec(0.0)   # last converged pressure: the next warm start
         self._approach = None
         self._target = None
+        self._joint = False       # load control by the joint Newton step (contact_load.py)
+        self._last_gap_error = self._prev_gap_error = None   # the forcing's error history
+        self._tangent = None      # M 1 of the last joint Newton step (full rows): the path's predictor
         self._h_min = None
 
     # -- set-up ------------------------------------------------------------------
@@ -179,6 +183,8 @@ class ContactProblem(ContactLoadControl, VIProblem):
         self.fmg_prolong = opts.getString("fmg_prolong", code_default("contact", "fmg_prolong")).lower()
         if self.fmg_prolong not in ("bilinear", "constant"):
             raise ValueError(f"-{self.prefix}fmg_prolong must be bilinear or constant, got {self.fmg_prolong!r}")
+        self.forcing = opts.getBool("newton_ksp_forcing", code_default("contact", "newton_ksp_forcing"))
+        self.load_joint = opts.getBool("load_joint", code_default("contact", "load_joint"))
         self.slope_warm = opts.getBool("slope_warm_start", code_default("contact", "slope_warm_start"))
         snes.setFromOptions()
         # -<prefix>pc_type ... may have replaced our choice: record what is in use
@@ -208,7 +214,10 @@ class ContactProblem(ContactLoadControl, VIProblem):
     # -- SNES callbacks ------------------------------------------------------------
     @collective_guard
     def _residual(self, snes, x, f):
-        self.gap(self.grid.rows(x, readonly=True), self.grid.rows(f))
+        if self._joint:
+            self._joint_gap(self.grid.rows(x, readonly=True), self.grid.rows(f))
+        else:
+            self.gap(self.grid.rows(x, readonly=True), self.grid.rows(f))
 
     def _jacobian(self, snes, x, J, P):
         pass  # K does not depend on p: nothing to update
@@ -273,10 +282,16 @@ class ContactProblem(ContactLoadControl, VIProblem):
             complementarity_error=err, load_error=load_err, approach=self._approach,
             mean_pressure=mean_p, contact_fraction=frac, solver=solver, interference_error=err_gap)
         self._last_error = err
+        self._last_gap_error = err_gap
         if not err_gap >= self._best[0]:   # NaN never replaces a real iterate
             self._best = (err_gap, it)
             x.copy(self._x_best)
-        return convergence_verdict(snes, it, err_gap, self._inner_tol)
+        verdict = convergence_verdict(snes, it, err_gap, self._inner_tol)
+        if (self._joint and verdict == PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS
+                and not load_err <= self.load_tol):
+            # the load is part of the joint problem's error: the step after the last clip
+            verdict = convergence_verdict(snes, it, np.inf if np.isnan(load_err) else 1.0, self._inner_tol)
+        return verdict
 
     def _operators(self) -> dict:
         ops = {id(self.op): self.op}
@@ -369,7 +384,7 @@ class ContactProblem(ContactLoadControl, VIProblem):
                                 _root=self._root, **d)
         coarse._levels = levels[1:] if levels and len(levels) > 1 else None
         coarse._build()
-        coarse.tol, coarse.load_tol = max(self.fmg_tol, self.tol), max(1e-6, self.load_tol)
+        coarse.tol, coarse.load_tol = max(self.fmg_tol, self.tol), max(self.fmg_tol, self.load_tol)
         coarse.fmg, coarse.fmg_min_size, coarse.fmg_tol = self.fmg, self.fmg_min_size, self.fmg_tol
         self._coarse = coarse
         return coarse
@@ -458,7 +473,20 @@ class ContactProblem(ContactLoadControl, VIProblem):
             if converged:
                 self._x.copy(self._pressure)
         else:
-            converged, reason = self._solve_load(mean_pressure)
+            # with a hardness W(delta) is a staircase: the outer iteration on delta handles it;
+            # it also takes over where the joint iteration fails (from the last converged state)
+            converged, reason = False, None
+            if self.load_joint and not np.isfinite(self.hardness):
+                start = self._pressure.copy()
+                converged, reason = self._solve_load_joint(mean_pressure)
+                if not converged:
+                    start.copy(self._pressure)
+                start.destroy()
+            if not converged:
+                joint = reason
+                converged, reason = self._solve_load(mean_pressure)
+                if joint is not None:
+                    reason = f"{reason} (after the joint load iteration's {joint})"
         p = self._x.copy()
         v, gap = grid.create_vec(), grid.create_vec()
         self.gap(grid.rows(p, readonly=True), grid.rows(gap), displacement=grid.rows(v))

@@ -30,7 +30,7 @@ ROOT = os.path.abspath(os.path.join(HERE, os.pardir, os.pardir))
 # (case name, script, arguments, how the pairs are read); "{out}" is a fresh directory
 CASES = [
     ("signorini", "bench_signorini.py",
-     ["--sizes", "64", "128", "256", "--solvers", "spectral", "mlmi", "none", "--no-peer"], "json"),
+     ["--sizes", "64", "128", "256", "--solvers", "spectral", "mlmi", "none", "--no-peer", "--repeats", "1"], "json"),
     ("scaling", "bench_scaling.py", ["--sizes", "64", "256"], "json"),
     ("adhesion", "bench_adhesion.py",
      ["--cases", "sphere", "rough", "--sizes", "64", "128", "--mu", "2", "--no-peer"], "json"),
