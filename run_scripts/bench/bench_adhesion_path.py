@@ -1,9 +1,9 @@
 #!/usr/bin/env python3
 """Benchmark: an adhesive load-unload path on the rough benchmark surface at one grid size.
 
-The case is the rough case of ``bench_adhesion.py`` (the surface of ``rough_surface.py``, the
-full LJ curve ``lj`` with z0 = dx and w = 0.05 E* dx, one solver, warm starts along the
-path, ``-path_stiffness false`` unless given): the approach rises in equal steps from the one
+The case is the rough case of ``bench_adhesion.py``, the surface and the law of
+``rough_surface.py`` (the full LJ curve ``lj``, z0 = dx, w = 0.05 E* dx), one solver with warm
+starts along the path and ``-path_stiffness false`` unless given.  The approach rises in equal steps from the one
 giving ``--areas[0]`` contact area (p > 0) to the one giving ``--areas[1]`` and falls back
 (``--states`` in all, half up and half down), approaches interpolated on a loading sweep of
 the heights averaged to ``--calibrate-max-n`` (untimed).  One JSON line per state (approach,
@@ -44,11 +44,10 @@ petsc4py.init([sys.argv[0]] + petsc_args)
 import numpy as np  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
-from contactpetsc.physics.interactions import make_law  # noqa: E402
 from contactpetsc.solvers.adhesive import AdhesiveProblem  # noqa: E402
 
 sys.path.insert(0, HERE)
-from rough_surface import calibrate, rough_surface  # noqa: E402
+from rough_surface import adhesive_law, calibrate, rough_surface  # noqa: E402
 
 
 def status_kb(field):
@@ -65,16 +64,17 @@ def emit(**row):
 
 
 def path_approaches(lo, hi, states):
-    """Half the states from lo up to hi, the rest back down towards lo (hi not repeated)."""
-    up = states - states // 2
-    down = states // 2
+    """About half the states from lo up to hi (both included), the rest back down towards lo
+    (hi not repeated)."""
+    up = max(2, states - states // 2)
+    down = states - up
     return list(np.linspace(lo, hi, up)) + list(np.linspace(hi, lo, down + 1)[1:])
 
 
 def main():
     n = args.size
     grid, h, _ = rough_surface(n)
-    law = make_law("lj", work_of_adhesion=0.05 * grid.dx, z0=grid.dx)
+    law = adhesive_law(grid)
     t = time.perf_counter()
     ends = calibrate(grid, h, law, args.areas, max_n=args.calibrate_max_n)
     if ends is None:
