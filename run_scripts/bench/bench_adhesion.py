@@ -43,8 +43,8 @@ ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
 ap.add_argument("--cases", nargs="+", default=["sphere", "rough"])
 ap.add_argument("--sizes", type=int, nargs="+", default=[256, 512, 1024])
 ap.add_argument("--areas", type=float, nargs="+", default=[0.02, 0.10, 0.25])
-ap.add_argument("--w", type=float, nargs="+", default=[0.05], help="w / (E* dx)")
-ap.add_argument("--z0", type=float, nargs="+", default=[1.0], help="z0 / dx")
+ap.add_argument("--w", type=float, nargs="+", default=None, help="w / (E* dx) (default: rough_surface.ADHESIVE_W)")
+ap.add_argument("--z0", type=float, nargs="+", default=None, help="z0 / dx (default: rough_surface.ADHESIVE_Z0)")
 ap.add_argument("--mu", type=float, nargs="+", default=[0.5, 2.0], help="sphere Tabor parameters")
 ap.add_argument("--potential", default="vdw82", choices=["vdw82", "lj93"])
 ap.add_argument("--no-peer", action="store_true")
@@ -72,7 +72,9 @@ from contactpetsc.solvers.adhesive import AdhesiveProblem  # noqa: E402
 from contactpetsc.solvers.relaxation import RelaxationSolver  # noqa: E402
 from contactpetsc.geometry.surfaces import sphere  # noqa: E402
 
-from rough_surface import calibrate, rough_surface  # noqa: E402
+from rough_surface import ADHESIVE_W, ADHESIVE_Z0, adhesive_law, calibrate, rough_surface  # noqa: E402
+
+args.w, args.z0 = args.w or [ADHESIVE_W], args.z0 or [ADHESIVE_Z0]
 
 rank = PETSc.COMM_WORLD.getRank()
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -150,7 +152,7 @@ def rough_cases():
         for w_rel in args.w:
             for z0_rel in args.z0:
                 z0, w = z0_rel * dx, w_rel * dx
-                law = make_law("lj", work_of_adhesion=w, z0=z0)
+                law = adhesive_law(grid, w_rel, z0_rel)
                 approaches = args.approaches or calibrate(grid, h, law, args.areas, max_n=args.calibrate_max_n)
                 if approaches is None:
                     emit(case="rough", n=n, w=w_rel, z0=z0_rel, solver="calibration", converged=False,

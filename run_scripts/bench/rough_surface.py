@@ -35,6 +35,17 @@ def rough_surface(n: int, row_alignment: int = 1, comm=None):
     return grid, build_heights(scene, grid), scene
 
 
+#: the rough adhesive case: the full LJ curve with w = ADHESIVE_W E* dx and z0 = ADHESIVE_Z0 dx
+ADHESIVE_W, ADHESIVE_Z0 = 0.05, 1.0
+
+
+def adhesive_law(grid, w_rel=ADHESIVE_W, z0_rel=ADHESIVE_Z0):
+    """The law ``lj`` of the rough adhesive case on ``grid`` (E* = 1): work of adhesion
+    w_rel * dx [J/m^2], range z0_rel * dx [m]."""
+    from contactpetsc.physics.interactions import make_law
+    return make_law("lj", work_of_adhesion=w_rel * grid.dx, z0=z0_rel * grid.dx)
+
+
 def calibrate(grid, h, law, areas, steps=40, max_n=128):
     """Approaches giving the target contact fractions (p > 0, i.e. z < z0) of the adhesive
     contact on its loading path: a sweep with our solver (untimed) in ``steps`` equal steps
