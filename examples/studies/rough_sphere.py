@@ -74,6 +74,15 @@ def roughness(grid, seed=1):
     return surfaces.gaussian_correlated(grid, rms_height=1.0, correlation_length=corr, seed=seed)
 
 
+def loading_start(mu):
+    """First approach [m] of a loading path: below the smooth sphere's jump-off in
+    displacement control (JKR: -3/4 pi^(2/3) mu z0, -3.2 z0 at mu = 2, -8.0 z0 at mu = 5)
+    with a margin, and below its jump-on (-2.5 z0 at mu = 2): unloading back to it closes
+    the hysteresis loop."""
+    import numpy as np
+    return -max(5.0, np.ceil(0.75 * np.pi ** (2 / 3) * mu + 1.5)) * Z0
+
+
 def load_unload(grid, heights, e_star, w, step, prefix, unload=True, refine=4):
     """Loading path to LOAD (last step by load control), the state there, then unloading.
 
@@ -89,11 +98,7 @@ def load_unload(grid, heights, e_star, w, step, prefix, unload=True, refine=4):
 
     law = make_law("lj", work_of_adhesion=w, z0=Z0)
     pb = AdhesiveProblem(grid, heights, e_star, law, prefix=prefix, element_integration=True)
-    # below the smooth sphere's jump-off in displacement control (JKR: -3/4 pi^(2/3) mu z0,
-    # -3.2 z0 at mu = 2, -8.0 z0 at mu = 5) with a margin, and below its jump-on (-2.5 z0
-    # at mu = 2): unloading back to it closes the hysteresis loop
-    mu = tabor_parameter(R, w, e_star, Z0)
-    start = -max(5.0, np.ceil(0.75 * np.pi ** (2 / 3) * mu + 1.5)) * Z0
+    start = loading_start(tabor_parameter(R, w, e_star, Z0))
     path = common.load_until(pb, start, step * Z0, LOAD, refine)
     st = common.reach_load(pb, LOAD, path.points[-1].approach)
     at_load = dict(state=st, pressure=st.pressure.copy(), gap=st.gap.copy(), law=law)
@@ -120,10 +125,7 @@ def run(size="default", outdir="rough-sphere-output", rms=None) -> dict:
     for mu in cfg["tabor"]:
         w = work_for(mu)
         resolution = 16 * w / (9 * np.sqrt(3) * Z0) * grid.dx / (E_STAR * Z0)
-        opts = PETSc.Options(f"rough_mu{mu:g}_")
-        for key, value in cfg.get("options", {}).items():
-            if not opts.hasName(key):   # code defaults of this size; the command line wins
-                opts.setValue(key, value)
+        set_defaults(f"rough_mu{mu:g}_", cfg.get("options", {}))
         for rms in cfg["rms"]:
             rough = surfaces.scale_to_rms(grid, base, rms * Z0)
             h = surfaces.rough_sphere(grid, R, rough)
@@ -215,6 +217,75 @@ def fig8(grid, base, out, rms=2.0, mu=2.0, stiff=4.0):
     return res
 
 
+#: Fig. 8's cases: (factor on E*, factor on w)
+CASES = {"reference": (1.0, 1.0), "stiff": (4.0, 1.0), "stiff-w": (4.0, 4.0)}
+
+
+def set_defaults(prefix, options):
+    """A size's code defaults for the options of ``prefix``; the command line wins."""
+    from petsc4py import PETSc
+    opts = PETSc.Options(prefix)
+    for key, value in options.items():
+        if not opts.hasName(key):
+            opts.setValue(key, value)
+
+
+def case_run(case, size="tabor5", outdir="rough-sphere-case", rms=2.0, refine=4) -> dict:
+    """One case of Fig. 8 at rms [z0] (``CASES``), loaded to LOAD with every state's pressure
+    and gap saved (``common.StudyRecorder``: ``path/step_NNNN.h5``); the reference then
+    unloads from the state at the load (stage D of Fig. 9b) back through the loading
+    approaches to stage A's (``metrics.jump_in_stages``), whose last state is stage E.
+    Writes case.json (the case at the load, the stages' state numbers), paths.csv,
+    jumps.csv, states_path.csv and history_path.csv into ``outdir``.  Collective."""
+    import numpy as np
+    from contactpetsc import metrics
+    from contactpetsc.geometry import surfaces
+    from contactpetsc.paths import sweep
+    from contactpetsc.physics.interactions import make_law, tabor_parameter
+    from contactpetsc.solvers.adhesive import AdhesiveProblem
+
+    cfg = SIZES[size]
+    mu0 = cfg["tabor"][0]
+    out = common.prepare(outdir)
+    grid, _ = make_grid(cfg["n"], mu0)
+    h = surfaces.rough_sphere(grid, R, surfaces.scale_to_rms(grid, roughness(grid), rms * Z0))
+    e, w = CASES[case][0] * E_STAR, CASES[case][1] * work_for(mu0)
+    mu = tabor_parameter(R, w, e, Z0)
+    prefix = f"fig8_{case.replace('-', '_')}_"
+    set_defaults(prefix, cfg.get("options", {}))
+    law = make_law("lj", work_of_adhesion=w, z0=Z0)
+    pb = AdhesiveProblem(grid, h, e, law, prefix=prefix, element_integration=True)
+    rec = common.StudyRecorder(out, "path", grid, h, pb, fields=True)
+    start, step = loading_start(mu), cfg["step"] * Z0
+    path = common.load_until(pb, start, step, LOAD, refine, on_state=rec)
+    n_loading = rec.states
+    st = common.reach_load(pb, LOAD, path.points[-1].approach)
+    at_load = rec.record(st, "at-load")
+    load_ratio, area_ratio = metrics.adhesion_ratios(grid, st.pressure, law.peak_attraction)
+    res = dict(case=case, e_star=e, w=w, tabor=mu, rms_z0=rms, n=cfg["n"], dx=grid.dx, approach_z0=st.approach / Z0,
+               load=st.force, load_ratio=load_ratio, area_ratio=area_ratio,
+               contact_area=metrics.contact_area(grid, st.pressure), at_load_state=at_load,
+               peak_pressure=float(st.pressure.max()[1]))
+    common.say(f"{case}: mu {mu:.2f}, at the load approach {res['approach_z0']:.2f} z0, load ratio {load_ratio:.3f}, "
+               f"area ratio {area_ratio:.3f}, contact area {res['contact_area'] * 1e12:.4f} um^2")
+    if case == "reference":
+        loading = path.points[:n_loading]
+        stages = metrics.jump_in_stages([p.approach for p in loading], [p.force for p in loading],
+                                        [p.contact_fraction for p in loading])
+        if stages is not None:
+            a, b, c = stages
+            top = int(np.floor((st.approach - start) / step + 1e-9))
+            k_a = int(round((loading[a].approach - start) / step))
+            sweep(pb, start + np.arange(top, k_a - 1, -1) * step, refine=refine, path=path, branch="unloading",
+                  on_state=rec)
+            res["stages"] = dict(A=a + 1, B=b + 1, C=None if c is None else c + 1, D=at_load, E=rec.states)
+            common.say(f"stages (states): {res['stages']}")
+    common.write_csv(out / "paths.csv", common.path_rows(path, case=case, rms_z0=rms))
+    common.write_csv(out / "jumps.csv", common.jump_rows(path, case=case, rms_z0=rms))
+    common.write_json(out / "case.json", res)
+    return res
+
+
 def collect(dirs, outdir) -> list[dict]:
     """Figs. 7 and 9a over the outputs of several runs (e.g. one job per rms value at
     ``--size tabor5``): their rough_sphere.csv rows and paths_*.csv, merged into --out."""
@@ -280,6 +351,8 @@ def _plots(out, grid, cfg, rows, maps, paths):
 
 def _extra(ap):
     ap.add_argument("--rms", type=float, nargs="+", help="rms values [z0] instead of the size's")
+    ap.add_argument("--case", choices=tuple(CASES),
+                    help="one case of Fig. 8 at rms 2 z0 (the reference with Fig. 9b's stages), every state saved")
     ap.add_argument("--collect", nargs="+", metavar="DIR",
                     help="no run: Figs. 7 and 9a from these runs' outputs (one job per rms), into --out")
 
@@ -289,5 +362,7 @@ if __name__ == "__main__":
                         extra=_extra)
     if args.collect:
         collect(args.collect, args.out)
+    elif args.case:
+        case_run(args.case, args.size, args.out)
     else:
         run(args.size, args.out, rms=args.rms)
