@@ -280,6 +280,18 @@ class StudyRecorder:
         return self.states
 
 
+    def flush(self) -> None:
+        """The iterations solved after the last recorded state (a failed step, a pull-off
+        refinement) to the history, labelled NaN (as the CLI's history.csv)."""
+        from contactpetsc.app.recorder import append_text
+        from contactpetsc.solvers.history import SolveHistory
+        new = self.problem.history.records[self.history_written:]
+        if is_root() and new:
+            append_text(str(self._history_path), SolveHistory(records=new).csv_text(
+                header=not self._history_path.exists(), step=float("nan")))
+        self.history_written = len(self.problem.history.records)
+
+
 def read_state_fields(directory, state) -> dict:
     """{"pressure", "gap", "approach", "force"} of a ``StudyRecorder`` field file (arrays (nx, ny),
     as ``grid.gather`` gives them)."""

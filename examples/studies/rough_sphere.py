@@ -83,8 +83,10 @@ def loading_start(mu):
     return -max(5.0, np.ceil(0.75 * np.pi ** (2 / 3) * mu + 1.5)) * Z0
 
 
-def load_unload(grid, heights, e_star, w, step, prefix, unload=True, refine=4):
-    """Loading path to LOAD (last step by load control), the state there, then unloading.
+def load_unload(grid, heights, e_star, w, step, prefix, unload=True, refine=4, out=None, name=None):
+    """Loading path to LOAD (last step by load control), the state there, then unloading;
+    with ``out`` every state and solver iteration recorded there under ``name``
+    (``common.StudyRecorder``).
 
     Loading samples the approaches start + k step z0; unloading returns through the same
     approaches (from the largest below the state at the load), so that where the two
@@ -98,19 +100,22 @@ def load_unload(grid, heights, e_star, w, step, prefix, unload=True, refine=4):
 
     law = make_law("lj", work_of_adhesion=w, z0=Z0)
     pb = AdhesiveProblem(grid, heights, e_star, law, prefix=prefix, element_integration=True)
+    rec = None if out is None else common.StudyRecorder(out, name, grid, heights, pb)
     start = loading_start(tabor_parameter(R, w, e_star, Z0))
-    path = common.load_until(pb, start, step * Z0, LOAD, refine)
+    path = common.load_until(pb, start, step * Z0, LOAD, refine, on_state=rec)
     st = common.reach_load(pb, LOAD, path.points[-1].approach)
+    if rec is not None:
+        rec.record(st, "at-load")
     at_load = dict(state=st, pressure=st.pressure.copy(), gap=st.gap.copy(), law=law)
     if unload:
         top = int(np.floor((st.approach - start) / (step * Z0) + 1e-9))
-        sweep(pb, start + np.arange(top, -1, -1) * step * Z0, refine=refine, path=path, branch="unloading")
+        sweep(pb, start + np.arange(top, -1, -1) * step * Z0, refine=refine, path=path, branch="unloading",
+              on_state=rec)
     return path, at_load, pb
 
 
 def run(size="default", outdir="rough-sphere-output", rms=None) -> dict:
     import numpy as np
-    from petsc4py import PETSc
     from contactpetsc import metrics
     from contactpetsc.geometry import surfaces
     from contactpetsc.physics.interactions import tabor_parameter
@@ -129,7 +134,8 @@ def run(size="default", outdir="rough-sphere-output", rms=None) -> dict:
         for rms in cfg["rms"]:
             rough = surfaces.scale_to_rms(grid, base, rms * Z0)
             h = surfaces.rough_sphere(grid, R, rough)
-            path, at, pb = load_unload(grid, h, E_STAR, w, cfg["step"], prefix=f"rough_mu{mu:g}_")
+            path, at, pb = load_unload(grid, h, E_STAR, w, cfg["step"], prefix=f"rough_mu{mu:g}_", out=out,
+                                       name=f"mu{mu:g}_rms{rms:g}")
             st = at["state"]
             load_ratio, area_ratio = metrics.adhesion_ratios(grid, at["pressure"], at["law"].peak_attraction)
             scale = 2 * np.pi * R * w
@@ -178,7 +184,8 @@ def fig8(grid, base, out, rms=2.0, mu=2.0, stiff=4.0):
     res, sections = {}, {}
     delta_ref = None
     for k, (name, e, ww) in enumerate(cases):
-        path, at, pb = load_unload(grid, h, e, ww, 1.0, prefix=f"fig8_{k}_", unload=False)
+        path, at, pb = load_unload(grid, h, e, ww, 1.0, prefix=f"fig8_{k}_", unload=False, out=out,
+                                   name=f"fig8_{k}")
         lr, ar = metrics.adhesion_ratios(grid, at["pressure"], at["law"].peak_attraction)
         entry = dict(e_star=e, w=ww, approach_z0=at["state"].approach / Z0, load_ratio=lr, area_ratio=ar,
                      contact_area=metrics.contact_area(grid, at["pressure"]))
