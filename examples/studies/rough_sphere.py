@@ -293,6 +293,131 @@ def case_run(case, size="tabor5", outdir="rough-sphere-case", rms=2.0, refine=4)
     return res
 
 
+def _read_case(case_dir):
+    """(case.json, states_path.csv columns) of a ``case_run`` output directory."""
+    import json
+    from pathlib import Path
+    from contactpetsc.app.plots import read_csv
+    d = Path(case_dir)
+    with open(d / "case.json") as f:
+        info = json.load(f)
+    return info, read_csv(str(d / "states_path.csv"))
+
+
+def _crop(ax, pressures, dx, threshold):
+    """Limits of a map panel [nm]: the box of nodes with |p| > threshold in any of ``pressures``
+    ((nx, ny) arrays), with a margin of a tenth of its size."""
+    import numpy as np
+    mask = np.any([np.abs(p) > threshold for p in pressures], axis=0)
+    i, j = np.nonzero(mask)
+    if i.size == 0:
+        return
+    lo, hi = min(i.min(), j.min()), max(i.max(), j.max()) + 1
+    pad = 0.1 * (hi - lo)
+    ax.set_xlim((lo - pad) * dx * 1e9, (hi + pad) * dx * 1e9)
+    ax.set_ylim((lo - pad) * dx * 1e9, (hi + pad) * dx * 1e9)
+
+
+def stage_maps(case_dir, outdir) -> dict:
+    """Fig. 9b from a reference ``case_run`` (its saved fields; nothing is solved): the
+    load-approach curve of its states with the stages A-E marked, and the pressure maps of
+    the five stages, each circled where its pressure fell most since A (B, E: the asperity
+    that jumped in and holds on) or rose most since C (D: new contact).  Writes
+    fig9b.png and fig9b.csv (the stages' approach, force, ratios) into ``outdir``; returns
+    the rows."""
+    import numpy as np
+    from pathlib import Path
+    from types import SimpleNamespace
+    info, states = _read_case(case_dir)
+    stages = {k: v for k, v in info.get("stages", {}).items() if v is not None}
+    if not stages:
+        raise SystemExit(f"{case_dir}: no stages (not a reference case, or its force never fell in contact)")
+    out = common.prepare(outdir)
+    fields = {k: common.read_state_fields(Path(case_dir) / "path", s) for k, s in stages.items()}
+    p_peak = 16 * info["w"] / (9 * np.sqrt(3) * Z0)
+    rows = []
+    for k, f in fields.items():
+        p = f["pressure"]
+        rows.append(dict(stage=k, state=stages[k], approach_z0=f["approach"] / Z0, force_mN=f["force"] * 1e3,
+                         adhesive_force_mN=p[p < 0].sum() * info["dx"] ** 2 * 1e3,
+                         contact_area_um2=(p > 0).sum() * info["dx"] ** 2 * 1e12))
+    common.write_csv(out / "fig9b.csv", rows)
+    if not common.is_root():
+        return rows
+    plt = common.plt()
+    fig = plt.figure(figsize=(15, 8.5))
+    ax = fig.add_subplot(2, 3, 1)
+    for branch, style in (("loading", "o-"), ("at-load", "s"), ("unloading", "v-")):
+        sel = [i for i, b in enumerate(states["branch"]) if b == branch]
+        ax.plot(states["approach"][sel] / Z0, states["force"][sel] * 1e3, style, ms=3, lw=0.8,
+                mfc="none" if branch == "unloading" else None, label=branch)
+    for r in rows:
+        ax.annotate(r["stage"], (r["approach_z0"], r["force_mN"]), xytext=(4, 6), textcoords="offset points",
+                    fontsize=11, color="C3", weight="bold")
+        ax.plot(r["approach_z0"], r["force_mN"], "o", color="C3", ms=6, mfc="none")
+    lo = min(r["approach_z0"] for r in rows) - 3
+    ax.set_xlim(lo, max(r["approach_z0"] for r in rows) + 1)
+    sel = states["approach"] / Z0 >= lo
+    ax.set_ylim(states["force"][sel].min() * 1e3 - 0.005, states["force"][sel].max() * 1e3 + 0.005)
+    common.dress(ax, "approach / z0", "force [mN]", f"Fig. 9b: stages, mu = {info['tabor']:.2g}, "
+                 f"rms = {info['rms_z0']:g} z0, {info['n']}^2", zero_line=True, legend_size=7)
+    grid = SimpleNamespace(lengths=(info["n"] * info["dx"], info["n"] * info["dx"]))
+    marks = {"B": ("A", -1), "E": ("A", -1), "D": ("C", 1)}
+    for m, (k, f) in enumerate(fields.items()):
+        ax = fig.add_subplot(2, 3, m + 2)
+        common.pressure_map(ax, grid, f["pressure"], f"{k}: approach {f['approach'] / Z0:.2f} z0, "
+                            f"force {f['force'] * 1e3:.4f} mN", scale=1e9, unit="GPa")
+        _crop(ax, [g["pressure"] for g in fields.values()], info["dx"], 0.01 * p_peak)
+        if k in marks and marks[k][0] in fields:
+            change = marks[k][1] * (f["pressure"] - fields[marks[k][0]]["pressure"])
+            i, j = np.unravel_index(np.argmax(change), change.shape)
+            x0, x1 = ax.get_xlim()
+            ax.add_patch(plt.Circle(((i + 0.5) * info["dx"] * 1e9, (j + 0.5) * info["dx"] * 1e9),
+                                    0.06 * (x1 - x0), fill=False, color="k", lw=1.2))
+        ax.set_xlabel("x [nm]")
+    common.savefig(fig, out / "fig9b.png")
+    return rows
+
+
+def case_figures(dirs, outdir) -> list[dict]:
+    """Fig. 8 from ``case_run`` outputs (the three cases, any order; saved fields, nothing
+    solved): the gap and pressure through the apex row at the load, and fig8.csv (each case
+    at the load).  Returns the rows."""
+    import numpy as np
+    from pathlib import Path
+    cases = []
+    for d in dirs:
+        info, _ = _read_case(d)
+        f = common.read_state_fields(Path(d) / "path", info["at_load_state"])
+        cases.append((info, f))
+    cases.sort(key=lambda c: list(CASES).index(c[0]["case"]))
+    out = common.prepare(outdir)
+    keys = ("case", "e_star", "w", "tabor", "approach_z0", "load", "load_ratio", "area_ratio", "contact_area",
+            "peak_pressure", "n", "dx")
+    rows = [{k: info[k] for k in keys} for info, _ in cases]
+    common.write_csv(out / "fig8.csv", rows)
+    if common.is_root():
+        plt = common.plt()
+        fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+        info0 = cases[0][0]
+        n, dx = info0["n"], info0["dx"]
+        j = n // 2
+        x = (np.arange(n) - n // 2) * dx * 1e9
+        for info, f in cases:
+            label = f"{info['case']} (mu = {info['tabor']:.2g})"
+            a1.plot(x, f["gap"][:, j] / Z0, label=label, lw=0.9)
+            a2.plot(x, f["pressure"][:, j] / 1e9, label=label, lw=0.9)
+        reach = max(np.abs(x[np.abs(f["pressure"][:, j]) > 1e-3 * np.abs(f["pressure"]).max()]).max()
+                    for _, f in cases)
+        a1.set_xlim(-1.2 * reach, 1.2 * reach)
+        a1.set_ylim(-1, 12)
+        common.dress(a1, "", "gap / z0", f"Fig. 8: through the apex at {LOAD * 1e3:g} mN, rms = "
+                     f"{info0['rms_z0']:g} z0, {n}^2", legend_size=7)
+        common.dress(a2, "x [nm]", "pressure [GPa]", zero_line=True)
+        common.savefig(fig, out / "fig8.png")
+    return rows
+
+
 def collect(dirs, outdir) -> list[dict]:
     """Figs. 7 and 9a over the outputs of several runs (e.g. one job per rms value at
     ``--size tabor5``): their rough_sphere.csv rows and paths_*.csv, merged into --out."""
@@ -360,6 +485,9 @@ def _extra(ap):
     ap.add_argument("--rms", type=float, nargs="+", help="rms values [z0] instead of the size's")
     ap.add_argument("--case", choices=tuple(CASES),
                     help="one case of Fig. 8 at rms 2 z0 (the reference with Fig. 9b's stages), every state saved")
+    ap.add_argument("--case-figures", nargs="+", metavar="DIR",
+                    help="no run: Fig. 9b from the first --case output (the reference) and Fig. 8 from all "
+                         "given (the three cases), into --out")
     ap.add_argument("--collect", nargs="+", metavar="DIR",
                     help="no run: Figs. 7 and 9a from these runs' outputs (one job per rms), into --out")
 
@@ -369,6 +497,10 @@ if __name__ == "__main__":
                         extra=_extra)
     if args.collect:
         collect(args.collect, args.out)
+    elif args.case_figures:
+        stage_maps(args.case_figures[0], args.out)
+        if len(args.case_figures) > 1:
+            case_figures(args.case_figures, args.out)
     elif args.case:
         case_run(args.case, args.size, args.out)
     else:
