@@ -24,6 +24,7 @@ force on each atom -- the pressure integrated over the nodes the atom forms
 (its footprint) -- against the atom's distance from the axis (Fig. 11).
 
 Outputs in --out: tips.csv (one row per tip), path_<tip>.csv, atoms_<tip>.csv,
+states_<tip>.csv and history_<tip>.csv (``common.StudyRecorder``),
 fig10.png, fig11.png, fig12.png, atomic_tips.json.
 Sizes: default 256^2 nodes, dx = d / 6 (48 sigma window), W_max = 2 pi R w;
 small 64^2, dx = d / 2, W_max = 0.3 (2 pi R w); approach steps of 0.5 z0.

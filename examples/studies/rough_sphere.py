@@ -2,6 +2,8 @@
 
     python examples/studies/rough_sphere.py [--size small|default|tabor5] [--rms Z ...] [--out DIR]
     python examples/studies/rough_sphere.py --collect DIR [DIR ...] [--out DIR]
+    python examples/studies/rough_sphere.py [--size ...] --case reference|stiff|stiff-w --out DIR
+    python examples/studies/rough_sphere.py --case-figures REF_DIR [STIFF_DIR STIFF_W_DIR] [--out DIR]
     mpirun -n 2 python examples/studies/rough_sphere.py
 
 The paper: a sphere R = 100 um, E* = 50 GPa, z0 = 0.3 nm, w = 0.29 J/m^2
@@ -27,8 +29,16 @@ rms = 2 z0, cross-sections for the reference, a 4x stiffer material, and a
 4x stiffer material with 4x the work of adhesion (same Tabor parameter), at
 the same load and at the same approach.
 
+``--case``: one case of Fig. 8 at rms = 2 z0 and the size's first Tabor parameter
+(one job each, e.g. at ``--size tabor5``), every state's pressure and gap saved; the
+reference unloads back to stage A of Fig. 9b.  ``--case-figures`` draws Fig. 9b (the
+stages A-E, ``metrics.jump_in_stages``) and Fig. 8 from those saved fields.
+
 Outputs in --out: rough_sphere.csv (one row per mu and rms), paths_*.csv,
-fig6.png, fig7.png, fig8.png, fig9.png, rough_sphere.json.
+states_*.csv and history_*.csv per path (``common.StudyRecorder``), fig6.png,
+fig7.png, fig8.png, fig9.png, rough_sphere.json; with --case: case.json,
+paths.csv, jumps.csv, states_path.csv, history_path.csv, path/step_NNNN.h5; with
+--case-figures: fig9b.png, fig9b.csv, fig8.png, fig8.csv.
 Sizes: default 64^2 (dx 35 nm, window 2.2 um), rms 0, 0.5, 1, 2, 4, 10 z0,
 mu 2 and 1, approach steps of 0.5 z0; small 32^2, rms 0 and 2 z0, mu 1, steps of
 1 z0.  The paper does not state its grid.

@@ -25,7 +25,8 @@ Fig. 5: the adhesive load and area ratios (1 % cut-off) of smooth spheres
 among them one with the reference's Tabor parameter, R and load but w and E*
 both four times larger.
 
-Outputs in --out: fig4_*.csv (paths), fig4.png, fig5.csv, fig5.png, smooth_sphere.json.
+Outputs in --out: fig4_*.csv (paths), states_*.csv and history_*.csv per path
+(``common.StudyRecorder``), fig4.png, fig5.csv, fig5.png, smooth_sphere.json.
 Sizes: default 128^2 (mu = 0.02, dx = 3 z0) and 96^2 (mu = 2) windows, 96^2 for
 Fig. 5; small 64^2 / 48^2 / 48^2.  The paper does not state its grids.
 """
