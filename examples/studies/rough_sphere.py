@@ -332,7 +332,8 @@ def stage_maps(case_dir, outdir) -> dict:
     """Fig. 9b from a reference ``case_run`` (its saved fields; nothing is solved): the
     load-approach curve of its states with the stages A-E marked, and the pressure maps of
     the five stages, each circled where its pressure fell most since A (B, E: the asperity
-    that jumped in and holds on) or rose most since C (D: new contact).  Writes
+    that jumped in and holds on) or rose most since C (D: new contact), where that change
+    exceeds 1 % of the law's peak attraction.  Writes
     fig9b.png and fig9b.csv (the stages' approach, force, ratios) into ``outdir``; returns
     the rows."""
     import numpy as np
@@ -362,7 +363,8 @@ def stage_maps(case_dir, outdir) -> dict:
         ax.plot(states["approach"][sel] / Z0, states["force"][sel] * 1e3, style, ms=3, lw=0.8,
                 mfc="none" if branch == "unloading" else None, label=branch)
     for r in rows:
-        ax.annotate(r["stage"], (r["approach_z0"], r["force_mN"]), xytext=(4, 6), textcoords="offset points",
+        ax.annotate(r["stage"], (r["approach_z0"], r["force_mN"]), textcoords="offset points",
+                    xytext=(4, -14) if r["stage"] == "E" else (4, 6),
                     fontsize=11, color="C3", weight="bold")
         ax.plot(r["approach_z0"], r["force_mN"], "o", color="C3", ms=6, mfc="none")
     lo = min(r["approach_z0"] for r in rows) - 3
@@ -375,6 +377,7 @@ def stage_maps(case_dir, outdir) -> dict:
     marks = {"B": ("A", -1), "E": ("A", -1), "D": ("C", 1)}
     for m, (k, f) in enumerate(fields.items()):
         ax = fig.add_subplot(2, 3, m + 2)
+        ax.set_xlabel("x [nm]")
         common.pressure_map(ax, grid, f["pressure"], f"{k}: approach {f['approach'] / Z0:.2f} z0, "
                             f"force {f['force'] * 1e3:.4f} mN", scale=1e9, unit="GPa")
         _crop(ax, [g["pressure"] for g in fields.values()], info["dx"], 0.01 * p_peak)
@@ -382,9 +385,9 @@ def stage_maps(case_dir, outdir) -> dict:
             change = marks[k][1] * (f["pressure"] - fields[marks[k][0]]["pressure"])
             i, j = np.unravel_index(np.argmax(change), change.shape)
             x0, x1 = ax.get_xlim()
-            ax.add_patch(plt.Circle(((i + 0.5) * info["dx"] * 1e9, (j + 0.5) * info["dx"] * 1e9),
-                                    0.06 * (x1 - x0), fill=False, color="k", lw=1.2))
-        ax.set_xlabel("x [nm]")
+            if change[i, j] >= 0.01 * p_peak:     # else nothing changed there (E = A: nothing holds on)
+                ax.add_patch(plt.Circle(((i + 0.5) * info["dx"] * 1e9, (j + 0.5) * info["dx"] * 1e9),
+                                        0.06 * (x1 - x0), fill=False, color="k", lw=1.2))
     common.savefig(fig, out / "fig9b.png")
     return rows
 
