@@ -247,27 +247,38 @@ def set_defaults(prefix, options):
             opts.setValue(key, value)
 
 
+def case_parameters(case, size="tabor5", rms=2.0):
+    """(grid, parameters) of a ``case_run``: the window of the size's first Tabor parameter
+    and the case's E* [Pa], w [J/m^2], Tabor parameter, rms [z0], n and dx [m] (what
+    case.json holds before anything is solved)."""
+    from contactpetsc.physics.interactions import tabor_parameter
+    cfg = SIZES[size]
+    grid, _ = make_grid(cfg["n"], cfg["tabor"][0])
+    e, w = CASES[case][0] * E_STAR, CASES[case][1] * work_for(cfg["tabor"][0])
+    return grid, dict(case=case, size=size, e_star=e, w=w, tabor=tabor_parameter(R, w, e, Z0), rms_z0=rms,
+                      n=cfg["n"], dx=grid.dx)
+
+
 def case_run(case, size="tabor5", outdir="rough-sphere-case", rms=2.0, refine=4) -> dict:
     """One case of Fig. 8 at rms [z0] (``CASES``), loaded to LOAD with every state's pressure
     and gap saved (``common.StudyRecorder``: ``path/step_NNNN.h5``); the reference then
     unloads from the state at the load (stage D of Fig. 9b) back through the loading
     approaches to stage A's (``metrics.jump_in_stages``), whose last state is stage E.
-    Writes case.json (the case at the load, the stages' state numbers), paths.csv,
+    Writes case.json (``case_parameters`` first, then the case at the load), paths.csv,
     jumps.csv, states_path.csv and history_path.csv into ``outdir``.  Collective."""
     import numpy as np
     from contactpetsc import metrics
     from contactpetsc.geometry import surfaces
     from contactpetsc.paths import sweep
-    from contactpetsc.physics.interactions import make_law, tabor_parameter
+    from contactpetsc.physics.interactions import make_law
     from contactpetsc.solvers.adhesive import AdhesiveProblem
 
     cfg = SIZES[size]
-    mu0 = cfg["tabor"][0]
     out = common.prepare(outdir)
-    grid, _ = make_grid(cfg["n"], mu0)
+    grid, res = case_parameters(case, size, rms)
+    common.write_json(out / "case.json", res)
     h = surfaces.rough_sphere(grid, R, surfaces.scale_to_rms(grid, roughness(grid), rms * Z0))
-    e, w = CASES[case][0] * E_STAR, CASES[case][1] * work_for(mu0)
-    mu = tabor_parameter(R, w, e, Z0)
+    e, w, mu = res["e_star"], res["w"], res["tabor"]
     prefix = f"fig8_{case.replace('-', '_')}_"
     set_defaults(prefix, cfg.get("options", {}))
     law = make_law("lj", work_of_adhesion=w, z0=Z0)
@@ -279,8 +290,7 @@ def case_run(case, size="tabor5", outdir="rough-sphere-case", rms=2.0, refine=4)
     st = common.reach_load(pb, LOAD, path.points[-1].approach)
     at_load = rec.record(st, "at-load")
     load_ratio, area_ratio = metrics.adhesion_ratios(grid, st.pressure, law.peak_attraction)
-    res = dict(case=case, e_star=e, w=w, tabor=mu, rms_z0=rms, n=cfg["n"], dx=grid.dx, approach_z0=st.approach / Z0,
-               load=st.force, load_ratio=load_ratio, area_ratio=area_ratio,
+    res.update(approach_z0=st.approach / Z0, load=st.force, load_ratio=load_ratio, area_ratio=area_ratio,
                contact_area=metrics.contact_area(grid, st.pressure), at_load_state=at_load,
                peak_pressure=float(st.pressure.max()[1]))
     common.say(f"{case}: mu {mu:.2f}, at the load approach {res['approach_z0']:.2f} z0, load ratio {load_ratio:.3f}, "
@@ -290,17 +300,37 @@ def case_run(case, size="tabor5", outdir="rough-sphere-case", rms=2.0, refine=4)
         stages = metrics.jump_in_stages([p.approach for p in loading], [p.force for p in loading],
                                         [p.contact_fraction for p in loading])
         if stages is not None:
-            a, b, c = stages
             top = int(np.floor((st.approach - start) / step + 1e-9))
-            k_a = int(round((loading[a].approach - start) / step))
+            k_a = int(round((loading[stages[0]].approach - start) / step))
             sweep(pb, start + np.arange(top, k_a - 1, -1) * step, refine=refine, path=path, branch="unloading",
                   on_state=rec)
-            res["stages"] = dict(A=a + 1, B=b + 1, C=None if c is None else c + 1, D=at_load, E=rec.states)
-            common.say(f"stages (states): {res['stages']}")
     common.write_csv(out / "paths.csv", common.path_rows(path, case=case, rms_z0=rms))
     common.write_csv(out / "jumps.csv", common.jump_rows(path, case=case, rms_z0=rms))
     common.write_json(out / "case.json", res)
     return res
+
+
+def stages_of(states) -> dict:
+    """{stage: state number} of Fig. 9b from a ``case_run``'s states_path.csv columns: A, B, C
+    on the loading rows (``metrics.jump_in_stages``), D the state at the load (the last
+    loading state of a run that has not reached it), E the unloading state at A's
+    approach (where the run got there).  Empty when the loading force never fell in contact."""
+    import numpy as np
+    from contactpetsc import metrics
+    branch = np.array(states["branch"])
+    load = np.flatnonzero(branch == "loading")
+    found = metrics.jump_in_stages(states["approach"][load], states["force"][load],
+                                   states["contact_fraction"][load])
+    if found is None:
+        return {}
+    out = {k: int(states["state"][load[i]]) for k, i in zip("ABC", found) if i is not None}
+    at = np.flatnonzero(branch == "at-load")
+    out["D"] = int(states["state"][at[0] if at.size else load[-1]])
+    a = states["approach"][load[found[0]]]
+    back = np.flatnonzero((branch == "unloading") & np.isclose(states["approach"], a, rtol=0, atol=1e-6 * Z0))
+    if back.size:
+        out["E"] = int(states["state"][back[0]])
+    return out
 
 
 def _read_case(case_dir):
@@ -340,7 +370,7 @@ def stage_maps(case_dir, outdir) -> dict:
     from pathlib import Path
     from types import SimpleNamespace
     info, states = _read_case(case_dir)
-    stages = {k: v for k, v in info.get("stages", {}).items() if v is not None}
+    stages = stages_of(states)
     if not stages:
         raise SystemExit(f"{case_dir}: no stages (not a reference case, or its force never fell in contact)")
     out = common.prepare(outdir)
@@ -375,10 +405,12 @@ def stage_maps(case_dir, outdir) -> dict:
                  f"rms = {info['rms_z0']:g} z0, {info['n']}^2", zero_line=True, legend_size=7)
     grid = SimpleNamespace(lengths=(info["n"] * info["dx"], info["n"] * info["dx"]))
     marks = {"B": ("A", -1), "E": ("A", -1), "D": ("C", 1)}
+    reached = "at-load" in states["branch"]
     for m, (k, f) in enumerate(fields.items()):
         ax = fig.add_subplot(2, 3, m + 2)
         ax.set_xlabel("x [nm]")
-        common.pressure_map(ax, grid, f["pressure"], f"{k}: approach {f['approach'] / Z0:.2f} z0, "
+        name = k if reached or k != "D" else "D (the run's last state)"
+        common.pressure_map(ax, grid, f["pressure"], f"{name}: approach {f['approach'] / Z0:.2f} z0, "
                             f"force {f['force'] * 1e3:.4f} mN", scale=1e9, unit="GPa")
         _crop(ax, [g["pressure"] for g in fields.values()], info["dx"], 0.01 * p_peak)
         if k in marks and marks[k][0] in fields:
