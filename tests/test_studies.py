@@ -118,6 +118,11 @@ def test_jump_in_stages_of_a_path_with_known_jumps():
     assert metrics.jump_in_stages(d, np.where(touching, d, f), touching) is None
     with pytest.raises(ValueError, match="rise"):
         metrics.jump_in_stages(d[::-1], f, touching)
+    # a deeper smooth fall (2.0 -> 2.5, 1.0) that is no located jump: the jump-on still wins
+    deep = np.where(d == 2.5, f - 1.0, f)
+    assert metrics.jump_in_stages(d, deep, touching)[:2] == (12, 13)     # without jumps: d = 2.0 -> 2.5
+    assert metrics.jump_in_stages(d, deep, touching, jumps=[(0.7, 0.72), (-2.2, -2.1)])[:2] == (a, b)
+    assert metrics.jump_in_stages(d, deep, touching, jumps=[(-2.2, -2.1)]) is None
 
 
 def test_area_gap_and_forces_of_a_known_field(coll):

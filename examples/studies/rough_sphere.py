@@ -298,7 +298,9 @@ def case_run(case, size="tabor5", outdir="rough-sphere-case", rms=2.0, refine=4)
     if case == "reference":
         loading = path.points[:n_loading]
         stages = metrics.jump_in_stages([p.approach for p in loading], [p.force for p in loading],
-                                        [p.contact_fraction for p in loading])
+                                        [p.contact_fraction for p in loading],
+                                        jumps=[(j.approach_before, j.approach_after) for j in path.jumps
+                                               if j.kind == "jump-on"])
         if stages is not None:
             top = int(np.floor((st.approach - start) / step + 1e-9))
             k_a = int(round((loading[stages[0]].approach - start) / step))
@@ -310,17 +312,20 @@ def case_run(case, size="tabor5", outdir="rough-sphere-case", rms=2.0, refine=4)
     return res
 
 
-def stages_of(states) -> dict:
+def stages_of(states, jumps=None) -> dict:
     """{stage: state number} of Fig. 9b from a ``case_run``'s states_path.csv columns: A, B, C
-    on the loading rows (``metrics.jump_in_stages``), D the state at the load (the last
-    loading state of a run that has not reached it), E the unloading state at A's
-    approach (where the run got there).  Empty when the loading force never fell in contact."""
+    on the loading rows (``metrics.jump_in_stages``, across the located jump-ons of
+    jumps.csv's columns ``jumps`` when given), D the state at the load (the last loading
+    state of a run that has not reached it), E the unloading state at A's approach (where
+    the run got there).  Empty when no fall of the loading force qualifies."""
     import numpy as np
     from contactpetsc import metrics
     branch = np.array(states["branch"])
     load = np.flatnonzero(branch == "loading")
+    ons = None if jumps is None else [(lo, hi) for k, lo, hi in zip(jumps["kind"], jumps["approach_before"],
+                                                                    jumps["approach_after"]) if k == "jump-on"]
     found = metrics.jump_in_stages(states["approach"][load], states["force"][load],
-                                   states["contact_fraction"][load])
+                                   states["contact_fraction"][load], jumps=ons)
     if found is None:
         return {}
     out = {k: int(states["state"][load[i]]) for k, i in zip("ABC", found) if i is not None}
@@ -369,8 +374,11 @@ def stage_maps(case_dir, outdir) -> dict:
     import numpy as np
     from pathlib import Path
     from types import SimpleNamespace
+    from contactpetsc.app.plots import read_csv
     info, states = _read_case(case_dir)
-    stages = stages_of(states)
+    jumps = Path(case_dir) / "jumps.csv"
+    # no jumps.csv (a run not finished, or no jumps): the falls of force are taken as they are
+    stages = stages_of(states, read_csv(str(jumps)) if jumps.exists() else None)
     if not stages:
         raise SystemExit(f"{case_dir}: no stages (not a reference case, or its force never fell in contact)")
     out = common.prepare(outdir)
