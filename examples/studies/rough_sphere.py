@@ -435,21 +435,36 @@ def stage_maps(case_dir, outdir) -> dict:
 def case_figures(dirs, outdir) -> list[dict]:
     """Fig. 8 from ``case_run`` outputs (the three cases, any order; saved fields, nothing
     solved): the gap and pressure through the apex row at the load, and fig8.csv (each case
-    at the load).  Returns the rows."""
+    at the load: approach, force, ratios and contact area from its saved state, with
+    ``metrics``).  A case whose run has not reached the load is left out.  Returns the rows."""
     import numpy as np
     from pathlib import Path
+    from petsc4py import PETSc
+    from contactpetsc import metrics
+    from contactpetsc.grid import SurfaceGrid
+    from contactpetsc.physics.interactions import make_law
     cases = []
     for d in dirs:
-        info, _ = _read_case(d)
-        f = common.read_state_fields(Path(d) / "path", info["at_load_state"])
-        cases.append((info, f))
+        info, states = _read_case(d)
+        at = [int(k) for k, b in zip(states["state"], states["branch"]) if b == "at-load"]
+        if not at:
+            common.say(f"{d}: the {info['case']} case has not reached the load: left out of Fig. 8")
+            continue
+        cases.append((info, common.read_state_fields(Path(d) / "path", at[0])))
     cases.sort(key=lambda c: list(CASES).index(c[0]["case"]))
     out = common.prepare(outdir)
-    keys = ("case", "e_star", "w", "tabor", "approach_z0", "load", "load_ratio", "area_ratio", "contact_area",
-            "peak_pressure", "n", "dx")
-    rows = [{k: info[k] for k in keys} for info, _ in cases]
+    rows = []
+    for info, f in cases:
+        grid = SurfaceGrid(info["n"], info["n"], info["dx"], periodic=False, comm=PETSc.COMM_SELF)
+        p = grid.vec_from_array(f["pressure"])
+        lr, ar = metrics.adhesion_ratios(grid, p, make_law("lj", work_of_adhesion=info["w"], z0=Z0).peak_attraction)
+        rows.append(dict(case=info["case"], e_star=info["e_star"], w=info["w"], tabor=info["tabor"],
+                         approach_z0=f["approach"] / Z0, load=f["force"], load_ratio=lr, area_ratio=ar,
+                         contact_area=metrics.contact_area(grid, p), peak_pressure=float(f["pressure"].max()),
+                         n=info["n"], dx=info["dx"]))
+        p.destroy()
     common.write_csv(out / "fig8.csv", rows)
-    if common.is_root():
+    if common.is_root() and cases:
         plt = common.plt()
         fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
         info0 = cases[0][0]
