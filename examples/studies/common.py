@@ -264,31 +264,30 @@ class StudyRecorder:
         """Write state ``st`` (solved on ``branch``); returns its number."""
         from contactpetsc.app.output import write_state
         from contactpetsc.app.recorder import append_text, csv_lines
-        from contactpetsc.solvers.history import SolveHistory
         self.states += 1
         if self.fields is not None:
             write_state(str(self.fields), self.states, self.grid, self.heights, st, {"study": self.name},
                         types={"pressure": "f8", "gap": "f8"})
+        self._append_history(self.states)
         if is_root():
-            new = self.problem.history.records[self.history_written:]
-            append_text(str(self._history_path), SolveHistory(records=new).csv_text(
-                header=not self._history_path.exists(), step=self.states))
             row = dict(state=self.states, branch=branch, **{c: getattr(st, c) for c in self.COLUMNS[2:]})
             lines = ([self.COLUMNS] if not self._states_path.exists() else []) + [[row[c] for c in self.COLUMNS]]
             append_text(str(self._states_path), csv_lines(lines))
-        self.history_written = len(self.problem.history.records)
         return self.states
-
 
     def flush(self) -> None:
         """The iterations solved after the last recorded state (a failed step, a pull-off
         refinement) to the history, labelled NaN (as the CLI's history.csv)."""
+        self._append_history(float("nan"))
+
+    def _append_history(self, step) -> None:
+        """The solver's iterations since the last call to the history (rank 0), labelled ``step``."""
         from contactpetsc.app.recorder import append_text
         from contactpetsc.solvers.history import SolveHistory
         new = self.problem.history.records[self.history_written:]
         if is_root() and new:
             append_text(str(self._history_path), SolveHistory(records=new).csv_text(
-                header=not self._history_path.exists(), step=float("nan")))
+                header=not self._history_path.exists(), step=step))
         self.history_written = len(self.problem.history.records)
 
 
