@@ -135,6 +135,37 @@ def hysteresis_estimate(path) -> tuple[float, float]:
     return fine, abs(fine - coarse) + located
 
 
+def jump_in_stages(approach, force, contact_fraction, jumps=None):
+    """Stages A, B, C of the reference paper's Fig. 9b on a loading path: indices into the
+    samples (approach [m] rising, net force [N], contact_fraction).
+
+    A -> B is the largest fall of the net force between consecutive samples while the
+    approach grows, among samples A that are already in contact (contact_fraction > 0:
+    an asperity's jump-in on a contact that exists, not the whole body's first jump-in
+    from separation); with ``jumps`` (the (approach_before, approach_after) [m] of the
+    path's located jump-ons) only a fall across one of them counts (a smooth stretch of
+    falling force, the adhered sphere's own, is not a jump-in).  C is the first sample
+    after B whose force is back to A's (the positive contact has grown to offset the new
+    adhesion).  Returns (A, B, C), C None when the force does not come back; None when
+    no fall qualifies.
+    """
+    a, f, c = (np.asarray(x, float) for x in (approach, force, contact_fraction))
+    if not (a.shape == f.shape == c.shape and a.ndim == 1):
+        raise ValueError("approach, force and contact_fraction must be 1-D arrays of one length")
+    if np.any(np.diff(a) <= 0):
+        raise ValueError("approach must rise from sample to sample (a loading path)")
+    ok = c[:-1] > 0
+    if jumps is not None:
+        ok &= np.array([any(lo <= before and after <= hi for before, after in jumps)
+                        for lo, hi in zip(a[:-1], a[1:])], dtype=bool)
+    fall = np.where(ok & (np.diff(f) < 0), f[:-1] - f[1:], 0.0)
+    if fall.size == 0 or fall.max() <= 0:
+        return None
+    i = int(np.argmax(fall))
+    back = np.flatnonzero(f[i + 2:] >= f[i])
+    return i, i + 1, (i + 2 + int(back[0]) if back.size else None)
+
+
 def nearest_atom(grid, atoms_xy) -> np.ndarray:
     """Index of the atom nearest each local node in the plane, (ny_loc, nx): each atom's
     footprint is its Voronoi cell on the grid (ties: the lower index)."""

@@ -99,6 +99,32 @@ def test_hysteresis_estimate_of_a_closed_loop(step):
     assert metrics.path_hysteresis(same) == 0.0
 
 
+def test_jump_in_stages_of_a_path_with_known_jumps():
+    """A loading path in closed form, sampled every 0.5: no contact and F = -1 / (1 + (d + 2)^2)
+    up to d = -2, with the whole body's jump-in there (-0.8 -> -2.5, a fall of 1.7); then in
+    contact F = d, less 1.2 from an asperity's jump-in between 0.5 and 1 (a fall of 0.7), and
+    less 0.6 more at 2.5 alone (a fall of 0.1).
+    A-B is the asperity's jump (0.5 -> 1.0, the largest fall in contact, not the body's
+    larger one from separation); C is the first sample with d - 1.2 >= 0.5, d = 2.0."""
+    d = np.round(np.arange(-4.0, 4.01, 0.5), 10)
+    touching = d >= -2.0
+    f = np.where(touching, d - 1.2 * (d > 0.7) - 0.6 * (d == 2.5), -1.0 / (1.0 + (d + 2.0) ** 2))
+    f = np.where(touching & (d < -1.9), -2.5, f)          # the body's jump-in: -0.5 -> -2.5
+    a, b, c = metrics.jump_in_stages(d, f, touching.astype(float))
+    assert (d[a], d[b], d[c]) == (0.5, 1.0, 2.0)
+    # no return to A's force before the path ends: C is None
+    assert metrics.jump_in_stages(d[:12], f[:12], touching[:12])[2] is None
+    # no fall in contact: no stages
+    assert metrics.jump_in_stages(d, np.where(touching, d, f), touching) is None
+    with pytest.raises(ValueError, match="rise"):
+        metrics.jump_in_stages(d[::-1], f, touching)
+    # a deeper smooth fall (2.0 -> 2.5, 1.0) that is no located jump: the jump-on still wins
+    deep = np.where(d == 2.5, f - 1.0, f)
+    assert metrics.jump_in_stages(d, deep, touching)[:2] == (12, 13)     # without jumps: d = 2.0 -> 2.5
+    assert metrics.jump_in_stages(d, deep, touching, jumps=[(0.7, 0.72), (-2.2, -2.1)])[:2] == (a, b)
+    assert metrics.jump_in_stages(d, deep, touching, jumps=[(-2.2, -2.1)]) is None
+
+
 def test_area_gap_and_forces_of_a_known_field(coll):
     """A pressure +p on x < L/4, -p/2 on L/4 <= x < L/2, 0 elsewhere; gap 0 on the compressive
     part, 3 elsewhere: contact area, forces and mean gaps by hand."""
@@ -205,6 +231,34 @@ def test_rough_sphere_small(coll):
         assert -2 * np.pi * rs.R * w * 1.02 < path.pull_off_force < 0
         value, error = metrics.hysteresis_estimate(path)
         assert value >= -error and error < 0.5 * abs(path.pull_off_force) * rs.Z0
+
+
+def test_case_run_records_every_state(coll, shared_tmp):
+    """A Fig. 8 case at 32^2 (``rough_sphere.case_run``): the load met; each saved state's field
+    file integrates to the state's net force (sum p dx^2, the force's definition) at its
+    approach; history.csv's iterations labelled with the states in order, each state's last
+    iteration at its approach; Fig. 8's row drawn from the saved fields alone equals the
+    solved state's."""
+    from contactpetsc.app.plots import read_csv
+    rs = study("rough_sphere")
+    common = study("common")
+    res = rs.case_run("stiff-w", "small", shared_tmp / "case")
+    assert coll.max(abs(res["load"] / rs.LOAD - 1)) < 1e-3
+    states = read_csv(str(shared_tmp / "case" / "states_path.csv"))
+    history = read_csv(str(shared_tmp / "case" / "history_path.csv"))
+    assert states["state"].tolist() == list(range(1, len(states["state"]) + 1))
+    assert states["branch"][-1] == "at-load" and res["at_load_state"] == len(states["state"])
+    for k, force, approach in zip(states["state"].astype(int), states["force"], states["approach"]):
+        f = common.read_state_fields(shared_tmp / "case" / "path", k)
+        assert abs(f["pressure"].sum() * res["dx"] ** 2 - force) <= 1e-9 * abs(force)
+        assert f["approach"] == approach
+        last = np.flatnonzero(history["step"] == k)[-1]
+        assert history["approach"][last] == approach
+    assert np.all(np.diff(history["step"]) >= 0)
+    # Fig. 8's row, from the saved state at the load alone, is the live state's
+    row = rs.case_figures([shared_tmp / "case"], shared_tmp / "figs")[0]
+    for key in ("load", "load_ratio", "area_ratio", "contact_area"):
+        assert abs(row[key] - res[key]) <= 1e-12 * abs(res[key])
 
 
 def test_same_tabor_parameter_same_gaps_at_the_same_approach(coll):

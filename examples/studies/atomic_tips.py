@@ -24,6 +24,7 @@ force on each atom -- the pressure integrated over the nodes the atom forms
 (its footprint) -- against the atom's distance from the axis (Fig. 11).
 
 Outputs in --out: tips.csv (one row per tip), path_<tip>.csv, atoms_<tip>.csv,
+states_<tip>.csv and history_<tip>.csv (``common.StudyRecorder``),
 fig10.png, fig11.png, fig12.png, atomic_tips.json.
 Sizes: default 256^2 nodes, dx = d / 6 (48 sigma window), W_max = 2 pi R w;
 small 64^2, dx = d / 2, W_max = 0.3 (2 pi R w); approach steps of 0.5 z0.
@@ -96,8 +97,10 @@ def tip_study(kind, cfg, out):
     scale = 2 * np.pi * RADIUS * w
     w_max = cfg["load_star"] * scale
     loading, radii = [], []
+    rec = common.StudyRecorder(out, kind, grid, h, pb)
 
     def record(k, st, pt):
+        rec(k, st, pt)
         if pt.branch == "loading":
             loading.append(st.force)
             radii.append(np.sqrt(metrics.contact_area(grid, st.pressure) / np.pi))
@@ -105,13 +108,14 @@ def tip_study(kind, cfg, out):
     start = -2.0 * z0
     path = common.load_until(pb, start, cfg["step"] * z0, w_max, REFINE, on_state=record)
     st = common.reach_load(pb, w_max, path.points[-1].approach)
+    rec.record(st, "at-load")
     forces = metrics.atom_forces(grid, st.pressure, owner, len(tip.atoms))
     p_map = grid.gather(st.pressure, root=0)
     h_map = grid.gather(h, root=0)
     top = int(np.floor((st.approach - start) / (cfg["step"] * z0) + 1e-9))
     end = -int(round(2.0 / cfg["step"]))       # unload to 2 z0 beyond the start
     sweep(pb, start + np.arange(top, end - 1, -1) * cfg["step"] * z0, refine=REFINE, path=path,
-          branch="unloading")
+          branch="unloading", on_state=rec)
     work, work_error = effective_work_estimate(path)
     touched = np.abs(forces) > 1e-6 * np.abs(forces).max()
     row = dict(tip=kind, atoms=len(tip.atoms), w=w, z0=z0, e_star=E_STAR, radius=RADIUS,

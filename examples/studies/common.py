@@ -223,3 +223,78 @@ def reach_load(problem, load, approach, rel_tol=1e-3, max_updates=8):
         prev = (st.approach, st.force)
         delta = st.approach + (load - st.force) / slope
     return st
+
+
+class StudyRecorder:
+    """What a study's path writes besides its paths CSV, with the CLI's writers
+    (docs/outputs.md): the solver's iterations in ``history_<name>.csv`` (history.csv's
+    columns, each labelled with the state it solved), one row per state with its errors,
+    FFT pairs and wall time in ``states_<name>.csv`` (curve.csv's meaning), and, with
+    ``fields``, the state's pressure and gap in ``<name>/step_NNNN.h5`` (NNNN = the row's
+    ``state``).  Rank 0 writes the text files; the field files are collective.  Use as a
+    ``paths.sweep`` ``on_state`` callback, or ``record`` a state of one's own."""
+
+    COLUMNS = ["state", "branch", "approach", "force", "adhesive_force", "contact_fraction", "converged",
+               "reason", "solver", "newton_iterations", "complementarity_error", "adhesive_error", "total_error",
+               "fft_pairs", "wall_time", "stable"]
+
+    def __init__(self, out, name, grid, heights, problem, fields=False):
+        self.out, self.name, self.grid, self.heights, self.problem = Path(out), name, grid, heights, problem
+        self.fields = self.out / name if fields else None
+        self.states = self.history_written = 0
+        if self.fields is not None and is_root():
+            self.fields.mkdir(parents=True, exist_ok=True)
+        world().Barrier()
+        for f in (self._history_path, self._states_path):
+            if is_root() and f.exists():
+                f.unlink()
+
+    @property
+    def _history_path(self):
+        return self.out / f"history_{self.name}.csv"
+
+    @property
+    def _states_path(self):
+        return self.out / f"states_{self.name}.csv"
+
+    def __call__(self, k, st, pt):
+        self.record(st, pt.branch)
+
+    def record(self, st, branch) -> int:
+        """Write state ``st`` (solved on ``branch``); returns its number."""
+        from contactpetsc.app.output import write_state
+        from contactpetsc.app.recorder import append_text, csv_lines
+        self.states += 1
+        if self.fields is not None:
+            write_state(str(self.fields), self.states, self.grid, self.heights, st, {"study": self.name},
+                        types={"pressure": "f8", "gap": "f8"})
+        self._append_history(self.states)
+        if is_root():
+            row = dict(state=self.states, branch=branch, **{c: getattr(st, c) for c in self.COLUMNS[2:]})
+            lines = ([self.COLUMNS] if not self._states_path.exists() else []) + [[row[c] for c in self.COLUMNS]]
+            append_text(str(self._states_path), csv_lines(lines))
+        return self.states
+
+    def flush(self) -> None:
+        """The iterations solved after the last recorded state (a failed step, a pull-off
+        refinement) to the history, labelled NaN (as the CLI's history.csv)."""
+        self._append_history(float("nan"))
+
+    def _append_history(self, step) -> None:
+        """The solver's iterations since the last call to the history (rank 0), labelled ``step``."""
+        from contactpetsc.app.recorder import append_text
+        from contactpetsc.solvers.history import SolveHistory
+        new = self.problem.history.records[self.history_written:]
+        if is_root() and new:
+            append_text(str(self._history_path), SolveHistory(records=new).csv_text(
+                header=not self._history_path.exists(), step=step))
+        self.history_written = len(self.problem.history.records)
+
+
+def read_state_fields(directory, state) -> dict:
+    """{"pressure", "gap", "approach", "force"} of a ``StudyRecorder`` field file (arrays (nx, ny),
+    as ``grid.gather`` gives them)."""
+    import h5py
+    with h5py.File(Path(directory) / f"step_{state:04d}.h5", "r") as f:
+        return dict(pressure=f["pressure"][...].T, gap=f["gap"][...].T, approach=float(f.attrs["approach"]),
+                    force=float(f.attrs["force"]))

@@ -25,7 +25,8 @@ Fig. 5: the adhesive load and area ratios (1 % cut-off) of smooth spheres
 among them one with the reference's Tabor parameter, R and load but w and E*
 both four times larger.
 
-Outputs in --out: fig4_*.csv (paths), fig4.png, fig5.csv, fig5.png, smooth_sphere.json.
+Outputs in --out: fig4_*.csv (paths), states_*.csv and history_*.csv per path
+(``common.StudyRecorder``), fig4.png, fig5.csv, fig5.png, smooth_sphere.json.
 Sizes: default 128^2 (mu = 0.02, dx = 3 z0) and 96^2 (mu = 2) windows, 96^2 for
 Fig. 5; small 64^2 / 48^2 / 48^2.  The paper does not state its grids.
 """
@@ -57,8 +58,10 @@ RATIO_CASES = [
 ]
 
 
-def greenwood_case(mu, radius, law_name, n, dx, approaches, prefix, central_gaps=None, refine=6):
-    """Loading and unloading (and optionally central-gap) paths of a sphere in z0 = E* = 1."""
+def greenwood_case(mu, radius, law_name, n, dx, approaches, prefix, central_gaps=None, refine=6, out=None):
+    """Loading and unloading (and optionally central-gap) paths of a sphere in z0 = E* = 1;
+    with ``out`` each path's states and solver iterations recorded there
+    (``common.StudyRecorder``, named by ``prefix``)."""
     import numpy as np
     from contactpetsc.geometry import surfaces
     from contactpetsc.grid import SurfaceGrid
@@ -72,13 +75,20 @@ def greenwood_case(mu, radius, law_name, n, dx, approaches, prefix, central_gaps
     law = make_law(law_name, work_of_adhesion=w, z0=1.0)
     pb = AdhesiveProblem(grid, surfaces.sphere(grid, radius), 1.0, law, prefix=prefix,
                          element_integration=True)
-    path = sweep(pb, approaches, refine=refine)
+    def recorder(problem, name):
+        return None if out is None else common.StudyRecorder(out, name, grid, problem.heights, problem)
+
+    rec = recorder(pb, prefix.rstrip("_"))
+    path = sweep(pb, approaches, refine=refine, on_state=rec)
     pull = refine_pull_off(pb, path, xtol=0.01)
+    if rec is not None:
+        rec.flush()
     s_curve = None
     if central_gaps is not None:
         cg = AdhesiveProblem(grid, pb.heights, 1.0, law, prefix=prefix + "cg_", operator=pb.op,
                              element_integration=True)
-        s_curve = central_gap_path(cg, central_gaps)
+        rec = recorder(cg, prefix + "cg")
+        s_curve = central_gap_path(cg, central_gaps, on_state=rec)
         # the far end: the contact edge led outward node by node, until the curve is back on
         # the stable adhered branch 1 z0 above its fold (the jump-off)
         fold = [min(p.approach for p in s_curve.points if p.converged)]
@@ -87,13 +97,16 @@ def greenwood_case(mu, radius, law_name, n, dx, approaches, prefix, central_gaps
             fold[0] = min(fold[0], pt.approach)
             return bool(pt.stable) and pt.approach > fold[0] + 1.0
 
-        edge_gap_path(cg, 0.1, 0.05, stop=back_on_adhered_branch, path=s_curve)
+        edge_gap_path(cg, 0.1, 0.05, stop=back_on_adhered_branch, path=s_curve, on_state=rec)
+        if rec is not None:
+            rec.flush()
     return dict(w=w, law=law, grid=grid, path=path, pull_off=pull, s_curve=s_curve)
 
 
-def ratio_case(label, e_star, radius, w, load, n):
+def ratio_case(label, e_star, radius, w, load, n, out=None, name="ratio"):
     """Adhesion ratios of a smooth sphere at a net load [N] (lj law): loaded from
-    separation under displacement control, then load control to the target."""
+    separation under displacement control, then load control to the target; with ``out``
+    its states and solver iterations recorded there (``common.StudyRecorder``)."""
     import numpy as np
     from contactpetsc import metrics
     from contactpetsc.geometry import surfaces
@@ -104,12 +117,19 @@ def ratio_case(label, e_star, radius, w, load, n):
     law = make_law("lj", work_of_adhesion=w, z0=Z0_SI)
     pb = AdhesiveProblem(grid, surfaces.sphere(grid, radius), e_star, law, prefix="ratio_",
                          element_integration=True)
+    rec = None if out is None else common.StudyRecorder(out, name, grid, pb.heights, pb)
     delta = -2.0 * Z0_SI
     st = pb.solve(approach=delta)
-    while st.force < load:
+    while True:
+        if rec is not None:
+            rec.record(st, "loading")
+        if st.force >= load:
+            break
         delta += 0.5 * Z0_SI
         st = pb.solve(approach=delta)
     st = common.reach_load(pb, load, delta)
+    if rec is not None:
+        rec.record(st, "at-load")
     load_ratio, area_ratio = metrics.adhesion_ratios(grid, st.pressure, law.peak_attraction)
     return dict(case=label, e_star=e_star, radius=radius, w=w, load=load,
                 tabor=tabor_parameter(radius, w, e_star, Z0_SI), load_ratio=load_ratio,
@@ -133,7 +153,7 @@ def run(size="default", outdir="smooth-sphere-output") -> dict:
     low = {}
     for law_name in ("lj", "hardwall-lj"):
         c = greenwood_case(0.02, r_low, law_name, cfg["n_low"], cfg["dx_low"], approaches,
-                           prefix=f"low_{law_name.replace('-', '')}_")
+                           prefix=f"low_{law_name.replace('-', '')}_", out=out)
         low[law_name] = c
         scale = 2 * np.pi * r_low * c["w"]
         # DMT at the same approaches: the independent reference curve
@@ -150,8 +170,11 @@ def run(size="default", outdir="smooth-sphere-output") -> dict:
     r_high, mu_high = 100.0, 2.0
     high = {}
     for law_name, step in cfg["laws_high"].items():
-        up = np.round(np.arange(-3.0, 3.0 + 1e-9, step), 10)
-        down = np.round(np.arange(3.0 - step, -4.0 - 1e-9, -step), 10)
+        # loading from beyond the jump-off (alpha* = -3.37) and unloading back there: the
+        # loop closes, and its area is the energy the two jumps lose (a path from -3 would
+        # miss the adhered branch's stretch below -3)
+        up = np.round(np.arange(-4.5, 3.0 + 1e-9, step), 10)
+        down = np.round(np.arange(3.0 - step, -4.5 - 1e-9, -step), 10)
         # the S-curve with the lj law (the paper's); central gaps down to 0.05 z0: at g <= 0 the
         # apex is in LJ repulsion and the prescribed gap no longer picks one state (measured:
         # solves left the branch for full contact)
@@ -159,7 +182,7 @@ def run(size="default", outdir="smooth-sphere-output") -> dict:
         dx = 3.2 * common.jkr_contact_radius(r_high, np.sqrt(mu_high ** 3 / r_high), 1.0) / cfg["n_high"]
         c = greenwood_case(mu_high, r_high, law_name, cfg["n_high"], dx, np.concatenate([up, down]),
                            prefix=f"high_{law_name.replace('-', '')}_",
-                           central_gaps=gaps if law_name == "lj" else None)
+                           central_gaps=gaps if law_name == "lj" else None, out=out)
         high[law_name] = c
         scale = 2 * np.pi * r_high * c["w"]
         path = c["path"]
@@ -191,7 +214,7 @@ def run(size="default", outdir="smooth-sphere-output") -> dict:
 
     # -- Fig. 5: adhesion ratios -------------------------------------------------------------------
     for case in RATIO_CASES:
-        row = ratio_case(*case, n=cfg["n_ratio"])
+        row = ratio_case(*case, n=cfg["n_ratio"], out=out, name=f"fig5_{len(results['fig5'])}")
         results["fig5"].append(row)
         common.say(f"Fig 5 {row['case']:>22}: mu = {row['tabor']:.3f}, load ratio {row['load_ratio']:.3f}, "
                    f"area ratio {row['area_ratio']:.3f}")
@@ -226,7 +249,7 @@ def _plots(out, low, high, r_low, r_high, ratios):
             ax.plot(a, [dmt_force(c["law"], 1.0, r, x)[0] / (2 * np.pi * r * c["w"]) for x in a],
                     "k--", lw=1, label="DMT (Muller et al.)")
         if r == r_high:
-            ax.set_xlim(-4.5, 3.5)
+            ax.set_xlim(-4.7, 3.5)
             ax.set_ylim(-1.2, 1.5)
         common.dress(ax, "alpha* = delta / z0", "W* = W / (2 pi R w)", title, zero_line=True, legend_size=6)
     common.savefig(fig, out / "fig4.png")
