@@ -11,7 +11,6 @@ import warnings
 
 import numpy as np
 import pytest
-from mpi4py import MPI
 from petsc4py import PETSc
 
 from contactpetsc.physics.resolution import UnderResolvedWarning

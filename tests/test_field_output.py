@@ -8,7 +8,6 @@ written step, the approach of curve.csv), the uninterrupted run (restarts), and 
 rank (under mpirun).
 """
 import csv
-import json
 import os
 from xml.etree import ElementTree
 

@@ -211,7 +211,7 @@ def test_symmetric_positive(coll, kind):
     nx, ny, dx, dy = 20, 37, 0.5e-6, 0.8e-6
     g, op = make_op(kind, nx, ny, dx, dy)
     K = op.as_mat()
-    sym_err, energies, kx_vecs = [], [], []
+    sym_err, energies = [], []
     for seed in range(4):
         x, y = random_field((nx, ny), seed), random_field((nx, ny), 100 + seed)
         if kind == "periodic":

@@ -2,7 +2,6 @@
 nothing is left in the global options database after a build or a solve (the database itself is
 the truth); the factory picks the stack by law and method; options the convergence test would
 ignore are refused; snapshots free themselves."""
-import numpy as np
 import pytest
 from petsc4py import PETSc
 

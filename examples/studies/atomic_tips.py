@@ -139,7 +139,6 @@ def resolution_study(outdir, resolutions=RESOLUTIONS, load_star=1.0, step=0.5) -
     same window (WINDOW sigma), load (W_max = load_star 2 pi R w) and approach protocol
     (the default run's) at every dx.  Writes resolution.csv and fig12_resolution.png; the
     ranking at each dx, and the finest dx from which it no longer changes."""
-    import numpy as np
     from contactpetsc.geometry import tips
     out = common.prepare(outdir)
     rows = []

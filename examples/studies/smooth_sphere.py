@@ -107,7 +107,6 @@ def ratio_case(label, e_star, radius, w, load, n, out=None, name="ratio"):
     """Adhesion ratios of a smooth sphere at a net load [N] (lj law): loaded from
     separation under displacement control, then load control to the target; with ``out``
     its states and solver iterations recorded there (``common.StudyRecorder``)."""
-    import numpy as np
     from contactpetsc import metrics
     from contactpetsc.geometry import surfaces
     from contactpetsc.physics.interactions import make_law, tabor_parameter

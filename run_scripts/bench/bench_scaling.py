@@ -36,7 +36,6 @@ Usage (one process per size keeps the memory figures clean)::
 """
 import argparse
 import json
-import os
 import subprocess
 import sys
 import time

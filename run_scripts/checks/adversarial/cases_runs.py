@@ -148,7 +148,7 @@ def budget_restart_case(name, scene, budget) -> Case:
         res = run_scene(d, merged(scene, output={"directory": "ref"}), name="ref.toml")
         if res.rc != 0:
             return LOUD, f"uninterrupted run failed: {message(res)}"
-        res = run_scene(d, scene, f"-adhesion_time_budget", budget)
+        res = run_scene(d, scene, "-adhesion_time_budget", budget)
         if res.rc == 0:
             return OK, "finished within the budget (inconclusive)"
         res = cli(d, "run", d / "scene.toml", "--restart")
