@@ -43,6 +43,7 @@ class PathPoint:
     total_error: float
     reason: str = ""          #: the solver's converged or diverged reason
     stiffness: float = float("nan")  #: tangent dF/d delta [N/m] (NaN when not computed)
+    stability_margin: float = float("nan")  #: 1 - lambda_max(A S) (NaN where not checked)
 
 
 @dataclass
@@ -131,7 +132,7 @@ def _point(step, branch, st) -> PathPoint:
                      solver=st.solver, fft_pairs=st.fft_pairs, wall_time=st.wall_time,
                      complementarity_error=st.complementarity_error,
                      adhesive_error=st.adhesive_error, total_error=st.total_error, reason=st.reason,
-                     stiffness=st.stiffness)
+                     stiffness=st.stiffness, stability_margin=st.stability_margin)
 
 
 def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0.05,
