@@ -5,12 +5,13 @@ answer").
 Each scene is run by the command line in a process of its own, one rank; the table gives,
 per mode, the states checked, the FFT pairs of the path's steps (curve.csv) and of the whole
 run (history.csv: the pull-off refinement too), the solve time, and whether the jumps
-(approaches of jumps.csv) and the pull-off force are those of the always-on check.  FFTW plans
-by estimate (``-fft_planner estimate``): measured plans change the round-off from run to run,
-and with it the iteration counts of the pull-off search by several per cent, while estimated
-plans repeat the counts exactly.
+(approaches of jumps.csv) and the pull-off force are those of the always-on check.  Each run
+is repeated (``--repeat``): the path's FFT pairs repeat exactly, while the pull-off search's
+iteration counts change by a few per cent from run to run with the FFT's round-off (FFTW's
+plans and the arrays' alignment), so the run's FFT pairs and the times are medians (with
+their range).
 
-    .venv/bin/python run_scripts/bench/bench_stability_check.py [--only adhesive-sphere] [--markdown out.md]
+    .venv/bin/python run_scripts/bench/bench_stability_check.py [--only adhesive-sphere] [--repeat 3] [--markdown out.md]
 """
 from __future__ import annotations
 
@@ -62,8 +63,7 @@ def scenes(tmp: str) -> dict:
 
 def run(scene: str, mode: str, out: str) -> dict:
     subprocess.run([sys.executable, "-m", "contactpetsc", "run", scene, "--output", out, "--overwrite",
-                    "-adhesion_stability_check", mode, "-fft_planner", "estimate"],
-                   check=True, capture_output=True, text=True)
+                    "-adhesion_stability_check", mode], check=True, capture_output=True, text=True)
     with open(os.path.join(out, "curve.csv")) as f:
         rows = list(csv.DictReader(f))
     with open(os.path.join(out, "history.csv")) as f:
@@ -84,25 +84,39 @@ def run(scene: str, mode: str, out: str) -> dict:
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--only", help="one scene: adhesive-sphere, atomic-tip or rough-adhesive")
+    ap.add_argument("--repeat", type=int, default=3, help="runs per scene and mode (medians)")
     ap.add_argument("--markdown", help="write the table here too")
     args = ap.parse_args(argv)
-    lines = ["| scene | mode | states checked | FFT pairs, path | FFT pairs, run | vs true | "
-             "solve time, path [s] | solve time, run [s] | jumps, pull-off as with true |",
+    lines = ["| scene | mode | states checked | FFT pairs, path | vs true | FFT pairs, run: median (range) | "
+             "vs true | solve time, run [s]: median (range) | jumps, pull-off as with true |",
              "|---|---|---:|---:|---:|---:|---:|---:|---|"]
+
+    def median(rs, key):
+        values = sorted(r[key] for r in rs)
+        return values[len(values) // 2], values[0], values[-1]
+
     with tempfile.TemporaryDirectory() as tmp:
         for name, scene in scenes(tmp).items():
             if args.only and name != args.only:
                 continue
-            got = {mode: run(scene, mode, os.path.join(tmp, f"{name}-{mode}")) for mode in ("true", "auto", "false")}
-            ref = got["true"]
-            for mode, r in got.items():
-                same = r["jumps"] == ref["jumps"] and (
-                    r["pull_off"] == ref["pull_off"] or (r["pull_off"] is not None and ref["pull_off"] is not None
-                                                         and abs(r["pull_off"] / ref["pull_off"] - 1) < 1e-8))
-                lines.append(f"| {name} | {mode} | {r['checked']} / {r['steps']} | {r['path_pairs']:.0f} | "
-                             f"{r['pairs']:.0f} | {r['pairs'] / ref['pairs'] - 1:+.1%} | {r['path_time']:.2f} | "
-                             f"{r['time']:.2f} | {'yes' if same else 'NO'} ({len(r['jumps'])} jumps)"
-                             + ("" if r["converged"] else ", a step failed") + " |")
+            got = {mode: [run(scene, mode, os.path.join(tmp, f"{name}-{mode}")) for _ in range(args.repeat)]
+                   for mode in ("true", "auto", "false")}
+            ref = got["true"][0]
+            ref_pairs = median(got["true"], "pairs")[0]
+            for mode, rs in got.items():
+                r = rs[0]
+                same = all(x["jumps"] == ref["jumps"] and (
+                    x["pull_off"] == ref["pull_off"] or (x["pull_off"] is not None and ref["pull_off"] is not None
+                                                         and abs(x["pull_off"] / ref["pull_off"] - 1) < 1e-8))
+                    for x in rs)
+                path = {x["path_pairs"] for x in rs}
+                pairs, time = median(rs, "pairs"), median(rs, "time")
+                lines.append(f"| {name} | {mode} | {r['checked']} / {r['steps']} | "
+                             f"{'/'.join(f'{p:.0f}' for p in sorted(path))} | "
+                             f"{r['path_pairs'] / ref['path_pairs'] - 1:+.1%} | "
+                             f"{pairs[0]:.0f} ({pairs[1]:.0f}-{pairs[2]:.0f}) | {pairs[0] / ref_pairs - 1:+.1%} | "
+                             f"{time[0]:.1f} ({time[1]:.1f}-{time[2]:.1f}) | {'yes' if same else 'NO'} "
+                             f"({len(r['jumps'])} jumps)" + ("" if r["converged"] else ", a step failed") + " |")
                 print(lines[-1], flush=True)
     if args.markdown:
         with open(args.markdown, "w") as f:
