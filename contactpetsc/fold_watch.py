@@ -13,8 +13,8 @@ unless one of these says a fold may be near (``FoldWatch.reason``):
 - fewer than two states of the present branch were checked (no margin trend yet: the
   path's start, a restart, the state after a jump);
 - the approach reverses (the start of the unloading branch, a pull-off bracket);
-- the state is the most tensile one of the path so far (a pull-off candidate: the pull-off
-  is always a checked state);
+- the state is the most tensile one of the path so far (a pull-off candidate: the sampled
+  pull-off is always a checked state);
 - the force misses the tangent prediction from the last state by more than
   ``PREDICTION_TOL`` of the predicted change (the branch bends: near a fold
   dF/d delta grows without bound);
@@ -24,8 +24,11 @@ unless one of these says a fold may be near (``FoldWatch.reason``):
   two checked states with ``TREND_SAFETY`` times its slope reaches ``MARGIN_FLOOR``^2 within
   the distance to the new state.
 
-Jump bisection, pull-off refinement, load control and central-gap control always check:
-they work next to folds, or report the stability of every state.
+Jump bisection, load control and central-gap control always check: they work next to
+folds, or report the stability of every state.  The pull-off search
+(``pull_off.refine_pull_off``) checks too, except between two path points the path joined
+without a jump, each checked stable with a margin above ``MARGIN_FLOOR``: the branch between
+them has no fold (a fold ends a branch in approach).
 """
 from __future__ import annotations
 

@@ -154,7 +154,8 @@ def leave_out(scene: dict) -> list[str]:
         what = (f"  stability check: at the states where a fold may be near{source or ' (auto)'}: a branch's "
                 "first two states, a reversal, a new most tensile state, a force off the tangent "
                 "prediction, a harder Newton step, a margin trending to zero, snap number >= 1; always in "
-                "jump bisection and the pull-off search; left out elsewhere (curve.csv stability_checked)")
+                "jump bisection, and in the pull-off search beyond the stable points that bracket it; left out "
+                "elsewhere (curve.csv stability_checked)")
     elif scene["protocol"]["control"] == "central_gap":
         what = f"  stability check: every state{source} (central-gap control reports each state's stability)"
     elif scene["solver"]["method"] == "relaxation":
