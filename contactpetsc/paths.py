@@ -20,6 +20,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .fold_watch import FoldWatch
+
 
 @dataclass
 class PathPoint:
@@ -41,6 +43,7 @@ class PathPoint:
     total_error: float
     reason: str = ""          #: the solver's converged or diverged reason
     stiffness: float = float("nan")  #: tangent dF/d delta [N/m] (NaN when not computed)
+    stability_margin: float = float("nan")  #: 1 - lambda_max(A S) (NaN where not checked)
 
 
 @dataclass
@@ -59,6 +62,7 @@ class Path:
     jumps: list = field(default_factory=list)
 
     refined_pull_off: float | None = None   #: set by ``pull_off.refine_pull_off``
+    _watch: FoldWatch | None = None          #: what ``sweep`` leaves the stability check out by (auto)
     _best: tuple | None = None               #: (point index, snapshot) of the most tensile stable state
     #: (point index, approach to search towards [m], snapshot) of stable states next to a
     #: loss of stability or a failed step: where a stable segment ends
@@ -128,7 +132,7 @@ def _point(step, branch, st) -> PathPoint:
                      solver=st.solver, fft_pairs=st.fft_pairs, wall_time=st.wall_time,
                      complementarity_error=st.complementarity_error,
                      adhesive_error=st.adhesive_error, total_error=st.total_error, reason=st.reason,
-                     stiffness=st.stiffness)
+                     stiffness=st.stiffness, stability_margin=st.stability_margin)
 
 
 def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0.05,
@@ -198,15 +202,26 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps):
     shorter steps than its path gives (docs/studies.md).  Returns
     the state at ``target`` (or the failed one) with the cost of every try and sub-step in
     it, and the (approach, force, stiffness) of the last converged state."""
+    if path._watch is None and getattr(problem, "stability_auto", False):
+        # the check left out away from folds (-<prefix>stability_check auto; the problem
+        # reads its options at its first solve)
+        path._watch = FoldWatch(min([p.force for p in path.points if good_state(p)], default=np.inf),
+                                getattr(problem, "snap_number", 0.0))
+    watch = path._watch
     if prev is None:   # the path's first state: nothing to jump from or go back to
         st = problem.solve(approach=target, raise_on_failure=False)
+        if st.converged and watch is not None:
+            watch.seen(st, None, jumped=False)
         return st, ((st.approach, st.force, st.stiffness) if st.converged else None)
     whole = target - prev[0]
     h, spent, done = whole, np.zeros(4), 0
     while True:
         d = target if abs(target - prev[0]) <= abs(h) * (1 + 1e-12) else prev[0] + h
         snap = problem.snapshot()
-        st = problem.solve(approach=d, raise_on_failure=False)
+        n_jumps = len(path.jumps)
+        check = None if watch is None else (
+            lambda newton, force, prev=prev, d=d: watch.reason(prev, d, newton, force) is not None)
+        st = problem.solve(approach=d, raise_on_failure=False, check_stability=check)
         if st.converged:
             d0, w0, k0 = prev
             predicted = w0 + (k0 if np.isfinite(k0) else 0.0) * (d - d0)
@@ -224,6 +239,8 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps):
                 if jump is not None and abs(jump.force_after - jump.force_before) > jump_tol * scale:
                     jump.kind = "jump-on" if d > d0 else "jump-off"
                     path.jumps.append(jump)
+            if st.converged and watch is not None:
+                watch.seen(st, prev[0], jumped=st.fallback or len(path.jumps) > n_jumps)
         # (a converged sub-step goes on even past a time budget: the next solve says so)
         final = (st.converged and d == target) or (not st.converged and (
             substeps <= 0 or problem.out_of_time() or abs(h) <= abs(whole) * 2.0 ** -substeps * (1 + 1e-12)))

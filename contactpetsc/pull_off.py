@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .fold_watch import MARGIN_FLOOR
 from .paths import Path, good_state
 
 #: Newton iterations of a solve of the pull-off search (``refine_pull_off``)
@@ -41,20 +42,35 @@ def refine_pull_off(problem, path: Path, xtol: float, max_solves: int = 40,
     # not converged in SEARCH_NEWTON_STEPS has left the branch (near its end, such solves ran
     # to the iteration limit and cost most of the search)
     snes.setTolerances(max_it=min(max_it, SEARCH_NEWTON_STEPS))
+    auto = getattr(problem, "stability_auto", False)
+
+    def check(*ends):
+        """The solves between path points ``ends`` leave the check out (False) under auto when
+        each was checked stable with a margin above MARGIN_FLOOR and the path joined them
+        without a jump: the branch between them has no fold (a fold ends the branch in
+        approach); otherwise the problem's own setting (None)."""
+        margins = [pts[i].stability_margin for i in ends]
+        return False if auto and all(np.isfinite(m) and m > MARGIN_FLOOR for m in margins) else None
+
     try:
-        searched, bracket = set(), [pts[k].approach, pts[k].approach]
+        searched, bracket, smooth = set(), [pts[k].approach, pts[k].approach], [k]
         for n, (side, step) in enumerate(zip(sides, (-1, 1))):
             if side in ("stable", "edge", "turn"):
                 towards = pts[k + step].approach
                 searched.add((k, towards))
-                force, reached, nearest = _continue(problem, snap, pts[k], towards, xtol, max_solves, jump_tol)
+                # towards an unstable or failed state the check finds where the segment ends
+                joined = check(k, k + step) if side != "edge" else None
+                force, reached, nearest = _continue(problem, snap, pts[k], towards, xtol, max_solves, jump_tol,
+                                                    joined)
                 found.append((force, reached))
                 bracket[n] = nearest
+                smooth += [k + step] if side != "edge" else [None]
         d_k = pts[k].approach
         if (bracket[0] - d_k) * (bracket[1] - d_k) < 0 and all(f[0] == np.inf for f in found):
             # nothing below the sampled minimum on either side: it lies between the nearest
             # stable states on either side
-            found.append((_golden(problem, snap, bracket[0], bracket[1], xtol, max_solves), True))
+            ends = None if None in smooth or len(smooth) < 3 else check(*smooth)
+            found.append((_golden(problem, snap, bracket[0], bracket[1], xtol, max_solves, ends), True))
         for i, towards, edge_snap in path._edges:
             if (i, towards) not in searched:
                 found.append(_continue(problem, edge_snap, pts[i], towards, xtol, max_solves, jump_tol)[:2])
@@ -71,7 +87,7 @@ def refine_pull_off(problem, path: Path, xtol: float, max_solves: int = 40,
     return path.refined_pull_off
 
 
-def _continue(problem, snap, start, towards, xtol, max_solves, jump_tol):
+def _continue(problem, snap, start, towards, xtol, max_solves, jump_tol, check=None):
     """(smallest force [N], reached, nearest) of the stable states connected to ``snap``
     (the state of point ``start``) by continuation towards the approach ``towards`` [m]:
     steps of a quarter of the way, halved where a solve fails, is unstable or jumps (its
@@ -79,7 +95,7 @@ def _continue(problem, snap, start, towards, xtol, max_solves, jump_tol):
     ``xtol`` -- there the stable segment ends (reached).  A smallest force between two
     higher ones is refined by golden-section search (reached); one at ``start`` is not
     reached here (inf).  ``nearest``: the approach [m] of the first state beyond ``start``
-    (``start``'s own without one)."""
+    (``start``'s own without one).  ``check``: the solves' ``check_stability``."""
     problem.restore(snap)
     cur = (start.approach, start.force, start.stiffness)
     states = [(cur[0], cur[1], None)]          # (approach, force, snapshot or None)
@@ -87,7 +103,7 @@ def _continue(problem, snap, start, towards, xtol, max_solves, jump_tol):
     while solves < max_solves and abs(towards - cur[0]) > 1e-12 * max(abs(towards), xtol):
         d = towards if abs(towards - cur[0]) <= abs(h) * (1 + 1e-12) else cur[0] + h
         here = problem.snapshot()
-        st = problem.solve(approach=d, raise_on_failure=False, fallback=False)
+        st = problem.solve(approach=d, raise_on_failure=False, fallback=False, check_stability=check)
         solves += 1
         predicted = cur[1] + (cur[2] if np.isfinite(cur[2]) else 0.0) * (d - cur[0])
         scale = max(abs(cur[1]), abs(st.force), np.finfo(float).tiny)
@@ -106,24 +122,25 @@ def _continue(problem, snap, start, towards, xtol, max_solves, jump_tol):
     nearest = states[min(1, len(states) - 1)][0]
     force, reached = (states[m][1], m < len(states) - 1 or ended) if m else (np.inf, False)
     if 0 < m < len(states) - 1:
-        force = min(force, _golden(problem, states[m][2], states[m - 1][0], states[m + 1][0], xtol, max_solves))
+        force = min(force, _golden(problem, states[m][2], states[m - 1][0], states[m + 1][0], xtol, max_solves,
+                                   check))
     for state in states:
         if state[2] is not None:
             state[2].destroy()
     return force, reached, nearest
 
 
-def _golden(problem, snap, lo, hi, xtol, max_solves) -> float:
+def _golden(problem, snap, lo, hi, xtol, max_solves, check=None) -> float:
     """Golden-section search of the smallest force [N] on [lo, hi] [m], each solve by Newton
-    from ``snap`` (a stable state inside the bracket); an unstable or failed solve counts
-    as +inf."""
+    from ``snap`` (a stable state inside the bracket; ``check``: the solves'
+    ``check_stability``); an unstable or failed solve counts as +inf."""
     lo, hi = min(lo, hi), max(lo, hi)
     best = np.inf
 
     def force(delta):
         nonlocal best
         problem.restore(snap)
-        st = problem.solve(approach=delta, raise_on_failure=False, fallback=False)
+        st = problem.solve(approach=delta, raise_on_failure=False, fallback=False, check_stability=check)
         if not good_state(st):
             return np.inf
         best = min(best, st.force)

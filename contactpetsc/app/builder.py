@@ -125,5 +125,55 @@ def build_problem(scene: dict, grid: SurfaceGrid, heights: PETSc.Vec, law: Inter
         warnings.simplefilter("ignore", UnderResolvedWarning)
         built = make_problem(grid, heights, modulus, law, method=sol["method"], prefix=ADHESION_PREFIX,
                              petsc_options=options, layer=body, tol=tol, preconditioner=sol["preconditioner"],
-                             element_integration=scene["interaction"]["element_integration"])
+                             element_integration=scene["interaction"]["element_integration"],
+                             stability_check="auto" if _sweeps(scene) else None)
     return (built.problem, built) if relax else (built, None)
+
+
+def _sweeps(scene: dict) -> bool:
+    """Whether the scene's path is an adhesive Newton sweep (``paths.sweep``: jumps, pull-off)."""
+    return adhesive(scene) and scene["protocol"]["control"] == "approach" and scene["solver"]["method"] == "newton"
+
+
+def leave_out(scene: dict) -> list[str]:
+    """What the run leaves out of the stability check and the tangent, and why (lines of the plan:
+    dry run and log).  Each runs only where it can change an answer: without adhesion the problem
+    is convex (one state per load, no fold), so neither exists; an adhesive sweep checks states
+    where a fold may be near (``-adhesion_stability_check auto``, ``fold_watch.py``) and needs every
+    state's tangent (the predictor, the jump test and the pull-off search step with its
+    stiffness); central-gap control reports every state's stability and steps without a tangent;
+    the paper's relaxation labels every state and uses no tangent."""
+    from ..solvers.tangent import stability_mode
+    if not adhesive(scene):
+        return ["  left out: the stability check and the tangent (no adhesion: a convex problem, one "
+                "state per load and no folds; curve.csv stable = True, stability_checked = False)"]
+    key = ADHESION_PREFIX + "stability_check"
+    given = scene["solver"]["options"].get("stability_check", scene["solver"]["options"].get("-stability_check"))
+    if PETSc.Options().hasName(key):
+        given = PETSc.Options().getString(key, "")
+    if given is not None:
+        check, auto = stability_mode(given, f"-{key}")
+        source = f" (-{key} {given})"
+    else:
+        check, auto, source = True, _sweeps(scene), ""
+    if not check:
+        what = (f"  stability check: left out at every state{source}: stable = nan, jumps found by the "
+                "force alone, the pull-off among unchecked states")
+    elif auto and _sweeps(scene):
+        what = (f"  stability check: at the states where a fold may be near{source or ' (auto)'}: a branch's "
+                "first two states, a reversal, a new most tensile state, a force off the tangent "
+                "prediction, a harder Newton step, a margin trending to zero, snap number >= 1; always in "
+                "jump bisection, and in the pull-off search beyond the stable points that bracket it; left out "
+                "elsewhere (curve.csv stability_checked)")
+    elif scene["protocol"]["control"] == "central_gap":
+        what = f"  stability check: every state{source} (central-gap control reports each state's stability)"
+    elif scene["solver"]["method"] == "relaxation":
+        what = f"  stability check: every state{source} (the relaxation has no tangent to tell folds by)"
+    else:
+        what = f"  stability check: every state{source}"
+    tangent = ("  tangent: every converged state (the predictor, the jump test and the pull-off search step "
+               "with its stiffness)" if _sweeps(scene) else
+               "  left out: the tangent (" + ("central-gap control steps without a predictor or jump test)"
+                                             if scene["protocol"]["control"] == "central_gap" else
+                                             "the relaxation uses none)"))
+    return [what, tangent]

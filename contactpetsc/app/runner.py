@@ -48,6 +48,7 @@ def plan(scene: dict, grid: SurfaceGrid, law=None, out_dir: str | None = None) -
             f"  {grid}", *heights,
             f"  rows per rank {[b - a for a, b in grid.y_ranges]}",
             chain,
+            *builder.leave_out(scene),
             f"  protocol: {scene['protocol']['control']} x {len(scene['protocol']['values'])} steps",
             f"  memory estimate: {per_rank / 2**20:.0f} MiB per rank" + _memory_note(grid, per_rank),
             _outputs_line(scene, grid.nx * grid.ny, out_dir or scene["output"]["directory"]),

@@ -61,6 +61,7 @@ class ContactSteps:
 
     def row(self, st) -> dict:
         return dict(adhesive_force_N=0.0, adhesive_load_ratio=0.0, adhesive_area_ratio=0.0, stable=True,
+                    stability_checked=False,
                     load_error=st.load_error, interference_error=st.interference_error,
                     solver="snes-vi+" + self.problem.preconditioner, plastic_fraction=st.plastic_fraction,
                     plastic_volume_m3=st.plastic_volume, max_plastic_displacement_m=st.max_plastic_displacement,
@@ -175,7 +176,8 @@ class AdhesiveSteps:
                           if self.sphere else (NAN, NAN))
         return dict(adhesive_force_N=st.adhesive_force, adhesive_load_ratio=load_ratio,
                     adhesive_area_ratio=area_ratio, alpha_star=a_star, W_star=w_star,
-                    central_gap_m=st.central_gap, stable=st.stable, adhesive_error=st.adhesive_error,
+                    central_gap_m=st.central_gap, stable=NAN if st.stable is None else st.stable,
+                    stability_checked=st.stable is not None, adhesive_error=st.adhesive_error,
                     total_error=st.total_error, pressure_error=st.pressure_error, solver=st.solver,
                     **mean_gap(self.grid, st, self.z0 * np.nanmax([st.complementarity_error, st.adhesive_error,
                                                                    st.total_error])))
@@ -183,7 +185,8 @@ class AdhesiveSteps:
     def progress(self, st, row) -> str:
         err = max(st.complementarity_error, st.adhesive_error)
         return (f"  {row['step']:4d} {st.approach:12.4e} {st.force:11.4e} {st.contact_fraction:8.4f} "
-                f"{st.adhesive_force:11.4e} {err:9.2e} {str(st.stable):>6} {st.wall_time:8.2f}"
+                f"{st.adhesive_force:11.4e} {err:9.2e} {'-' if st.stable is None else str(st.stable):>6} "
+                f"{st.wall_time:8.2f}"
                 + (f" {row['alpha_star']:8.3f} {row['W_star']:9.4f}" if self.sphere else ""))
 
     def results(self, pull: float | None = None, refined: bool = False) -> dict:

@@ -51,7 +51,7 @@ from .load_control import solve_force
 from .options import LINESEARCH_MAX_STEP, code_default, print_help
 from .pc_registry import ADHESIVE_PRECONDITIONERS, auto_adhesive_preconditioner
 from .states import AdhesiveState
-from .tangent import TangentAndState
+from .tangent import TangentAndState, stability_mode
 
 __all__ = ["AdhesiveProblem", "AdhesiveSolveError", "AdhesiveState", "newton_ksp_type", "newton_linesearch"]
 
@@ -101,8 +101,9 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
     preconditioner : str
         Code default of ``-<prefix>preconditioner``: auto (default: mlmi or spectral per grid from
         its snap number, ``pc_registry.auto_adhesive_preconditioner``), spectral, mlmi or none.
-    stability_check : bool
-        Code default of ``-<prefix>stability_check`` (on).
+    stability_check : bool or "auto"
+        Code default of ``-<prefix>stability_check`` (on): true checks every converged state,
+        false none, auto lets a sweep leave it out away from folds (``fold_watch.py``).
     centre : (i, j), optional
         Node of the central-gap control; default: the lowest node of h.
     petsc_options : dict, optional
@@ -114,7 +115,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
     def __init__(self, grid: SurfaceGrid, heights: PETSc.Vec, e_star: float, law: InteractionLaw, *,
                  element_integration: bool | None = None, prefix: str = "adhesion_",
                  operator: HalfSpaceOperator | None = None, tol: float | None = None,
-                 preconditioner: str | None = None, stability_check: bool | None = None,
+                 preconditioner: str | None = None, stability_check: bool | str | None = None,
                  centre: tuple[int, int] | None = None, petsc_options: dict | None = None):
         if not law.adhesive:
             raise ValueError(f"law {law.name!r} has no adhesion: use ContactProblem")
@@ -218,7 +219,9 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self.tol = check_tolerance(opts.getReal("tol", self._default("tol")),
                                    f"tol (-{self.prefix}tol)")
         self.max_it = opts.getInt("max_it", code_default("adhesion", "max_it"))
-        self.stability_check = opts.getBool("stability_check", self._default("stability_check"))
+        self.stability_check, self.stability_auto = stability_mode(
+            opts.getString("stability_check", str(self._default("stability_check"))),
+            f"-{self.prefix}stability_check")
         self.stability_steps = opts.getInt("stability_steps", code_default("adhesion", "stability_steps"))
         self.ptc_shift0 = opts.getReal("ptc_shift", code_default("adhesion", "ptc_shift"))
         # Newton without a new smallest error for this many steps has stalled: full steps
@@ -334,9 +337,14 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
 
     @with_options
     def solve(self, *, approach: float | None = None, central_gap: float | None = None,
-              raise_on_failure: bool = True, check_stability: bool | None = None,
+              raise_on_failure: bool = True, check_stability=None,
               fallback: bool = True) -> AdhesiveState:
         """Solve at one approach delta [m] or one central gap [m].
+
+        ``check_stability``: None (``-<prefix>stability_check``), a bool, or a function
+        ``(newton, force) -> bool`` that decides from Newton's converged state (its
+        iterations, net force [N]) whether it is checked (``paths.sweep`` under ``auto``);
+        where Newton fails, the fallback's states are checked.
 
         Starts from the previous solution (warm start along a loading path, with
         the tangent predictor under displacement control); the first solve starts
@@ -407,6 +415,8 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         converged, reason, newton, linear = self._run_snes()
         self._stall_watch = False
         solver = self.solver_name
+        if callable(check):
+            check = not converged or bool(check(newton, self.net_force()))
         margin = self.stability() if (converged and check) else float("nan")
         if fallback and approach is not None and (not converged or margin <= 0) and not self.out_of_time():
             converged, reason, newton, linear, margin, solver = self._follow_fallback(

@@ -13,6 +13,20 @@ from .stability import stability_margin
 from .states import AdhesiveState
 
 
+def stability_mode(value: str, name: str) -> tuple[bool, bool]:
+    """(check by default, auto) of ``-<prefix>stability_check`` = true, false or auto: with
+    auto every solve checks unless its caller leaves the check out (``paths.sweep`` away from
+    folds, ``fold_watch.py``)."""
+    text = str(value).strip().lower()
+    if text in ("", "1", "true", "yes", "on"):
+        return True, False
+    if text in ("0", "false", "no", "off"):
+        return False, False
+    if text == "auto":
+        return True, True
+    raise ValueError(f"{name} = {value!r}: accepted values are true, false, auto")
+
+
 class Snapshot:
     """A copy of a problem's unknowns ``x``, its ``approach`` [m] and tangent (approach [m],
     dx/d delta, dF/d delta [N/m]) or None.  Frees its Vecs with ``destroy()`` (or as a
@@ -126,6 +140,11 @@ class TangentAndState:
         area = grid.lengths[0] * grid.lengths[1]
         stiffness = grid.mpi_comm.allreduce(float(full.sum())) / (grid.nx * grid.ny) * area if ok else float("nan")
         return tv, stiffness
+
+    def net_force(self) -> float:
+        """The net force [N] of the present unknowns, sum of p dx dy (collective)."""
+        p = self.blocks(self._x, readonly=True).sum(axis=0)
+        return self.grid.mpi_comm.allreduce(float(p.sum())) * self.grid.element_area
 
     def stability(self) -> float:
         """1 - lambda_max(A S) at the current state (see ``stability.py``); collective."""
