@@ -156,7 +156,6 @@ def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0
     last = None          # (point index, snapshot) of the last point if it was stable
     for k, delta in enumerate(approaches):
         here = branch or ("loading" if prev is None or delta >= prev[0] else "unloading")
-        n_jumps = len(path.jumps)
         st, prev = _advance(problem, delta, prev, path, jump_tol, refine, substeps)
         pt = _point(k, here, st)
         path.points.append(pt)
