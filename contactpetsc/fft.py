@@ -138,18 +138,23 @@ class SlabRFFT:
             itemsize = self.sendbuf.itemsize
             self._sent_fwd = itemsize * sum(send_counts)
             self._sent_bwd = itemsize * sum(recv_counts)
-            self._plans = (pyfftw.FFTW(self.real_in, self.rows, axes=(1,), **keep),
-                           pyfftw.FFTW(self.cols, self.spectrum, axes=(1,), **keep))
-            self._plans_bwd = (pyfftw.FFTW(self.spectrum, self.cols, axes=(1,),
-                                           direction="FFTW_BACKWARD", **kill),
-                               pyfftw.FFTW(self.rows, self.real_out, axes=(1,),
-                                           direction="FFTW_BACKWARD", **kill))
+            self._plan_stages(threads, planner)
         # planning may scribble on the buffers: zero what must start at zero
         self.real_in[...] = 0
         if self.size > 1:
             self.cols[...] = 0
 
     # -- spectral layout -----------------------------------------------------
+
+    def _plan_stages(self, threads, planner) -> None:
+        """The 1-D FFTW plans of the transposed transform: along x of the real rows and along
+        y of the columns, forward (inputs kept) and backward (inputs destroyed)."""
+        keep = dict(threads=threads, flags=(PLANNER_FLAGS[planner],))
+        kill = dict(threads=threads, flags=(PLANNER_FLAGS[planner], "FFTW_DESTROY_INPUT"))
+        self._plans = (pyfftw.FFTW(self.real_in, self.rows, axes=(1,), **keep),
+                       pyfftw.FFTW(self.cols, self.spectrum, axes=(1,), **keep))
+        self._plans_bwd = (pyfftw.FFTW(self.spectrum, self.cols, axes=(1,), direction="FFTW_BACKWARD", **kill),
+                           pyfftw.FFTW(self.rows, self.real_out, axes=(1,), direction="FFTW_BACKWARD", **kill))
     def spectral_layout(self, kx_ky: np.ndarray) -> np.ndarray:
         """Put an array indexed [kx_local, ky] (shape (nkx_local, Ny)) into the spectrum's layout."""
         kx_ky = np.asarray(kx_ky)

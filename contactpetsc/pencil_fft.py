@@ -109,8 +109,6 @@ class PencilRFFT(SlabRFFT):
         self.row_comm, self.col_comm = _sub_communicators(comm, px)
         self.fft_pairs = 0
         self.alltoall_bytes = 0   # payload passed to Alltoallv by this rank, self-blocks excluded
-        keep = dict(threads=threads, flags=(PLANNER_FLAGS[planner],))
-        kill = dict(threads=threads, flags=(PLANNER_FLAGS[planner], "FFTW_DESTROY_INPUT"))
         empty = pyfftw.empty_aligned
         m0, m1 = self.sub_ranges[b]
         m = m1 - m0
@@ -154,12 +152,7 @@ class PencilRFFT(SlabRFFT):
         self._sent_bwd = (8 * (sum(self._spec1[1][0]) - self._spec1[1][0][b])
                           + 16 * (sum(self._spec2[1][0]) - self._spec2[1][0][b])
                           + 16 * (sum(self._spec3[1][0]) - self._spec3[1][0][a]))
-        self._plans = (pyfftw.FFTW(self.real_in, self.rows, axes=(1,), **keep),
-                       pyfftw.FFTW(self.cols, self.spectrum, axes=(1,), **keep))
-        self._plans_bwd = (pyfftw.FFTW(self.spectrum, self.cols, axes=(1,),
-                                       direction="FFTW_BACKWARD", **kill),
-                           pyfftw.FFTW(self.rows, self.real_out, axes=(1,),
-                                       direction="FFTW_BACKWARD", **kill))
+        self._plan_stages(threads, planner)
         self.real_in[...] = 0
         self.cols[...] = 0
 

@@ -234,7 +234,7 @@ class JointLoadNewton:
         """Keep u = M 1 of the present Newton step on the full grid (zero outside its set):
         the preconditioner's image of dp/d delta, the predictor of the next load's solve."""
         if self._tangent is None:
-            self._tangent = np.empty((self.grid.ny_local, self.grid.nx))
+            self._tangent = np.empty(self.grid.local_shape)
         self._tangent.fill(0.0)
         A.getPythonContext().to_full(u, self._tangent)
 
