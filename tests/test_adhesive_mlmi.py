@@ -132,7 +132,8 @@ def test_auto_picks_per_grid_from_the_snap_number_and_gives_the_same_state(coll)
     lj_lo, lj_hi = AUTO_MLMI_SNAP["full LJ"]
     # the full LJ curve: spectral below its window, mlmi in it; its coarse grids follow the finest
     assert mild.snap_number < lj_lo and mild.preconditioner == "spectral"
-    assert mild_coarse.snap_number >= lj_lo and mild_coarse.preconditioner == "spectral"
+    # (a grid split over ranks that cannot halve it evenly has no coarse level: 64^2 on 3 ranks)
+    assert mild_coarse is None or (mild_coarse.snap_number >= lj_lo and mild_coarse.preconditioner == "spectral")
     assert lj_lo <= wallless.snap_number <= lj_hi and wallless.preconditioner == "mlmi"
     states = []
     for pc in ("auto", "spectral"):
@@ -140,7 +141,8 @@ def test_auto_picks_per_grid_from_the_snap_number_and_gives_the_same_state(coll)
                             stability_check=False)
         pb.snes()
         if pc == "auto":
-            assert pb.preconditioner == "mlmi" and pb._coarse_problem().preconditioner == "spectral"
+            coarse = pb._coarse_problem()
+            assert pb.preconditioner == "mlmi" and (coarse is None or coarse.preconditioner == "spectral")
         pb.solve(approach=-0.5)
         states.append(pb.solve(approach=0.5))
         if pc == "auto":
