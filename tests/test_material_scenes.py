@@ -106,6 +106,7 @@ def test_a_scene_solves_what_the_api_solves(coll, shared_tmp):
     assert np.isclose(api.e_star, e_star, rtol=1e-15)
 
 
+@pytest.mark.heavy   # a layer sweep through the CLI and the API: on 1 and 2 ranks
 def test_an_adhesive_scene_on_a_layer_solves_what_the_api_solves(coll, shared_tmp):
     """Adhesion on a bonded layer, E and nu given: the scene's states are the API's."""
     from contactpetsc.physics.interactions import make_law
