@@ -48,6 +48,13 @@ PLANNER_FLAGS = {"estimate": "FFTW_ESTIMATE", "measure": "FFTW_MEASURE",
                  "patient": "FFTW_PATIENT", "exhaustive": "FFTW_EXHAUSTIVE"}
 
 
+def plan_flags(threads: int, planner: str) -> tuple[dict, dict]:
+    """FFTW plan keywords: forward plans keep their input (it holds the zero padding),
+    backward plans may destroy theirs."""
+    flag = PLANNER_FLAGS[planner]
+    return dict(threads=threads, flags=(flag,)), dict(threads=threads, flags=(flag, "FFTW_DESTROY_INPUT"))
+
+
 class SlabRFFT:
     """Distributed real FFT of an (nx, ny) field stored in y-slabs.
 
@@ -83,9 +90,7 @@ class SlabRFFT:
         self.kx0, self.kx1 = self.kx_ranges[self.rank]
         self.fft_pairs = 0
         self.alltoall_bytes = 0   # payload passed to Alltoallv by this rank, self-block excluded
-        # forward plans keep their input (it holds the zero padding); backward may destroy it
-        keep = dict(threads=threads, flags=(PLANNER_FLAGS[planner],))
-        kill = dict(threads=threads, flags=(PLANNER_FLAGS[planner], "FFTW_DESTROY_INPUT"))
+        keep, kill = plan_flags(threads, planner)
         empty = pyfftw.empty_aligned
         ny_loc, nkx_loc = self.ye - self.ys, self.kx1 - self.kx0
 
@@ -149,8 +154,7 @@ class SlabRFFT:
     def _plan_stages(self, threads, planner) -> None:
         """The 1-D FFTW plans of the transposed transform: along x of the real rows and along
         y of the columns, forward (inputs kept) and backward (inputs destroyed)."""
-        keep = dict(threads=threads, flags=(PLANNER_FLAGS[planner],))
-        kill = dict(threads=threads, flags=(PLANNER_FLAGS[planner], "FFTW_DESTROY_INPUT"))
+        keep, kill = plan_flags(threads, planner)
         self._plans = (pyfftw.FFTW(self.real_in, self.rows, axes=(1,), **keep),
                        pyfftw.FFTW(self.cols, self.spectrum, axes=(1,), **keep))
         self._plans_bwd = (pyfftw.FFTW(self.spectrum, self.cols, axes=(1,), direction="FFTW_BACKWARD", **kill),
