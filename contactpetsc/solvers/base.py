@@ -20,6 +20,13 @@ from .options import code_default
 #: (1e300 marks the zero guess converged), and 1e-2 is already a coarse solve
 MAX_TOL = 1e-2
 
+#: code default of ``-<prefix>snes_vi_zero_tolerance``: an unknown within it of a bound, with the
+#: residual of the bound's sign, is active (the Newton step holds it).  PETSc's 1e-8 is in the
+#: unknowns' units, Pa here, so it held every loaded node of a mean pressure below 1e-8 Pa (any
+#: E*, the load never reached) and, at small E*, small pressures near contact edges: 0 makes
+#: the active set unit-free, the unknowns at their bound (the projection puts them exactly there)
+VI_ZERO_TOLERANCE = 0.0
+
 
 class ContactSolveError(RuntimeError):
     """A solve that did not converge; raised on every rank with the same message."""
@@ -179,6 +186,7 @@ class VIProblem:
         snes.setJacobian(self._jacobian, self._J, self._J)
         snes.setTolerances(rtol=0.0, atol=0.0, stol=0.0, max_it=max_it)
         snes.setConvergenceTest(self._converged)
+        self.set_default("snes_vi_zero_tolerance", VI_ZERO_TOLERANCE, prefix)
         return snes
 
     def gap(self, pressure: np.ndarray, out: np.ndarray, displacement: np.ndarray | None = None) -> np.ndarray:
