@@ -1,0 +1,165 @@
+"""Load control and the adhesive solvers in any units: the algorithm is unit-free.
+
+Truths: scale invariance (lengths x s, moduli x e, loads x e, forces x e s^2 give the same
+dimensionless state p / E*, g / s, delta / s, contact fraction; with s and e powers of two the
+scaled problem is the reference one bit for bit, so it must take the same Newton steps and FFT
+pairs -- any difference is a threshold in absolute units); Hertz (p0 = 2 E* a / (pi R),
+a = sqrt(R delta), F = 4/3 E* R^1/2 delta^3/2); single-node contact at the smallest loads
+(p = n W at the lowest node, delta = min h + K_ii n W); full contact at the largest (periodic
+cell: delta = mean h, p - W independent of W).  Serially and under ``mpirun -n 2/3``.
+"""
+import itertools
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from contactpetsc.geometry import surfaces
+from contactpetsc.grid import SurfaceGrid
+from contactpetsc.physics.closed_forms import hertz_contact_radius, hertz_force
+from contactpetsc.solvers import ContactProblem
+from contactpetsc.solvers.contact_load import MIN_LOAD
+
+_ids = itertools.count()
+
+#: (length factor, modulus factor): powers of two (exact scaling) and decimal ones
+BINARY = [(2.0 ** -20, 2.0 ** -10), (2.0 ** -20, 2.0 ** 20), (2.0 ** 10, 2.0 ** -10), (2.0 ** 10, 2.0 ** 20)]
+DECIMAL = [(1e-6, 1e-3), (1e-6, 1e6), (1e3, 1e-3), (1e3, 1e6)]
+
+
+def prefix(name):
+    return f"u{next(_ids)}{name}_"
+
+
+def rough(s, n=64):
+    """The reference rough periodic cell (unit side, rms slope 0.1) with lengths x s."""
+    ref = SurfaceGrid(n, n, 1.0 / n)
+    h_ref = surfaces.self_affine(ref, hurst=0.8, seed=5, rms_slope=0.1, rolloff_wavelength=0.25,
+                                 short_cutoff_wavelength=4.0 / n)
+    g = SurfaceGrid(n, n, s / n)
+    h = g.create_vec()
+    g.rows(h)[...] = s * ref.rows(h_ref, readonly=True)
+    return g, h
+
+
+def dimensionless(prob, st, s, e):
+    """(p / E*, g / s) on this rank's rows, delta / s, contact fraction."""
+    g = prob.grid
+    return (g.rows(st.pressure, readonly=True) / e, g.rows(st.gap, readonly=True) / s, st.approach / s,
+            st.contact_fraction)
+
+
+def counts(st):
+    return st.newton_iterations, st.linear_iterations, st.fft_pairs
+
+
+def differences(coll, a, b):
+    """Largest relative differences of two dimensionless states: pressure (of max p), gap (of
+    max |g|), approach, contact fraction."""
+    pmax, gmax = coll.max(np.abs(a[0])), coll.max(np.abs(a[1]))
+    return (coll.max(np.abs(a[0] - b[0])) / pmax, coll.max(np.abs(a[1] - b[1])) / gmax,
+            abs(a[2] - b[2]) / abs(a[2]), abs(a[3] - b[3]))
+
+
+def load_path(s, e, name, loads=(0.004, 0.006)):
+    """States of a loading path on the rough cell at mean pressures ``loads`` x E*."""
+    g, h = rough(s)
+    prob = ContactProblem(g, h, e, prefix=prefix(name))
+    return prob, [prob.solve(mean_pressure=w * e) for w in loads]
+
+
+@pytest.mark.parametrize("s, e", BINARY)
+def test_load_control_is_unit_free_step_for_step(coll, s, e):
+    """Powers of two: the same state and the same Newton steps, Krylov iterations and FFT pairs
+    (the first solve nested, the second a step of the path: the predictor and the forcing)."""
+    ref_prob, ref = load_path(1.0, 1.0, "ref")
+    prob, states = load_path(s, e, "bin")
+    for a, b in zip(ref, states):
+        assert a.converged and b.converged
+        assert counts(a) == counts(b), (counts(a), counts(b))
+        assert max(differences(coll, dimensionless(ref_prob, a, 1.0, 1.0), dimensionless(prob, b, s, e))) <= 1e-12
+    assert 0.05 < ref[0].contact_fraction < ref[1].contact_fraction < 0.5
+
+
+@pytest.mark.parametrize("s, e", DECIMAL)
+def test_load_control_is_unit_free_in_decimal_units(coll, s, e):
+    """Decimal factors round the heights differently: the same state to the tolerance and the
+    same number of Newton steps."""
+    ref_prob, ref = load_path(1.0, 1.0, "ref")
+    prob, states = load_path(s, e, "dec")
+    for a, b in zip(ref, states):
+        assert a.converged and b.converged and a.load_error <= 1e-10 and b.load_error <= 1e-10
+        assert a.newton_iterations == b.newton_iterations
+        assert abs(b.fft_pairs / a.fft_pairs - 1) <= 0.1
+        assert max(differences(coll, dimensionless(ref_prob, a, 1.0, 1.0), dimensionless(prob, b, s, e))) <= 1e-8
+
+
+# -- Hertz under force control --------------------------------------------------------------
+R, A = 1.0, 1e-2          # reference sphere radius and Hertz contact radius
+DELTA = A * A / R
+
+
+@pytest.mark.parametrize("s, e", [(1.0, 1.0)] + DECIMAL)
+def test_hertz_under_force_control_in_any_units(coll, s, e):
+    """64^2 with 20 elements per Hertz radius: the load-controlled state carries the force and
+    has Hertz's approach, peak pressure and contact radius within 1 % at every scale."""
+    n = 64
+    g = SurfaceGrid(n, n, s * A / 20, periodic=False)
+    radius, delta, e_star = s * R, s * DELTA, e
+    force = float(hertz_force(e_star, radius, delta))
+    prob = ContactProblem(g, surfaces.sphere(g, radius), e_star, prefix=prefix("hertz"))
+    st = prob.solve(force=force)
+    a = float(hertz_contact_radius(radius, delta))
+    p0 = 2.0 * e_star * a / (np.pi * radius)
+    a_num = np.sqrt(st.contact_fraction * g.lengths[0] * g.lengths[1] / np.pi)
+    assert st.converged and coll.max(st.load_error) <= 1e-9
+    assert abs(st.force / force - 1) <= 1e-9
+    errors = (abs(st.approach / delta - 1), abs(st.pressure.max()[1] / p0 - 1), abs(a_num / a - 1))
+    assert coll.max(errors) <= 0.01, errors
+
+
+# -- the extremes of the load ---------------------------------------------------------------
+@pytest.mark.parametrize("s, e", [(1.0, 1.0)] + DECIMAL)
+def test_smallest_loads_touch_the_lowest_node_alone(coll, s, e):
+    """Mean pressures of MIN_LOAD E* and 1e-8 E*: only the lowest node is loaded (the next one
+    is further away than K_ii n W), p = n W there, delta = min h + K_ii n W."""
+    g, h = rough(s)
+    n = g.nx * g.ny
+    rows = g.rows(h, readonly=True)
+    h_min = g.mpi_comm.allreduce(float(rows.min()), op=MPI.MIN)
+    second = g.mpi_comm.allreduce(float(np.min(rows[rows > h_min], initial=np.inf)), op=MPI.MIN)
+    prob = ContactProblem(g, h, e, prefix=prefix("tiny"))
+    for w in (1e-8, MIN_LOAD):
+        load = w * e
+        assert second - h_min > 2 * prob.kappa * n * load     # the single-node state exists
+        st = prob.solve(mean_pressure=load)
+        assert st.converged and st.contact_fraction == 1.0 / n
+        p = g.rows(st.pressure, readonly=True)
+        assert abs(coll.max(p) / (n * load) - 1) <= 1e-9
+        exact = h_min + prob.kappa * n * load
+        assert abs(st.approach - exact) <= 1e-9 * prob.kappa * n * load + 1e-15 * s
+
+
+@pytest.mark.parametrize("s, e", [(1.0, 1.0)] + DECIMAL)
+def test_largest_loads_give_full_contact(coll, s, e):
+    """Mean pressures 1 E* and 1e3 E* (full contact from about 0.15 E*): delta = mean h, g = 0
+    everywhere, and p - W the same field at both loads (the problem is linear there)."""
+    g, h = rough(s)
+    mean_h = g.mpi_comm.allreduce(float(g.rows(h, readonly=True).sum())) / (g.nx * g.ny)
+    prob = ContactProblem(g, h, e, prefix=prefix("full"))
+    shapes = []
+    for w in (1.0, 1e3):
+        st = prob.solve(mean_pressure=w * e)
+        assert st.converged and st.contact_fraction == 1.0
+        assert abs(st.approach - mean_h) <= 1e-10 * prob.length_scale
+        assert coll.max(np.abs(g.rows(st.gap, readonly=True))) <= 1e-10 * prob.length_scale
+        shapes.append(g.rows(st.pressure, readonly=True) / e - w)
+    amplitude = coll.max(np.abs(shapes[0]))
+    assert coll.max(np.abs(shapes[0] - shapes[1])) <= 1e-8 * amplitude
+
+
+@pytest.mark.parametrize("e", [1e-3, 1e6])
+def test_a_load_below_the_smallest_is_refused_in_units_of_e_star(coll, e):
+    g, h = rough(1.0, n=32)
+    prob = ContactProblem(g, h, e, prefix=prefix("refuse"))
+    coll.raises(ValueError, ["mean_pressure", "accepted range"], prob.solve, mean_pressure=0.5 * MIN_LOAD * e)
