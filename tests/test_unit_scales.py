@@ -1,12 +1,15 @@
-"""Load control and the adhesive solvers in any units: the algorithm is unit-free.
+"""Load control, the auto adhesive preconditioner and the paper's relaxation in any units: the
+algorithms are unit-free.
 
-Truths: scale invariance (lengths x s, moduli x e, loads x e, forces x e s^2 give the same
-dimensionless state p / E*, g / s, delta / s, contact fraction; with s and e powers of two the
-scaled problem is the reference one bit for bit, so it must take the same Newton steps and FFT
-pairs -- any difference is a threshold in absolute units); Hertz (p0 = 2 E* a / (pi R),
-a = sqrt(R delta), F = 4/3 E* R^1/2 delta^3/2); single-node contact at the smallest loads
-(p = n W at the lowest node, delta = min h + K_ii n W); full contact at the largest (periodic
-cell: delta = mean h, p - W independent of W).  Serially and under ``mpirun -n 2/3``.
+Truths: scale invariance (lengths x s, moduli x e, loads x e, forces x e s^2, w x e s give the
+same dimensionless state p / E*, g / s, delta / s, contact fraction, and the same snap number
+and preconditioner picks; with s and e powers of two the scaled problem is the reference one
+bit for bit, so it must take the same Newton steps and FFT pairs -- any difference is a
+threshold in absolute units); Hertz (p0 = 2 E* a / (pi R), a = sqrt(R delta),
+F = 4/3 E* R^1/2 delta^3/2); single-node contact at the smallest loads (p = n W at the lowest
+node, delta = min h + K_ii n W); full contact at the largest (periodic cell: delta = mean h,
+p - W independent of W).  Serially and under ``mpirun -n 2`` (the adhesive ones are heavy:
+1 and 2 ranks; the others also on 3).
 """
 import itertools
 import warnings
@@ -23,6 +26,7 @@ from contactpetsc.physics.interactions import make_law
 from contactpetsc.physics.resolution import UnderResolvedWarning
 from contactpetsc.solvers import ContactProblem
 from contactpetsc.solvers.adhesive import AdhesiveProblem
+from contactpetsc.solvers.relaxation import RelaxationSolver
 from contactpetsc.solvers.contact_load import MIN_LOAD
 
 _ids = itertools.count()
@@ -256,3 +260,38 @@ def test_auto_preconditioner_is_unit_free_in_decimal_units(coll, law_name, mu, c
         assert a.converged and b.converged and a.newton_iterations == b.newton_iterations
         da = differences(coll, adhesive_dimensionless(ref[0], a, 1.0, 1.0), adhesive_dimensionless(scaled[0], b, s, e))
         assert max(da) <= 1e-8, da
+
+
+# -- the paper's relaxation ------------------------------------------------------------------
+def relaxed_path(law_name, s, e, name):
+    """The relaxation (E_Total 1e-6 z0) along APPROACHES on the Tabor-1 sphere of
+    ``adhesive_path``; (problem, states)."""
+    key = ("relaxation", law_name)
+    if (s, e) == (1.0, 1.0) and key in _reference:
+        return _reference[key]
+    g = SurfaceGrid(32, 32, s, periodic=False)
+    law = make_law(law_name, work_of_adhesion=np.sqrt(1.0 / 100.0) * e * s, z0=s)
+    pb = AdhesiveProblem(g, sphere(g, 100.0 * s), e, law, prefix=prefix(name), stability_check=False)
+    relax = RelaxationSolver(pb, tol=1e-6, contact_tol=1e-6)
+    out = pb, [relax.solve(approach=d * s) for d in APPROACHES]
+    if (s, e) == (1.0, 1.0):
+        _reference[key] = out
+    return out
+
+
+@pytest.mark.heavy
+@pytest.mark.parametrize("law_name", ["hardwall-lj", "lj"])
+@pytest.mark.parametrize("s, e", [(2.0 ** -10, 2.0 ** -20), (1e-9, 1e10)])
+def test_relaxation_is_unit_free(coll, law_name, s, e):
+    """The same cycles, contact relaxations and FFT pairs on binary scales, the same state to
+    1e-8 on decimal ones (nm and 10 GPa)."""
+    pb0, ref = relaxed_path(law_name, 1.0, 1.0, "rref")
+    pb, states = relaxed_path(law_name, s, e, "rsc")
+    binary = np.log2(s).is_integer() and np.log2(e).is_integer()
+    for a, b in zip(ref, states):
+        assert a.converged and b.converged and a.solver == b.solver == "relaxation-mlmi"
+        if binary:
+            assert counts(a) == counts(b), (counts(a), counts(b))
+        da = differences(coll, adhesive_dimensionless(pb0, a, 1.0, 1.0), adhesive_dimensionless(pb, b, s, e))
+        assert max(da) <= (1e-12 if binary else 1e-8), da
+

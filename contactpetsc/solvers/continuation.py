@@ -209,7 +209,7 @@ class Continuation:
             (self._x_best if stalled and method == "ptc" else x_start).copy(self._x)
             if method == "relaxation":
                 relax = RelaxationSolver(self, tol=self.fallback_tol, max_cycles=self.fallback_max_cycles)
-                ok, reason, n2, l2 = relax.relax(approach)
+                ok, reason, n2, l2 = relax.relax(approach, polished=True)
                 if ok:
                     ok, reason, n3, l3 = self._run_snes()
                     n2, l2 = n2 + n3, l2 + l3

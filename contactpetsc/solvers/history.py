@@ -28,7 +28,8 @@ class HistoryRecord:
     solver: str = ""
     adhesive_error: float = float("nan")  #: max K_ii |a - a(g)| / z0 (adhesive solves)
     total_error: float = float("nan")     #: the reference paper's E_Total / z0 (relaxation solver)
-    #: pressure error on the law's scale (adhesive solves, see ``AdhesiveProblem._measures``)
+    #: pressure error on the law's scale (adhesive solves, see ``AdhesiveProblem._measures``;
+    #: the relaxation solver: rms(a(g) - a) / P, P the law's peak attraction)
     pressure_error: float = float("nan")
     #: complementarity error relative to min(length scale, interference) (contact solves)
     interference_error: float = float("nan")
