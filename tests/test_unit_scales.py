@@ -8,8 +8,8 @@ bit for bit, so it must take the same Newton steps and FFT pairs -- any differen
 threshold in absolute units); Hertz (p0 = 2 E* a / (pi R), a = sqrt(R delta),
 F = 4/3 E* R^1/2 delta^3/2); single-node contact at the smallest loads (p = n W at the lowest
 node, delta = min h + K_ii n W); full contact at the largest (periodic cell: delta = mean h,
-p - W independent of W).  Serially and under ``mpirun -n 2/3`` (the auto preconditioner's
-are heavy: 1 and 2 ranks).
+p - W independent of W).  Serially and under ``mpirun -n 2/3`` (the adhesive ones are heavy:
+1 and 2 ranks).
 """
 import itertools
 import warnings
@@ -279,6 +279,7 @@ def relaxed_path(law_name, s, e, name):
     return out
 
 
+@pytest.mark.heavy
 @pytest.mark.parametrize("law_name", ["hardwall-lj", "lj"])
 @pytest.mark.parametrize("s, e", [(2.0 ** -10, 2.0 ** -20), (1e-9, 1e10)])
 def test_relaxation_is_unit_free(coll, law_name, s, e):
