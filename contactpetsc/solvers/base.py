@@ -22,9 +22,9 @@ MAX_TOL = 1e-2
 
 #: code default of ``-<prefix>snes_vi_zero_tolerance``: an unknown within it of a bound, with the
 #: residual of the bound's sign, is active (the Newton step holds it).  PETSc's 1e-8 is in the
-#: unknowns' units, Pa here, so it held every loaded node of a mean pressure below 1e-8 Pa (any
-#: E*, the load never reached) and, at small E*, small pressures near contact edges: 0 makes
-#: the active set unit-free, the unknowns at their bound (the projection puts them exactly there)
+#: unknowns' units, Pa here: it held every loaded node of a mean pressure below 1e-8 Pa whatever
+#: E* (load control never reached the load) and, at small E*, nodes of small pressure near the
+#: contact edges.  0: active only at the bound (where the projection puts them), unit-free
 VI_ZERO_TOLERANCE = 0.0
 
 

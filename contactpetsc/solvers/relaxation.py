@@ -30,9 +30,9 @@ values; ``-<prefix>relax_tol``, ``-<prefix>relax_contact_tol``), and on a
 periodic cell, whose K has no mean mode (a uniform error of a changes no
 gap: E_Total is blind to it), K_ii |mean(a(g) - a)| too.  Both are K_ii times
 pressure errors, blind to any a when w / (E* z0) is small (a stiff sphere
-passed with the previous approach's a, 78 % off in force): the pressure error
-on the law's own scale, rms(a(g) - a) / P (P the peak attraction), must be
-below ``relax_tol`` as well (as a fallback, Newton's own test checks it).  The paper
+passed with the previous approach's a): the pressure error on the law's own
+scale, rms(a(g) - a) / P (P the peak attraction), must be below
+``relax_tol`` as well (as a fallback, Newton's own test checks it).  The paper
 notes that high Tabor parameters need small adhesive relaxation
 coefficients; so it is here, which is why Newton is the default.
 
