@@ -11,7 +11,8 @@ Scenes, each with the hard-wall law (eq. 7) and the full Lennard-Jones curve (eq
   quantile --quantile.
 
 Error: max |g - g_ref| / z0
-against a Newton reference at --ref-tol (MLMI-preconditioned).  Newton (--tol, spectral preconditioner, no stability
+against a Newton reference at --ref-tol (with the preconditioner Newton's ``auto`` did not pick).  Newton (--tol,
+the default preconditioner ``auto``, no stability
 check): one point per fine-grid Newton iteration (a SNES monitor; the coarse grids of the nested
 iteration have none).  Relaxation (--relax-tol on E_Total and the contact rms): one point per
 adhesive cycle (``RelaxationSolver.monitor``).  The monitors' own time is subtracted.  Each
@@ -26,6 +27,7 @@ Usage::
 """
 import argparse
 import json
+import os
 import sys
 import time
 
@@ -134,14 +136,20 @@ def solve_all():
 
 def solve_law(scene_name, grid, h, name, law, delta):
     rows = []
-    # a different preconditioner than the curves': the reference is not their own last iterate
-    st_ref = problem(grid, h, law, "ref_", tol=args.ref_tol, preconditioner="mlmi").solve(approach=delta)
+    # the reference with the other preconditioner than Newton's (the default ``auto`` picks one
+    # from the snap number), so that it is not the Newton curve's own last iterate
+    probe = problem(grid, h, law, "probe_", tol=args.tol)
+    probe.snes()
+    newton_pc = probe.preconditioner
+    ref_pc = "spectral" if newton_pc == "mlmi" else "mlmi"
+    st_ref = problem(grid, h, law, "ref_", tol=args.ref_tol, preconditioner=ref_pc).solve(approach=delta)
     ref = grid.rows(st_ref.gap, readonly=True).copy()
     for solver, run in (("SNES VI Newton", run_newton), ("relaxation (paper)", run_relaxation)):
         runs = [run(grid, h, law, delta, ref, k) for k in range(args.repeat)]
         times = [t for _, _, t in runs]
         st, curve, t = runs[int(np.argsort(times)[len(times) // 2])]
         row = dict(scene=scene_name, law=name, solver=solver, converged=st.converged, reason=st.reason,
+                   preconditioner=newton_pc if run is run_newton else None, reference_preconditioner=ref_pc,
                    times=times, median_time=float(np.median(times)), fft_pairs=st.fft_pairs,
                    iterations=st.newton_iterations, contact_fraction=st.contact_fraction,
                    final_error=curve.points[-1][1] if curve.points else None,
@@ -189,7 +197,8 @@ def plot(rows, directory):
         ax.legend(fontsize=8)
         ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
-    fig.savefig(f"{directory}/relaxation_vs_newton.png", dpi=120)
+    os.makedirs(directory, exist_ok=True)
+    fig.savefig(os.path.join(directory, "relaxation_vs_newton.png"), dpi=120)
 
 
 if args.replot:
