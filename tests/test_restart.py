@@ -60,7 +60,9 @@ def kill_after(ranks, args, curve, n):
     proc = subprocess.Popen(command(ranks, args), env=ENV, stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL)
     t0 = time.time()
-    while finished_rows(curve) < n and time.time() - t0 < 300 and proc.poll() is None:
+    # the time limit only guards against a hung run: on an oversubscribed machine reaching
+    # step n has taken over 300 s
+    while finished_rows(curve) < n and time.time() - t0 < 1800 and proc.poll() is None:
         time.sleep(0.005)
     for pid in [proc.pid] + descendants(proc.pid):   # mpirun and every rank at once, as a scheduler
         try:
