@@ -40,6 +40,7 @@ from ..grid import SurfaceGrid
 from ..lifetime import destroy_at_exit
 from ..operators.elastic import HalfSpaceOperator
 from ..geometry.surfaces import rms_height
+from .backtracking import Backtracking
 from .base import (ContactSolveError, VIProblem, check_tolerance, convergence_verdict, reason_name,
                    weighted_pairs, with_options)
 from .contact_load import MIN_LOAD, ContactLoadControl, JointLoadNewton
@@ -52,12 +53,13 @@ from .plasticity import check_hardness, plastic_measures
 from .states import ContactState
 
 #: code defaults of the Newton steps' ``-<prefix>snes_linesearch_type`` and ``ksp_type``:
-#: backtracking, where full steps diverged on the finest grid of the largest contact
-#: benchmark (docs/performance.md), and CG (K_II is symmetric positive definite)
-NEWTON_LINESEARCH, NEWTON_KSP = "bt", "cg"
+#: ``basic`` with our backtracking pre-check (``backtracking.py``; full steps alone diverged on
+#: the finest grid of the largest contact benchmark, docs/performance.md), and CG (K_II is
+#: symmetric positive definite)
+NEWTON_LINESEARCH, NEWTON_KSP = "basic", "cg"
 
 
-class ContactProblem(NestedIteration, JointLoadNewton, ContactLoadControl, VIProblem):
+class ContactProblem(NestedIteration, Backtracking, JointLoadNewton, ContactLoadControl, VIProblem):
     """Contact of an elastic half-space with a rigid composite surface h, no adhesion.
 
     Parameters
@@ -182,6 +184,9 @@ class ContactProblem(NestedIteration, JointLoadNewton, ContactLoadControl, VIPro
         self.load_joint = opts.getBool("load_joint", code_default("contact", "load_joint"))
         self.slope_warm = opts.getBool("slope_warm_start", code_default("contact", "slope_warm_start"))
         snes.setFromOptions()
+        if opts.getString("snes_linesearch_type", NEWTON_LINESEARCH) == "basic":
+            # the code default; another -<prefix>snes_linesearch_type (bt, l2, cp) runs as PETSc has it
+            snes.setLineSearchPreCheck(self._backtrack)
         # -<prefix>pc_type ... may have replaced our choice: record what is in use
         python_type = pc.getPythonType() if pc.getType() == "python" else None
         self.preconditioner = preconditioner_name(python_type, pc.getType())
@@ -209,10 +214,15 @@ class ContactProblem(NestedIteration, JointLoadNewton, ContactLoadControl, VIPro
     # -- SNES callbacks ------------------------------------------------------------
     @collective_guard
     def _residual(self, snes, x, f):
+        x, f = self.grid.rows(x, readonly=True), self.grid.rows(f)
+        if not self._reuse_trial(x, f):   # the line search's trial point (backtracking.py)
+            self._evaluate_residual(x, f)
+
+    def _evaluate_residual(self, x: np.ndarray, out: np.ndarray) -> None:
         if self._joint:
-            self._joint_gap(self.grid.rows(x, readonly=True), self.grid.rows(f))
+            self._joint_gap(x, out)
         else:
-            self.gap(self.grid.rows(x, readonly=True), self.grid.rows(f))
+            self.gap(x, out)
 
     def _jacobian(self, snes, x, J, P):
         pass  # K does not depend on p: nothing to update
@@ -282,6 +292,8 @@ class ContactProblem(NestedIteration, JointLoadNewton, ContactLoadControl, VIPro
             self._best = (err_gap, it)
             x.copy(self._x_best)
         verdict = convergence_verdict(snes, it, err_gap, self._inner_tol)
+        if self._line_search_failed and verdict == PETSc.SNES.ConvergedReason.ITERATING:
+            verdict = PETSc.SNES.ConvergedReason.DIVERGED_LINE_SEARCH
         if (self._joint and verdict == PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS
                 and not load_err <= self.load_tol):
             # the load is part of the joint problem's error: the step after the last clip
@@ -320,6 +332,7 @@ class ContactProblem(NestedIteration, JointLoadNewton, ContactLoadControl, VIPro
         pressure.copy(self._x)
         self._lin0 = self.history[-1].linear_iterations if len(self.history) else 0
         self._best = (np.inf, -1)
+        self._trial, self._line_search_failed = None, False
         snes.solve(None, self._x)
         self._newton += snes.getIterationNumber()
         self._linear += snes.getLinearSolveIterations()
