@@ -76,6 +76,24 @@ def test_failed_contact_solve_returns_its_best_iterate(coll):
     assert coll.max(np.abs(grid.rows(problem._pressure, readonly=True))) == 0.0
 
 
+def test_backtracking_failure_stops_with_its_best_iterate(coll):
+    """The default line search (backtracking.py) given uphill Newton directions (one
+    Richardson step scaled by -1) finds no decrease down to its smallest step: the solve stops
+    with DIVERGED_LINE_SEARCH and returns its iterate of smallest error, a consistent state."""
+    grid = SurfaceGrid(64, 64, 1e-9, periodic=False)
+    h = sphere(grid, 100e-9)
+    uphill = {"ksp_type": "richardson", "ksp_richardson_scale": "-1", "ksp_max_it": "1", "ksp_norm_type": "none"}
+    problem = ContactProblem(grid, h, 1e9, prefix="failed_backtracking_", fmg=False, petsc_options=uphill)
+    st = problem.solve(approach=2e-9, raise_on_failure=False)
+    assert not st.converged and st.reason.startswith("DIVERGED_LINE_SEARCH"), st.reason
+    assert "smallest complementarity error" in st.reason, st.reason
+    p = grid.rows(st.pressure, readonly=True)
+    assert coll.max(-p) <= 0.0
+    assert_not_random(coll, p)
+    assert_consistent(coll, problem, st, h)
+    assert st.complementarity_error < problem.history[0].complementarity_error
+
+
 def test_failed_adhesive_solve_returns_its_best_iterate(coll):
     z0 = 0.3e-9
     grid = SurfaceGrid(48, 48, z0, periodic=False)
