@@ -2,12 +2,13 @@
 the slope product.
 
 PETSc's ``bt`` forms J Y for its initial slope F^T J Y: one FFT pair per Newton step, used only
-in its sufficient-decrease test (alpha = 1e-4) and its first quadratic fit.  Here the line
+in its sufficient-decrease test (alpha = 1e-4) and its backtracking fits.  Here the line
 search is ``basic`` and its pre-check backtracks: it tries lambda = 1, 1/2, 1/4, ... until the
 merit at the projected trial point w = clip(x - lambda y, 0, H) -- the 2-norm of F(w) over w's
-inactive set, as PETSc's VI solvers measure it -- does not exceed the present one, scales the
-step by lambda and keeps F(w), which the line search's own evaluation at the same w then
-reuses.  An accepted full step costs one residual (``bt``: a residual and the slope product).
+inactive set, as PETSc's VI solvers measure it -- does not exceed the present one (any
+decrease is enough), scales the step by lambda and keeps F(w), which the line search's own
+evaluation at the same w then reuses.  An accepted full step costs one residual (``bt``: a
+residual and the slope product).
 """
 from __future__ import annotations
 
