@@ -173,6 +173,22 @@ def test_rank_independence(coll):
     assert coll.max(np.abs(pw - ps).max() / ps.max()) <= 1e-10
 
 
+def test_line_search_takes_bt_steps_without_the_slope_product(coll):
+    """The default line search (``basic`` with the backtracking pre-check, backtracking.py) and
+    PETSc's ``bt`` take the same steps here (the same pressure to the last bit), and ours costs
+    exactly one FFT pair less per Newton step: bt's product J Y for its initial slope."""
+    g, h = rough(64)
+    ours = ContactProblem(g, h, E_STAR, prefix=prefix("ls"), fmg=False).solve(mean_pressure=0.005)
+    bt = ContactProblem(g, h, E_STAR, prefix=prefix("lsbt"), fmg=False,
+                        petsc_options={"snes_linesearch_type": "bt"}).solve(mean_pressure=0.005)
+    assert coll.all(ours.converged and bt.converged)
+    assert ours.newton_iterations == bt.newton_iterations > 0
+    assert bt.fft_pairs - ours.fft_pairs == ours.newton_iterations
+    d = ours.pressure.copy()
+    d.axpy(-1.0, bt.pressure)
+    assert coll.max(d.norm(PETSc.NormType.INFINITY)) == 0.0
+
+
 def test_failure_raises_everywhere(coll):
     g, h = rough(64)
     pre = prefix("fail")

@@ -7,7 +7,8 @@ pressure has none of that signature (pressures in Pa of a contact of a 1-10 GPa 
 are zero outside the contact and far above 1 Pa inside), it is the state whose force,
 displacement, gap and errors the state reports (recomputed from the pressure), and the
 next solve starts from the last converged state.  The failure is forced with Newton
-steps that go backwards (``snes_linesearch_damping -1``).
+steps that go backwards (``snes_linesearch_damping -1``; the contact problem with PETSc's ``bt``,
+whose failed line search is the one that leaves random values).
 """
 import numpy as np
 from petsc4py import PETSc
@@ -19,13 +20,15 @@ from contactpetsc.solvers.problem import ContactProblem
 from contactpetsc.geometry.surfaces import sphere
 
 
-def backward_line_search(prefix, value="-1"):
-    """Set (or with None clear) a line search that steps backwards under ``prefix``."""
+def backward_line_search(prefix, value="-1", kind=None):
+    """Set (or with None clear) a line search that steps backwards under ``prefix``; ``kind``
+    its type (default: the problem's)."""
     opts = PETSc.Options()
-    if value is None:
-        opts.delValue(prefix + "snes_linesearch_damping")
-    else:
-        opts.setValue(prefix + "snes_linesearch_damping", value)
+    for key, v in (("snes_linesearch_damping", value), ("snes_linesearch_type", kind if value else None)):
+        if v is None:
+            opts.delValue(prefix + key)
+        else:
+            opts.setValue(prefix + key, v)
 
 
 def assert_not_random(coll, rows):
@@ -52,7 +55,7 @@ def test_failed_contact_solve_returns_its_best_iterate(coll):
     grid = SurfaceGrid(64, 64, 1e-9, periodic=False)
     h = sphere(grid, 100e-9)
     prefix = "failed_contact_"
-    backward_line_search(prefix)
+    backward_line_search(prefix, kind="bt")   # PETSc's own: its failure leaves VecSetRandom's values
     try:
         problem = ContactProblem(grid, h, 1e9, prefix=prefix, fmg=False)
         st = problem.solve(approach=2e-9, raise_on_failure=False)
@@ -71,6 +74,24 @@ def test_failed_contact_solve_returns_its_best_iterate(coll):
     assert st.complementarity_error < problem.history[0].complementarity_error
     # the next start is still the last converged state (here: none, the zero pressure)
     assert coll.max(np.abs(grid.rows(problem._pressure, readonly=True))) == 0.0
+
+
+def test_backtracking_failure_stops_with_its_best_iterate(coll):
+    """The default line search (backtracking.py) given uphill Newton directions (one
+    Richardson step scaled by -1) finds no decrease down to its smallest step: the solve stops
+    with DIVERGED_LINE_SEARCH and returns its iterate of smallest error, a consistent state."""
+    grid = SurfaceGrid(64, 64, 1e-9, periodic=False)
+    h = sphere(grid, 100e-9)
+    uphill = {"ksp_type": "richardson", "ksp_richardson_scale": "-1", "ksp_max_it": "1", "ksp_norm_type": "none"}
+    problem = ContactProblem(grid, h, 1e9, prefix="failed_backtracking_", fmg=False, petsc_options=uphill)
+    st = problem.solve(approach=2e-9, raise_on_failure=False)
+    assert not st.converged and st.reason.startswith("DIVERGED_LINE_SEARCH"), st.reason
+    assert "smallest complementarity error" in st.reason, st.reason
+    p = grid.rows(st.pressure, readonly=True)
+    assert coll.max(-p) <= 0.0
+    assert_not_random(coll, p)
+    assert_consistent(coll, problem, st, h)
+    assert st.complementarity_error < problem.history[0].complementarity_error
 
 
 def test_failed_adhesive_solve_returns_its_best_iterate(coll):

@@ -40,24 +40,26 @@ from ..grid import SurfaceGrid
 from ..lifetime import destroy_at_exit
 from ..operators.elastic import HalfSpaceOperator
 from ..geometry.surfaces import rms_height
+from .backtracking import Backtracking
 from .base import (ContactSolveError, VIProblem, check_tolerance, convergence_verdict, reason_name,
                    weighted_pairs, with_options)
 from .contact_load import MIN_LOAD, ContactLoadControl, JointLoadNewton
 from .history import SolveHistory
+from .nested import NestedIteration
 from .options import LINESEARCH_MAX_STEP, code_default, print_help
 from .pc_registry import PRECONDITIONERS, preconditioner_name
 from .reduced import ContactJacobian
 from .plasticity import check_hardness, plastic_measures
 from .states import ContactState
-from .transfer import can_halve, halved, prolong_bilinear, prolong_constant, restrict
 
 #: code defaults of the Newton steps' ``-<prefix>snes_linesearch_type`` and ``ksp_type``:
-#: backtracking, where full steps diverged on the finest grid of the largest contact
-#: benchmark (docs/performance.md), and CG (K_II is symmetric positive definite)
-NEWTON_LINESEARCH, NEWTON_KSP = "bt", "cg"
+#: ``basic`` with our backtracking pre-check (``backtracking.py``; full steps alone diverged on
+#: the finest grid of the largest contact benchmark, docs/performance.md), and CG (K_II is
+#: symmetric positive definite)
+NEWTON_LINESEARCH, NEWTON_KSP = "basic", "cg"
 
 
-class ContactProblem(JointLoadNewton, ContactLoadControl, VIProblem):
+class ContactProblem(NestedIteration, Backtracking, JointLoadNewton, ContactLoadControl, VIProblem):
     """Contact of an elastic half-space with a rigid composite surface h, no adhesion.
 
     Parameters
@@ -177,16 +179,14 @@ class ContactProblem(JointLoadNewton, ContactLoadControl, VIProblem):
         self.inner_tol0 = opts.getReal("load_inner_tol", code_default("contact", "load_inner_tol"))
         self.inner_eta = opts.getReal("load_inner_eta", code_default("contact", "load_inner_eta"))
         # nested iteration (full multigrid): first solve on a 2x coarser grid
-        self.fmg = opts.getBool("fmg", self._default("fmg"))
-        self.fmg_min_size = opts.getInt("fmg_min_size", code_default("contact", "fmg_min_size"))
-        self.fmg_tol = opts.getReal("fmg_tol", code_default("contact", "fmg_tol"))
-        self.fmg_prolong = opts.getString("fmg_prolong", code_default("contact", "fmg_prolong")).lower()
-        if self.fmg_prolong not in ("bilinear", "constant"):
-            raise ValueError(f"-{self.prefix}fmg_prolong must be bilinear or constant, got {self.fmg_prolong!r}")
+        self._nested_options(opts)
         self.forcing = opts.getBool("newton_ksp_forcing", code_default("contact", "newton_ksp_forcing"))
         self.load_joint = opts.getBool("load_joint", code_default("contact", "load_joint"))
         self.slope_warm = opts.getBool("slope_warm_start", code_default("contact", "slope_warm_start"))
         snes.setFromOptions()
+        if opts.getString("snes_linesearch_type", NEWTON_LINESEARCH) == "basic":
+            # the code default; another -<prefix>snes_linesearch_type (bt, l2, cp) runs as PETSc has it
+            snes.setLineSearchPreCheck(self._backtrack)
         # -<prefix>pc_type ... may have replaced our choice: record what is in use
         python_type = pc.getPythonType() if pc.getType() == "python" else None
         self.preconditioner = preconditioner_name(python_type, pc.getType())
@@ -214,10 +214,15 @@ class ContactProblem(JointLoadNewton, ContactLoadControl, VIProblem):
     # -- SNES callbacks ------------------------------------------------------------
     @collective_guard
     def _residual(self, snes, x, f):
+        x, f = self.grid.rows(x, readonly=True), self.grid.rows(f)
+        if not self._reuse_trial(x, f):   # the line search's trial point (backtracking.py)
+            self._evaluate_residual(x, f)
+
+    def _evaluate_residual(self, x: np.ndarray, out: np.ndarray) -> None:
         if self._joint:
-            self._joint_gap(self.grid.rows(x, readonly=True), self.grid.rows(f))
+            self._joint_gap(x, out)
         else:
-            self.gap(self.grid.rows(x, readonly=True), self.grid.rows(f))
+            self.gap(x, out)
 
     def _jacobian(self, snes, x, J, P):
         pass  # K does not depend on p: nothing to update
@@ -287,6 +292,8 @@ class ContactProblem(JointLoadNewton, ContactLoadControl, VIProblem):
             self._best = (err_gap, it)
             x.copy(self._x_best)
         verdict = convergence_verdict(snes, it, err_gap, self._inner_tol)
+        if self._line_search_failed and verdict == PETSc.SNES.ConvergedReason.ITERATING:
+            verdict = PETSc.SNES.ConvergedReason.DIVERGED_LINE_SEARCH
         if (self._joint and verdict == PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS
                 and not load_err <= self.load_tol):
             # the load is part of the joint problem's error: the step after the last clip
@@ -305,25 +312,6 @@ class ContactProblem(JointLoadNewton, ContactLoadControl, VIProblem):
         """FFT pairs of every operator of the root problem (coarse grids weighted by size), cumulative."""
         root = self._root
         return root._retired_pairs + weighted_pairs(root._operators().values(), root.grid)
-
-    def _release_coarse(self) -> None:
-        """Free the coarse problems of the nested iteration once their solution is prolonged.
-
-        They are used once, on the first solve; kept, they would hold a third
-        of the fine problem's memory through every later solve.  Their FFT
-        pairs stay counted (``_retired_pairs``); the MLMI levels they share
-        with the fine problem stay alive.  Collective.
-        """
-        coarse = self._coarse
-        if not coarse:
-            return
-        root = self._root
-        kept = {id(lev.op) for lev in (self._levels or [])}
-        gone = [op for k, op in coarse._operators().items() if k not in kept]
-        root._retired_pairs += weighted_pairs(gone, root.grid)
-        coarse._destroy_solvers()
-        self._coarse = False
-        PETSc.garbage_cleanup(self.grid.comm)
 
     def _destroy_solvers(self) -> None:
         """Destroy the SNES and KSP of this problem and of its coarse problems: their
@@ -344,6 +332,7 @@ class ContactProblem(JointLoadNewton, ContactLoadControl, VIProblem):
         pressure.copy(self._x)
         self._lin0 = self.history[-1].linear_iterations if len(self.history) else 0
         self._best = (np.inf, -1)
+        self._trial, self._line_search_failed = None, False
         snes.solve(None, self._x)
         self._newton += snes.getIterationNumber()
         self._linear += snes.getLinearSolveIterations()
@@ -358,65 +347,6 @@ class ContactProblem(JointLoadNewton, ContactLoadControl, VIProblem):
             name += (f" (state: the iterate of smallest complementarity error, {self._best[0]:.3e} at "
                      f"Newton iteration {self._best[1]})" if self._best[1] >= 0 else " (state: the initial guess)")
         return reason > 0, name
-
-    # -- nested iteration (full multigrid) ---------------------------------------------
-    def _coarse_problem(self):
-        """The same problem on the 2x coarser grid (h averaged over 2 x 2 blocks), or None."""
-        if self._coarse is not None:
-            return self._coarse or None
-        self._coarse = False
-        grid = self.grid
-        if (not self.fmg or not can_halve(grid) or max(grid.nx, grid.ny) // 2 < self.fmg_min_size
-                or min(grid.nx, grid.ny) // 2 < 2):
-            return None
-        levels = self._levels
-        if levels and len(levels) > 1:
-            gc, op = levels[1].grid, levels[1].op
-        else:
-            gc = halved(grid)
-            # FFTW_MEASURE planning would cost more than the coarse solves themselves
-            op = self.op.on_grid(gc, prefix=self.prefix, planner="estimate")
-        hc = gc.create_vec()
-        gc.rows(hc)[...] = restrict(grid.rows(self.heights, readonly=True))
-        d = dict(self._defaults, preconditioner=self.preconditioner, fmg=True)
-        coarse = ContactProblem(gc, hc, self.e_star, prefix=self.prefix, length_scale=self.length_scale,
-                                operator=op, hardness=self.hardness, petsc_options=self.petsc_options,
-                                _root=self._root, **d)
-        coarse._levels = levels[1:] if levels and len(levels) > 1 else None
-        coarse._build()
-        coarse.tol, coarse.load_tol = max(self.fmg_tol, self.tol), max(self.fmg_tol, self.load_tol)
-        coarse.fmg, coarse.fmg_min_size, coarse.fmg_tol = self.fmg, self.fmg_min_size, self.fmg_tol
-        self._coarse = coarse
-        return coarse
-
-    def _nested_guess(self, approach, mean_pressure) -> bool:
-        """Initial (p, delta) from the coarse problem's solution, prolonged; False if none.
-
-        The coarse dp/d delta (load control) is prolonged too: it starts the
-        first fine slope solve."""
-        coarse = self._coarse_problem()
-        if coarse is None:
-            return False
-        st = coarse.solve(approach=approach, mean_pressure=mean_pressure, raise_on_failure=False)
-        self._newton += st.newton_iterations
-        self._linear += st.linear_iterations
-        if not st.converged:
-            self._release_coarse()
-            return False
-        grid = self.grid
-        if self.fmg_prolong == "bilinear":
-            prolong = lambda a: prolong_bilinear(a, coarse.grid)  # noqa: E731
-        else:
-            prolong = prolong_constant
-        grid.rows(self._pressure)[...] = prolong(coarse.grid.rows(st.pressure, readonly=True))
-        if coarse._slope_cache is not None and self.slope_warm:
-            # the coarse dp/d delta: the initial guess of the first fine slope solve
-            z = grid.create_vec()
-            grid.rows(z)[...] = prolong(coarse.grid.rows(coarse._slope_cache[2], readonly=True))
-            self._z_guess = z
-        self._approach = st.approach
-        self._release_coarse()
-        return True
 
     # -- public API ------------------------------------------------------------------
     def warm_start(self, pressure: PETSc.Vec, approach: float) -> None:
