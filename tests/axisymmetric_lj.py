@@ -23,13 +23,17 @@ The full-LJ equilibrium curve (every state, stable or not: the whole S-curve) is
 pseudo-arclength continuation, its steps measured in (alpha*, W*, central gap / z0):
 Greenwood's central-gap control (the approach an unknown), generalised so that it also passes
 the points where the central gap, the approach or the load turn back.  The unknowns are the
-ring gaps and the approach; Newton with the dense Jacobian.
+ring gaps and the approach; Newton with the dense Jacobian, its LU factorization kept from
+one solve to the next while it still contracts the residual (a chord method: the same
+equilibria to the same tolerance, with a factorization every few steps instead of several
+per step).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import lu_factor, lu_solve
 from scipy.optimize import minimize_scalar
 from scipy.special import ellipe, ellipk
 
@@ -114,6 +118,65 @@ class LennardJones:
 
 # -- the solver ---------------------------------------------------------------------------
 
+class ChordNewton:
+    """Newton's method for ``residual(x) = 0`` whose LU factorization of ``jacobian(x)`` is
+    kept between iterations and between solves, and renewed (at the current iterate) only
+    when an iteration with it fails to cut the largest residual component by ``rate``.
+    Converged is the same test as plain Newton's (largest component < ``tol``); only the
+    number of factorizations changes."""
+
+    def __init__(self, rate: float = 0.25):
+        self.rate = rate
+        self.lu = None
+        self.factorizations = 0
+
+    def _factor(self, matrix):
+        self.lu = lu_factor(matrix, check_finite=False)
+        self.factorizations += 1
+
+    def solve(self, residual, jacobian, x, tol: float, max_it: int, damp=None):
+        """(root, iterations); ``damp(x, dx)`` the fraction of the step dx to take (default 1);
+        None when ``max_it`` iterations (renewals included) do not reach ``tol``."""
+        r = residual(x)
+        fresh = False
+        for it in range(max_it):
+            err = np.max(np.abs(r))
+            if err < tol:
+                return x, it
+            if self.lu is None or self.lu[0].shape[0] != len(x):
+                self._factor(jacobian(x))
+                fresh = True
+            dx = -lu_solve(self.lu, r, check_finite=False)
+            x_new = x + (1.0 if damp is None else damp(x, dx)) * dx
+            r_new = residual(x_new)
+            if not fresh and not np.max(np.abs(r_new)) < self.rate * err:
+                self.lu = None          # stale: renew at x and redo this iteration
+                continue
+            x, r, fresh = x_new, r_new, False
+        return None
+
+    def linear_solve(self, matvec, matrix, rhs, rtol: float, max_it: int = 20):
+        """x with ``matvec(x) = rhs`` by iterative refinement with the kept factorization,
+        renewed from ``matrix()`` (assembled only then) where it contracts too slowly."""
+        x, r = np.zeros_like(rhs), rhs
+        scale = np.max(np.abs(rhs))
+        exact = False
+        for _ in range(max_it):
+            if self.lu is None or self.lu[0].shape[0] != len(rhs):
+                self._factor(matrix())
+                exact = True
+            x_new = x + lu_solve(self.lu, r, check_finite=False)
+            r_new = rhs - matvec(x_new)
+            err = np.max(np.abs(r_new))
+            if err < rtol * scale:
+                return x_new
+            if not exact and not err < self.rate * np.max(np.abs(r)):
+                self.lu = None
+                continue
+            x, r = x_new, r_new
+        raise RuntimeError("linear_solve: iterative refinement did not converge")
+
+
 @dataclass
 class State:
     approach: float           #: delta [m]
@@ -139,6 +202,10 @@ class AxisymmetricSphere:
         self.law = LennardJones(self.w, self.z0)
         self.h = self.rings.r ** 2 / (2.0 * self.radius)
         self.tol = tol * self.z0
+        # one kept factorization per kind of system: the gaps at a given approach, and the
+        # continuation's bordered system (gaps and approach)
+        self._gap_newton = ChordNewton()
+        self._arc_newton = ChordNewton()
 
     # full LJ: unknowns the gaps; F(g, delta) = g - h - K p(g) + delta
     def _residual(self, g, delta):
@@ -162,14 +229,12 @@ class AxisymmetricSphere:
         g = (self.h - delta if start is None else start.gap.copy())
         g = np.maximum(g, -0.5 * self.z0)
         n = len(g)
-        for it in range(max_it):
-            F = self._residual(g, delta)
-            if np.max(np.abs(F)) < self.tol:
-                return self._state(g, delta, it)
-            J = np.eye(n) - self.rings.K * self.law.derivative(g)[None, :]
-            dg = -np.linalg.solve(J, F)
-            g = g + self._damped(g, dg) * dg
-        raise RuntimeError(f"axisymmetric Newton did not converge at approach {delta:g} m")
+        out = self._gap_newton.solve(lambda g: self._residual(g, delta),
+                                     lambda g: np.eye(n) - self.rings.K * self.law.derivative(g)[None, :],
+                                     g, self.tol, max_it, damp=self._damped)
+        if out is None:
+            raise RuntimeError(f"axisymmetric Newton did not converge at approach {delta:g} m")
+        return self._state(out[0], delta, out[1])
 
     def _solve_hard_wall(self, delta, start, max_it):
         """Eq. (7) by semismooth Newton on min(g, p - p_LJ(g)) = 0 (g = h + K p - delta)."""
@@ -212,12 +277,16 @@ class AxisymmetricSphere:
     def _tangent(self, x, t_prev):
         """Unit tangent (in the observables) of the curve at x, oriented along t_prev:
         J t = 0, (D t_prev).(D t) = 1; and the observables (phi, D) at x."""
-        n = len(x) - 1
-        phi, D = self._observables(x[:-1], x[-1])
-        A = np.vstack([self._jacobian(x[:-1]), (D @ t_prev) @ D])
-        rhs = np.zeros(n + 1)
-        rhs[-1] = 1.0
-        t = np.linalg.solve(A, rhs)
+        g = x[:-1]
+        phi, D = self._observables(g, x[-1])
+        row = self.z0 * (D @ t_prev) @ D
+        dp = self.law.derivative(g)
+        rhs = np.zeros(len(x))
+        rhs[-1] = self.z0
+        # the tangent only predicts and orients the next step: a modest tolerance
+        t = self._arc_newton.linear_solve(
+            lambda v: np.append(v[:-1] - self.rings.K @ (dp * v[:-1]) + v[-1], row @ v),
+            lambda: np.vstack([self._jacobian(g), row]), rhs, rtol=1e-6)
         return t / np.linalg.norm(D @ t), phi, D
 
     def trace(self, start_approach: float, end_approach: float, step: float = 0.05,
@@ -238,32 +307,33 @@ class AxisymmetricSphere:
         t, phi0, D = self._tangent(x, forward)
         s = step
         while states[-1].approach < end_approach and len(states) < max_points:
+            Dt = D @ t
+
+            def residual(y):
+                phi, _ = self._observables(y[:-1], y[-1])
+                return np.append(self._residual(y[:-1], y[-1]), self.z0 * (Dt @ (phi - phi0) - s))
+
+            def jacobian(y):
+                return np.vstack([self._jacobian(y[:-1]), self.z0 * Dt @ self._observables(y[:-1], y[-1])[1]])
+
             while True:
                 y = x + s * t
                 y[:-1] = np.maximum(y[:-1], -0.5 * self.z0)
-                ok, it = False, 0
-                for it in range(30):
-                    F = self._residual(y[:-1], y[-1])
-                    phi, Dy = self._observables(y[:-1], y[-1])
-                    c = (D @ t) @ (phi - phi0) - s
-                    if max(np.max(np.abs(F)), abs(c) * self.z0) < self.tol:
-                        ok = True
-                        break
-                    A = np.vstack([self._jacobian(y[:-1]), (D @ t) @ Dy])
-                    dy = -np.linalg.solve(A, np.append(F, c))
-                    y = y + self._damped(y[:-1], dy[:-1]) * dy
-                if ok:
+                out = self._arc_newton.solve(residual, jacobian, y, self.tol, 40,
+                                             damp=lambda y, dy: self._damped(y[:-1], dy[:-1]))
+                if out is not None:
+                    y, it = out
                     t_new, phi_new, D_new = self._tangent(y, t)
                     # a turn sharper than ~18 degrees in one step may have jumped to another
                     # part of the curve (back across a tight fold): shorter steps
-                    if (D @ t) @ (D_new @ t_new) > 0.95 and np.linalg.norm(phi_new - phi0) < 2.0 * s:
+                    if Dt @ (D_new @ t_new) > 0.95 and np.linalg.norm(phi_new - phi0) < 2.0 * s:
                         break
                 s *= 0.5
                 if s < 1e-8:
                     raise RuntimeError(f"continuation stalled at approach {x[-1]:g} m")
             x, t, phi0, D = y, t_new, phi_new, D_new
             states.append(self._state(y[:-1], y[-1], it))
-            s = min(max_step, s * 1.5) if it <= 4 else (s if it <= 8 else 0.7 * s)
+            s = min(max_step, s * 1.5) if it <= 10 else (s if it <= 20 else 0.7 * s)
         return states
 
 
