@@ -118,63 +118,57 @@ class LennardJones:
 
 # -- the solver ---------------------------------------------------------------------------
 
-class ChordNewton:
-    """Newton's method for ``residual(x) = 0`` whose LU factorization of ``jacobian(x)`` is
-    kept between iterations and between solves, and renewed (at the current iterate) only
-    when an iteration with it fails to cut the largest residual component by ``rate``.
-    Converged is the same test as plain Newton's (largest component < ``tol``); only the
-    number of factorizations changes."""
+class KeptLU:
+    """Solves J x = b for Jacobians J that change little from one solve to the next: GMRES
+    (right-preconditioned) with the LU factorization of an earlier J as the preconditioner,
+    renewed from J itself only where GMRES needs more than ``max_krylov`` iterations.  The
+    solution is J's (to ``rtol``), whatever J the factorization came from."""
 
-    def __init__(self, rate: float = 0.25):
-        self.rate = rate
+    def __init__(self, max_krylov: int = 30):
+        self.max_krylov = max_krylov
         self.lu = None
         self.factorizations = 0
 
-    def _factor(self, matrix):
+    def solve(self, matvec, matrix, b, rtol: float):
+        """x with ``matvec(x) = b`` to ``rtol`` (relative, 2-norm); ``matrix()`` assembles J
+        for a renewal."""
+        if self.lu is None or self.lu[0].shape[0] != len(b):
+            self._renew(matrix())
+        x = self._gmres(matvec, b, rtol)
+        if x is None:
+            self._renew(matrix())
+            x = self._gmres(matvec, b, rtol)
+        if x is None:
+            raise RuntimeError("KeptLU: GMRES with a fresh factorization did not converge")
+        return x
+
+    def _renew(self, matrix):
         self.lu = lu_factor(matrix, check_finite=False)
         self.factorizations += 1
 
-    def solve(self, residual, jacobian, x, tol: float, max_it: int, damp=None):
-        """(root, iterations); ``damp(x, dx)`` the fraction of the step dx to take (default 1);
-        None when ``max_it`` iterations (renewals included) do not reach ``tol``."""
-        r = residual(x)
-        fresh = False
-        for it in range(max_it):
-            err = np.max(np.abs(r))
-            if err < tol:
-                return x, it
-            if self.lu is None or self.lu[0].shape[0] != len(x):
-                self._factor(jacobian(x))
-                fresh = True
-            dx = -lu_solve(self.lu, r, check_finite=False)
-            x_new = x + (1.0 if damp is None else damp(x, dx)) * dx
-            r_new = residual(x_new)
-            if not fresh and not np.max(np.abs(r_new)) < self.rate * err:
-                self.lu = None          # stale: renew at x and redo this iteration
-                continue
-            x, r, fresh = x_new, r_new, False
+    def _gmres(self, matvec, b, rtol):
+        beta = np.linalg.norm(b)
+        if beta == 0.0:
+            return np.zeros_like(b)
+        m = self.max_krylov
+        V = np.empty((m + 1, len(b)))
+        Z = np.empty((m, len(b)))
+        H = np.zeros((m + 1, m))
+        V[0] = b / beta
+        for k in range(m):
+            Z[k] = lu_solve(self.lu, V[k], check_finite=False)
+            w = matvec(Z[k])
+            for i in range(k + 1):              # modified Gram-Schmidt
+                H[i, k] = w @ V[i]
+                w = w - H[i, k] * V[i]
+            H[k + 1, k] = np.linalg.norm(w)
+            e1 = np.zeros(k + 2)
+            e1[0] = beta
+            y = np.linalg.lstsq(H[:k + 2, :k + 1], e1, rcond=None)[0]
+            if np.linalg.norm(e1 - H[:k + 2, :k + 1] @ y) <= rtol * beta or H[k + 1, k] == 0.0:
+                return Z[:k + 1].T @ y
+            V[k + 1] = w / H[k + 1, k]
         return None
-
-    def linear_solve(self, matvec, matrix, rhs, rtol: float, max_it: int = 20):
-        """x with ``matvec(x) = rhs`` by iterative refinement with the kept factorization,
-        renewed from ``matrix()`` (assembled only then) where it contracts too slowly."""
-        x, r = np.zeros_like(rhs), rhs
-        scale = np.max(np.abs(rhs))
-        exact = False
-        for _ in range(max_it):
-            if self.lu is None or self.lu[0].shape[0] != len(rhs):
-                self._factor(matrix())
-                exact = True
-            x_new = x + lu_solve(self.lu, r, check_finite=False)
-            r_new = rhs - matvec(x_new)
-            err = np.max(np.abs(r_new))
-            if err < rtol * scale:
-                return x_new
-            if not exact and not err < self.rate * np.max(np.abs(r)):
-                self.lu = None
-                continue
-            x, r = x_new, r_new
-        raise RuntimeError("linear_solve: iterative refinement did not converge")
 
 
 @dataclass
@@ -203,9 +197,11 @@ class AxisymmetricSphere:
         self.h = self.rings.r ** 2 / (2.0 * self.radius)
         self.tol = tol * self.z0
         # one kept factorization per kind of system: the gaps at a given approach, and the
-        # continuation's bordered system (gaps and approach)
-        self._gap_newton = ChordNewton()
-        self._arc_newton = ChordNewton()
+        # continuation's bordered system (gaps and approach); Newton's linear solves to a
+        # relative 1e-8 keep its convergence quadratic down to the tolerance
+        self._newton_rtol = 1e-8
+        self._gap_lu = KeptLU()
+        self._arc_lu = KeptLU()
 
     # full LJ: unknowns the gaps; F(g, delta) = g - h - K p(g) + delta
     def _residual(self, g, delta):
@@ -229,12 +225,16 @@ class AxisymmetricSphere:
         g = (self.h - delta if start is None else start.gap.copy())
         g = np.maximum(g, -0.5 * self.z0)
         n = len(g)
-        out = self._gap_newton.solve(lambda g: self._residual(g, delta),
-                                     lambda g: np.eye(n) - self.rings.K * self.law.derivative(g)[None, :],
-                                     g, self.tol, max_it, damp=self._damped)
-        if out is None:
-            raise RuntimeError(f"axisymmetric Newton did not converge at approach {delta:g} m")
-        return self._state(out[0], delta, out[1])
+        K = self.rings.K
+        for it in range(max_it):
+            F = self._residual(g, delta)
+            if np.max(np.abs(F)) < self.tol:
+                return self._state(g, delta, it)
+            dp = self.law.derivative(g)
+            dg = -self._gap_lu.solve(lambda v: v - K @ (dp * v), lambda: np.eye(n) - K * dp[None, :], F,
+                                     rtol=self._newton_rtol)
+            g = g + self._damped(g, dg) * dg
+        raise RuntimeError(f"axisymmetric Newton did not converge at approach {delta:g} m")
 
     def _solve_hard_wall(self, delta, start, max_it):
         """Eq. (7) by semismooth Newton on min(g, p - p_LJ(g)) = 0 (g = h + K p - delta)."""
@@ -274,19 +274,22 @@ class AxisymmetricSphere:
         J[:, n] = 1.0
         return J
 
+    def _bordered_matvec(self, dp, row):
+        """v -> [J v_g + v_delta, row . v]: the continuation's Jacobian (gaps, approach) times v."""
+        return lambda v: np.append(v[:-1] - self.rings.K @ (dp * v[:-1]) + v[-1], row @ v)
+
     def _tangent(self, x, t_prev):
         """Unit tangent (in the observables) of the curve at x, oriented along t_prev:
         J t = 0, (D t_prev).(D t) = 1; and the observables (phi, D) at x."""
         g = x[:-1]
         phi, D = self._observables(g, x[-1])
-        row = self.z0 * (D @ t_prev) @ D
+        row = (D @ t_prev) @ D
         dp = self.law.derivative(g)
         rhs = np.zeros(len(x))
-        rhs[-1] = self.z0
+        rhs[-1] = 1.0
         # the tangent only predicts and orients the next step: a modest tolerance
-        t = self._arc_newton.linear_solve(
-            lambda v: np.append(v[:-1] - self.rings.K @ (dp * v[:-1]) + v[-1], row @ v),
-            lambda: np.vstack([self._jacobian(g), row]), rhs, rtol=1e-6)
+        t = self._arc_lu.solve(self._bordered_matvec(dp, row), lambda: np.vstack([self._jacobian(g), row]), rhs,
+                               rtol=1e-6)
         return t / np.linalg.norm(D @ t), phi, D
 
     def trace(self, start_approach: float, end_approach: float, step: float = 0.05,
@@ -308,21 +311,23 @@ class AxisymmetricSphere:
         s = step
         while states[-1].approach < end_approach and len(states) < max_points:
             Dt = D @ t
-
-            def residual(y):
-                phi, _ = self._observables(y[:-1], y[-1])
-                return np.append(self._residual(y[:-1], y[-1]), self.z0 * (Dt @ (phi - phi0) - s))
-
-            def jacobian(y):
-                return np.vstack([self._jacobian(y[:-1]), self.z0 * Dt @ self._observables(y[:-1], y[-1])[1]])
-
             while True:
                 y = x + s * t
                 y[:-1] = np.maximum(y[:-1], -0.5 * self.z0)
-                out = self._arc_newton.solve(residual, jacobian, y, self.tol, 40,
-                                             damp=lambda y, dy: self._damped(y[:-1], dy[:-1]))
-                if out is not None:
-                    y, it = out
+                ok, it = False, 0
+                for it in range(30):
+                    F = self._residual(y[:-1], y[-1])
+                    phi, Dy = self._observables(y[:-1], y[-1])
+                    c = Dt @ (phi - phi0) - s
+                    if max(np.max(np.abs(F)), abs(c) * self.z0) < self.tol:
+                        ok = True
+                        break
+                    row = Dt @ Dy
+                    dy = -self._arc_lu.solve(self._bordered_matvec(self.law.derivative(y[:-1]), row),
+                                             lambda: np.vstack([self._jacobian(y[:-1]), row]), np.append(F, c),
+                                             rtol=self._newton_rtol)
+                    y = y + self._damped(y[:-1], dy[:-1]) * dy
+                if ok:
                     t_new, phi_new, D_new = self._tangent(y, t)
                     # a turn sharper than ~18 degrees in one step may have jumped to another
                     # part of the curve (back across a tight fold): shorter steps
@@ -333,7 +338,7 @@ class AxisymmetricSphere:
                     raise RuntimeError(f"continuation stalled at approach {x[-1]:g} m")
             x, t, phi0, D = y, t_new, phi_new, D_new
             states.append(self._state(y[:-1], y[-1], it))
-            s = min(max_step, s * 1.5) if it <= 10 else (s if it <= 20 else 0.7 * s)
+            s = min(max_step, s * 1.5) if it <= 4 else (s if it <= 8 else 0.7 * s)
         return states
 
 
