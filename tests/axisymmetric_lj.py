@@ -23,10 +23,10 @@ The full-LJ equilibrium curve (every state, stable or not: the whole S-curve) is
 pseudo-arclength continuation, its steps measured in (alpha*, W*, central gap / z0):
 Greenwood's central-gap control (the approach an unknown), generalised so that it also passes
 the points where the central gap, the approach or the load turn back.  The unknowns are the
-ring gaps and the approach; Newton with the dense Jacobian, its LU factorization kept from
-one solve to the next while it still contracts the residual (a chord method: the same
-equilibria to the same tolerance, with a factorization every few steps instead of several
-per step).
+ring gaps and the approach; Newton with the dense Jacobian, its systems solved by GMRES
+preconditioned with the LU factorization of an earlier Jacobian (``KeptLU``: the same Newton
+iterates to the same tolerance, with a factorization every few steps of the curve instead of
+several per step).
 """
 from __future__ import annotations
 
@@ -197,8 +197,8 @@ class AxisymmetricSphere:
         self.h = self.rings.r ** 2 / (2.0 * self.radius)
         self.tol = tol * self.z0
         # one kept factorization per kind of system: the gaps at a given approach, and the
-        # continuation's bordered system (gaps and approach); Newton's linear solves to a
-        # relative 1e-8 keep its convergence quadratic down to the tolerance
+        # continuation's bordered system (gaps and approach); linear solves to a relative 1e-8
+        # keep Newton's convergence quadratic down to the tolerance
         self._newton_rtol = 1e-8
         self._gap_lu = KeptLU()
         self._arc_lu = KeptLU()

@@ -45,6 +45,24 @@ def test_ring_loads_give_the_hertz_displacement():
 
 
 @pytest.mark.serial
+def test_kept_factorization_solves_the_current_system():
+    """KeptLU: GMRES preconditioned with the LU of an earlier matrix gives the current
+    matrix's solution (against numpy's dense solve), renewing the factorization only when
+    the earlier matrix is too far off for ``max_krylov`` iterations."""
+    rng = np.random.default_rng(5)
+    n = 60
+    A = np.eye(n) + 0.3 * rng.standard_normal((n, n)) / np.sqrt(n)
+    kept = axi.KeptLU(max_krylov=10)
+    b = rng.standard_normal(n)
+    for change in (0.0, 1e-3, 1e-2, 3.0):
+        B = A + change * rng.standard_normal((n, n)) / np.sqrt(n)
+        x = kept.solve(lambda v: B @ v, lambda: B, b, rtol=1e-10)
+        assert np.max(np.abs(x - np.linalg.solve(B, b))) < 1e-8 * np.max(np.abs(x))
+        # small changes keep the first factorization; the large one renews it
+        assert kept.factorizations == (1 if change < 1 else 2), (change, kept.factorizations)
+
+
+@pytest.mark.serial
 def test_signorini_sphere_is_hertz():
     """Hard wall, w = 0: F = (4/3) E* sqrt(R) delta^1.5."""
     sph = axi.AxisymmetricSphere(R, 1.0, 0.0, 1.0, axi.ring_mesh(0.1, 30.0, 200.0), law="hardwall-lj")
