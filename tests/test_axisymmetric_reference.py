@@ -4,7 +4,8 @@ The truth is ``tests/axisymmetric_lj.py`` (ring loads with the closed-form displ
 uniformly loaded disk, numpy/scipy only, the whole S-curve by continuation): checked here
 against Hertz (Johnson eq. 3.41 for the displacement of the Hertz pressure, the force-approach
 law with the hard wall and w = 0), the DMT limit of the pull-off (-2 pi R w, small Tabor
-parameter) and the JKR limit (-1.5 pi R w, large), and against itself with rings half as wide.
+parameter) and the JKR limit (-1.5 pi R w, large), and against itself with rings half as wide;
+its linear solver (GMRES with a kept LU factorization) against a dense solve.
 Then the 3-D solver's loading and unloading path and pull-off of a mu = 1 sphere (an S-curve:
 jumps on and off) against it.  Greenwood's units: E* = z0 = 1, R = 100 z0, w = sqrt(mu^3 / R),
 W* = W / (2 pi R w).
