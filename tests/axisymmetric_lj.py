@@ -23,13 +23,17 @@ The full-LJ equilibrium curve (every state, stable or not: the whole S-curve) is
 pseudo-arclength continuation, its steps measured in (alpha*, W*, central gap / z0):
 Greenwood's central-gap control (the approach an unknown), generalised so that it also passes
 the points where the central gap, the approach or the load turn back.  The unknowns are the
-ring gaps and the approach; Newton with the dense Jacobian.
+ring gaps and the approach; Newton with the dense Jacobian, its systems solved by GMRES
+preconditioned with the LU factorization of an earlier Jacobian (``KeptLU``: the same Newton
+iterates to the same tolerance, with a factorization every few steps of the curve instead of
+several per step).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import lu_factor, lu_solve
 from scipy.optimize import minimize_scalar
 from scipy.special import ellipe, ellipk
 
@@ -114,6 +118,59 @@ class LennardJones:
 
 # -- the solver ---------------------------------------------------------------------------
 
+class KeptLU:
+    """Solves J x = b for Jacobians J that change little from one solve to the next: GMRES
+    (right-preconditioned) with the LU factorization of an earlier J as the preconditioner,
+    renewed from J itself only where GMRES needs more than ``max_krylov`` iterations.  The
+    solution is J's (to ``rtol``), whatever J the factorization came from."""
+
+    def __init__(self, max_krylov: int = 30):
+        self.max_krylov = max_krylov
+        self.lu = None
+        self.factorizations = 0
+
+    def solve(self, matvec, matrix, b, rtol: float):
+        """x with ``matvec(x) = b`` to ``rtol`` (relative, 2-norm); ``matrix()`` assembles J
+        for a renewal."""
+        if self.lu is None or self.lu[0].shape[0] != len(b):
+            self._renew(matrix())
+        x = self._gmres(matvec, b, rtol)
+        if x is None:
+            self._renew(matrix())
+            x = self._gmres(matvec, b, rtol)
+        if x is None:
+            raise RuntimeError("KeptLU: GMRES with a fresh factorization did not converge")
+        return x
+
+    def _renew(self, matrix):
+        self.lu = lu_factor(matrix, check_finite=False)
+        self.factorizations += 1
+
+    def _gmres(self, matvec, b, rtol):
+        beta = np.linalg.norm(b)
+        if beta == 0.0:
+            return np.zeros_like(b)
+        m = self.max_krylov
+        V = np.empty((m + 1, len(b)))
+        Z = np.empty((m, len(b)))
+        H = np.zeros((m + 1, m))
+        V[0] = b / beta
+        for k in range(m):
+            Z[k] = lu_solve(self.lu, V[k], check_finite=False)
+            w = matvec(Z[k])
+            for i in range(k + 1):              # modified Gram-Schmidt
+                H[i, k] = w @ V[i]
+                w = w - H[i, k] * V[i]
+            H[k + 1, k] = np.linalg.norm(w)
+            e1 = np.zeros(k + 2)
+            e1[0] = beta
+            y = np.linalg.lstsq(H[:k + 2, :k + 1], e1, rcond=None)[0]
+            if np.linalg.norm(e1 - H[:k + 2, :k + 1] @ y) <= rtol * beta or H[k + 1, k] == 0.0:
+                return Z[:k + 1].T @ y
+            V[k + 1] = w / H[k + 1, k]
+        return None
+
+
 @dataclass
 class State:
     approach: float           #: delta [m]
@@ -139,6 +196,12 @@ class AxisymmetricSphere:
         self.law = LennardJones(self.w, self.z0)
         self.h = self.rings.r ** 2 / (2.0 * self.radius)
         self.tol = tol * self.z0
+        # one kept factorization per kind of system: the gaps at a given approach, and the
+        # continuation's bordered system (gaps and approach); linear solves to a relative 1e-8
+        # keep Newton's convergence quadratic down to the tolerance
+        self._newton_rtol = 1e-8
+        self._gap_lu = KeptLU()
+        self._arc_lu = KeptLU()
 
     # full LJ: unknowns the gaps; F(g, delta) = g - h - K p(g) + delta
     def _residual(self, g, delta):
@@ -162,12 +225,14 @@ class AxisymmetricSphere:
         g = (self.h - delta if start is None else start.gap.copy())
         g = np.maximum(g, -0.5 * self.z0)
         n = len(g)
+        K = self.rings.K
         for it in range(max_it):
             F = self._residual(g, delta)
             if np.max(np.abs(F)) < self.tol:
                 return self._state(g, delta, it)
-            J = np.eye(n) - self.rings.K * self.law.derivative(g)[None, :]
-            dg = -np.linalg.solve(J, F)
+            dp = self.law.derivative(g)
+            dg = -self._gap_lu.solve(lambda v: v - K @ (dp * v), lambda: np.eye(n) - K * dp[None, :], F,
+                                     rtol=self._newton_rtol)
             g = g + self._damped(g, dg) * dg
         raise RuntimeError(f"axisymmetric Newton did not converge at approach {delta:g} m")
 
@@ -209,15 +274,22 @@ class AxisymmetricSphere:
         J[:, n] = 1.0
         return J
 
+    def _bordered_matvec(self, dp, row):
+        """v -> [J v_g + v_delta, row . v]: the continuation's Jacobian (gaps, approach) times v."""
+        return lambda v: np.append(v[:-1] - self.rings.K @ (dp * v[:-1]) + v[-1], row @ v)
+
     def _tangent(self, x, t_prev):
         """Unit tangent (in the observables) of the curve at x, oriented along t_prev:
         J t = 0, (D t_prev).(D t) = 1; and the observables (phi, D) at x."""
-        n = len(x) - 1
-        phi, D = self._observables(x[:-1], x[-1])
-        A = np.vstack([self._jacobian(x[:-1]), (D @ t_prev) @ D])
-        rhs = np.zeros(n + 1)
+        g = x[:-1]
+        phi, D = self._observables(g, x[-1])
+        row = (D @ t_prev) @ D
+        dp = self.law.derivative(g)
+        rhs = np.zeros(len(x))
         rhs[-1] = 1.0
-        t = np.linalg.solve(A, rhs)
+        # the tangent only predicts and orients the next step: a modest tolerance
+        t = self._arc_lu.solve(self._bordered_matvec(dp, row), lambda: np.vstack([self._jacobian(g), row]), rhs,
+                               rtol=1e-6)
         return t / np.linalg.norm(D @ t), phi, D
 
     def trace(self, start_approach: float, end_approach: float, step: float = 0.05,
@@ -238,6 +310,7 @@ class AxisymmetricSphere:
         t, phi0, D = self._tangent(x, forward)
         s = step
         while states[-1].approach < end_approach and len(states) < max_points:
+            Dt = D @ t
             while True:
                 y = x + s * t
                 y[:-1] = np.maximum(y[:-1], -0.5 * self.z0)
@@ -245,18 +318,20 @@ class AxisymmetricSphere:
                 for it in range(30):
                     F = self._residual(y[:-1], y[-1])
                     phi, Dy = self._observables(y[:-1], y[-1])
-                    c = (D @ t) @ (phi - phi0) - s
+                    c = Dt @ (phi - phi0) - s
                     if max(np.max(np.abs(F)), abs(c) * self.z0) < self.tol:
                         ok = True
                         break
-                    A = np.vstack([self._jacobian(y[:-1]), (D @ t) @ Dy])
-                    dy = -np.linalg.solve(A, np.append(F, c))
+                    row = Dt @ Dy
+                    dy = -self._arc_lu.solve(self._bordered_matvec(self.law.derivative(y[:-1]), row),
+                                             lambda: np.vstack([self._jacobian(y[:-1]), row]), np.append(F, c),
+                                             rtol=self._newton_rtol)
                     y = y + self._damped(y[:-1], dy[:-1]) * dy
                 if ok:
                     t_new, phi_new, D_new = self._tangent(y, t)
                     # a turn sharper than ~18 degrees in one step may have jumped to another
                     # part of the curve (back across a tight fold): shorter steps
-                    if (D @ t) @ (D_new @ t_new) > 0.95 and np.linalg.norm(phi_new - phi0) < 2.0 * s:
+                    if Dt @ (D_new @ t_new) > 0.95 and np.linalg.norm(phi_new - phi0) < 2.0 * s:
                         break
                 s *= 0.5
                 if s < 1e-8:

@@ -4,7 +4,8 @@ The truth is ``tests/axisymmetric_lj.py`` (ring loads with the closed-form displ
 uniformly loaded disk, numpy/scipy only, the whole S-curve by continuation): checked here
 against Hertz (Johnson eq. 3.41 for the displacement of the Hertz pressure, the force-approach
 law with the hard wall and w = 0), the DMT limit of the pull-off (-2 pi R w, small Tabor
-parameter) and the JKR limit (-1.5 pi R w, large), and against itself with rings half as wide.
+parameter) and the JKR limit (-1.5 pi R w, large), and against itself with rings half as wide;
+its linear solver (GMRES with a kept LU factorization) against a dense solve.
 Then the 3-D solver's loading and unloading path and pull-off of a mu = 1 sphere (an S-curve:
 jumps on and off) against it.  Greenwood's units: E* = z0 = 1, R = 100 z0, w = sqrt(mu^3 / R),
 W* = W / (2 pi R w).
@@ -42,6 +43,24 @@ def test_ring_loads_give_the_hertz_displacement():
         errors.append(np.max(np.abs(u - exact)) / exact[0])
         assert abs(r.load(p) / (2.0 / 3.0 * np.pi) - 1.0) < 4e-3
     assert errors[-1] < 6e-4 and errors[0] > 2.0 * errors[1] > 4.0 * errors[2], errors
+
+
+@pytest.mark.serial
+def test_kept_factorization_solves_the_current_system():
+    """KeptLU: GMRES preconditioned with the LU of an earlier matrix gives the current
+    matrix's solution (against numpy's dense solve), renewing the factorization only when
+    the earlier matrix is too far off for ``max_krylov`` iterations."""
+    rng = np.random.default_rng(5)
+    n = 60
+    A = np.eye(n) + 0.3 * rng.standard_normal((n, n)) / np.sqrt(n)
+    kept = axi.KeptLU(max_krylov=10)
+    b = rng.standard_normal(n)
+    for change in (0.0, 1e-3, 1e-2, 3.0):
+        B = A + change * rng.standard_normal((n, n)) / np.sqrt(n)
+        x = kept.solve(lambda v: B @ v, lambda: B, b, rtol=1e-10)
+        assert np.max(np.abs(x - np.linalg.solve(B, b))) < 1e-8 * np.max(np.abs(x))
+        # small changes keep the first factorization; the large one renews it
+        assert kept.factorizations == (1 if change < 1 else 2), (change, kept.factorizations)
 
 
 @pytest.mark.serial

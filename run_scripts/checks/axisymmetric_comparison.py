@@ -16,6 +16,7 @@ over the states in tension (W* <= 0), and its largest value relative to W* over 
 in compression with W* >= 1.
 
     .venv/bin/python run_scripts/checks/axisymmetric_comparison.py --mu 0.1,0.5,1,2 --dx 1,0.5 --markdown
+    .venv/bin/python run_scripts/checks/axisymmetric_comparison.py --mu 5 --no-3d --top 5 --markdown
 
 Prints one JSON line per (mu, dx) and, with --markdown, the table of docs/validation.md.
 """
