@@ -159,6 +159,7 @@ class SlabRFFT:
                        pyfftw.FFTW(self.cols, self.spectrum, axes=(1,), **keep))
         self._plans_bwd = (pyfftw.FFTW(self.spectrum, self.cols, axes=(1,), direction="FFTW_BACKWARD", **kill),
                            pyfftw.FFTW(self.rows, self.real_out, axes=(1,), direction="FFTW_BACKWARD", **kill))
+
     def spectral_layout(self, kx_ky: np.ndarray) -> np.ndarray:
         """Put an array indexed [kx_local, ky] (shape (nkx_local, Ny)) into the spectrum's layout."""
         kx_ky = np.asarray(kx_ky)
