@@ -18,9 +18,6 @@ from petsc4py import PETSc
 
 from ..collective import collective_guard
 
-#: PETSc's margin (absolute, in the unknown's units) of a node at a bound in its VI norm
-VI_BOUND_MARGIN = 1e-8
-
 
 class Backtracking:
     """Mixin of ``ContactProblem``: the line search's pre-check (``_backtrack``) and the reuse
@@ -32,13 +29,17 @@ class Backtracking:
     _trial = None           # (w, F(w), approach at w) of the last accepted trial
     _trial_work = None      # the two grid-sized buffers of the trials
     _line_search_failed = False
+    #: ``-<prefix>snes_vi_zero_tolerance`` in use: PETSc's VI norm counts a node within it of a
+    #: bound as at the bound (read when the pre-check is installed)
+    vi_zero_tolerance = 0.0
 
     def _vi_norm(self, x: np.ndarray, f: np.ndarray) -> float:
         """|F| over the inactive nodes of x (SNESVIComputeInactiveSetFnorm): all but those at
         p = 0 with F > 0 and at p = H with F < 0."""
-        keep = (x > VI_BOUND_MARGIN) | (f <= 0)
+        tol = self.vi_zero_tolerance
+        keep = (x > tol) | (f <= 0)
         if np.isfinite(self.hardness):
-            keep &= (x < self.hardness - VI_BOUND_MARGIN) | (f >= 0)
+            keep &= (x < self.hardness - tol) | (f >= 0)
         local = float(np.sum(f * f, where=keep))
         return float(np.sqrt(self.grid.mpi_comm.allreduce(local)))
 

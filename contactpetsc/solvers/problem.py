@@ -41,8 +41,8 @@ from ..lifetime import destroy_at_exit
 from ..operators.elastic import HalfSpaceOperator
 from ..geometry.surfaces import rms_height
 from .backtracking import Backtracking
-from .base import (ContactSolveError, VIProblem, check_tolerance, convergence_verdict, reason_name,
-                   weighted_pairs, with_options)
+from .base import (VI_ZERO_TOLERANCE, ContactSolveError, VIProblem, check_tolerance, convergence_verdict,
+                   reason_name, weighted_pairs, with_options)
 from .contact_load import MIN_LOAD, ContactLoadControl, JointLoadNewton
 from .history import SolveHistory
 from .nested import NestedIteration
@@ -187,6 +187,7 @@ class ContactProblem(NestedIteration, Backtracking, JointLoadNewton, ContactLoad
         if opts.getString("snes_linesearch_type", NEWTON_LINESEARCH) == "basic":
             # the code default; another -<prefix>snes_linesearch_type (bt, l2, cp) runs as PETSc has it
             snes.setLineSearchPreCheck(self._backtrack)
+            self.vi_zero_tolerance = opts.getReal("snes_vi_zero_tolerance", VI_ZERO_TOLERANCE)
         # -<prefix>pc_type ... may have replaced our choice: record what is in use
         python_type = pc.getPythonType() if pc.getType() == "python" else None
         self.preconditioner = preconditioner_name(python_type, pc.getType())
