@@ -215,7 +215,7 @@ def test_example_scenes_run_at_reduced_size(coll, shared_tmp, path):
     """Every example scene, on a 32 x 32 grid of the same physical size with plots on, converges
     and writes its files: CSV columns, finite fields, HDF5 and XDMF readable, the plots; under
     mpirun the same files, to the solver's tolerance, as the scene run on one rank."""
-    scene = reduced(path, plots=True)
+    scene = reduced(path, plots=True, fields=True)
     out = os.path.join(shared_tmp, os.path.basename(path))
     states = runner.run(scene, output=out, comm=PETSc.COMM_WORLD)
     assert coll.all(all(st.converged for st in states))
@@ -243,9 +243,9 @@ def test_example_scenes_run_at_reduced_size(coll, shared_tmp, path):
             assert {"contact_pressure", "adhesive_pressure", "adhesive"} <= set(f)
             assert np.allclose(f["pressure"][:], f["contact_pressure"][:] + f["adhesive_pressure"][:])
             assert np.array_equal(f["adhesive"][:] > 0, f["pressure"][:] < 0)
-        # W* = F / (2 pi R w), alpha* = delta / z0 (Greenwood)
+        # W* = F / (2 pi R w), alpha* = delta / z0 (Greenwood), for a sphere
         g, it = scene["geometry"], scene["interaction"]
-        for r in rows:
+        for r in rows if g.get("radius") else ():
             assert float(r["W_star"]) == pytest.approx(
                 float(r["force_N"]) / (2 * np.pi * g["radius"] * it["work_of_adhesion"]), rel=1e-12)
             assert float(r["alpha_star"]) == pytest.approx(float(r["approach_m"]) / it["z0"], rel=1e-12)

@@ -25,40 +25,10 @@ import tempfile
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-#: a rough adhesive cell loaded into its rough layer and unloaded: self-affine, periodic, 128^2,
-#: rms height 2 z0, z0 = dx, w = 0.05 E* z0 (the stability matrix's rough cases, resolved)
-ROUGH = """
-name = "rough-adhesive"
-[geometry]
-kind = "self-affine"
-nx = 128
-dx = 1e-9
-hurst = 0.8
-rms_height = 2e-9
-rolloff_wavelength = 32e-9
-seed = 4
-[material]
-e_star = 1e9
-[interaction]
-law = "hardwall-lj"
-work_of_adhesion = 0.05
-z0 = 1e-9
-[protocol]
-control = "approach"
-values = [%s]
-[output]
-fields = false
-"""
-ROUGH_APPROACHES = [k * 0.25e-9 for k in range(-4, 13)] + [k * 0.25e-9 for k in range(11, -5, -1)]
-
-
-def scenes(tmp: str) -> dict:
-    rough = os.path.join(tmp, "rough_adhesive.toml")
-    with open(rough, "w") as f:
-        f.write(ROUGH % ", ".join(f"{a:.6e}" for a in ROUGH_APPROACHES))
-    return {"adhesive-sphere": os.path.join(ROOT, "examples", "scenes", "adhesive_sphere.toml"),
-            "atomic-tip": os.path.join(ROOT, "examples", "scenes", "atomic_tip.toml"),
-            "rough-adhesive": rough}
+#: the scenes, each from its example file (the rough cell: the stability matrix's rough cases, resolved)
+SCENES = {"adhesive-sphere": os.path.join(ROOT, "examples", "scenes", "adhesive_sphere.toml"),
+           "atomic-tip": os.path.join(ROOT, "examples", "scenes", "atomic_tip.toml"),
+           "rough-adhesive": os.path.join(ROOT, "examples", "scenes", "rough_adhesive_cell.toml")}
 
 
 def run(scene: str, mode: str, out: str) -> dict:
@@ -96,7 +66,7 @@ def main(argv=None) -> None:
         return values[len(values) // 2], values[0], values[-1]
 
     with tempfile.TemporaryDirectory() as tmp:
-        for name, scene in scenes(tmp).items():
+        for name, scene in SCENES.items():
             if args.only and name != args.only:
                 continue
             got = {mode: [run(scene, mode, os.path.join(tmp, f"{name}-{mode}")) for _ in range(args.repeat)]
