@@ -24,7 +24,8 @@ Cases
 Error: ``error`` is the largest gap difference to a reference solution of
 the same case (ours at tolerance 1e-11), in z0; the solvers' own measures
 are kept in ``own_error``.  One JSON line per case (n, solver, approach,
-time, fft_pairs, error, converged, ...).
+time, fft_pairs, newton, krylov, error, converged, ...; the solver name ends in +ptc where the
+fallback ran).
 
     .venv/bin/python run_scripts/bench/bench_adhesion.py [--cases sphere rough] [--sizes 256 512 1024]
         [--w 0.05] [--z0 1.0] [--potential vdw82] [--no-peer] [--plot docs/figures] [--tol 1e-8 1e-5]
@@ -174,7 +175,8 @@ def rough_cases():
                         elapsed = time.perf_counter() - t
                         emit(case="rough", n=n, w=w_rel, z0=z0_rel, solver=st.solver, tol=tol, approach=d,
                              time=elapsed, check_time=st.check_time,
-                             fft_pairs=st.fft_pairs, error=gap_error(grid, st.gap, st_ref.gap, z0),
+                             fft_pairs=st.fft_pairs, newton=st.newton_iterations,
+                             krylov=st.linear_iterations, error=gap_error(grid, st.gap, st_ref.gap, z0),
                              own_error=max(st.complementarity_error, st.adhesive_error),
                              contact_fraction=st.contact_fraction, converged=st.converged, stable=st.stable,
                              ranks=comm.Get_size())
