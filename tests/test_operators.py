@@ -357,6 +357,36 @@ def test_slab_fft_matches_numpy(coll, pad):
     assert coll.max(err_bwd) <= 1e-14
 
 
+
+def test_one_rank_fft_reads_and_writes_any_rows_alike(coll):
+    """The one-rank transform runs in place on suitable rows (C order, aligned like a PETSc Vec's
+    array, read-only allowed) and through its own buffers otherwise: the same plan, so the same
+    bits either way, and numpy's rfft2 / the inverse to round-off."""
+    ny, nx = 48, 40
+    f = SlabRFFT(PETSc.COMM_SELF.tompi4py(), nx, ny, [(0, ny)], planner=PLANNER)
+    a = random_field((ny, nx), 4)
+    base = np.empty(ny * nx + 3)
+    kinds = {"aligned": a.copy(),
+             "offset by one double": base[1:ny * nx + 1].reshape(ny, nx),
+             "strided": np.asfortranarray(a),
+             "read-only": a.copy()}
+    kinds["offset by one double"][...] = a
+    kinds["read-only"].flags.writeable = False
+    vec = PETSc.Vec().createSeq(ny * nx, comm=PETSc.COMM_SELF)
+    kinds["PETSc Vec"] = vec.getArray().reshape(ny, nx)
+    kinds["PETSc Vec"][...] = a
+    spectra = {k: f.forward(rows).copy() for k, rows in kinds.items()}
+    assert np.max(np.abs(spectra["aligned"] - np.fft.rfft2(a))) <= 1e-13 * np.sqrt(nx * ny)
+    assert all(np.array_equal(s_, spectra["aligned"]) for s_ in spectra.values())
+    outs = {}
+    for k, rows in kinds.items():
+        out = np.empty((ny, nx)) if k == "read-only" else rows
+        f.spectrum[...] = spectra["aligned"]
+        outs[k] = f.backward(out).copy()
+    assert np.max(np.abs(outs["aligned"] / (nx * ny) - a)) <= 1e-14
+    assert all(np.array_equal(o, outs["aligned"]) for o in outs.values())
+    vec.destroy()
+
 def test_fft_threads_auto_and_checked(coll):
     """-elastic_fft_threads auto: between 1 and the rank's cores, and K p equal to the
     single-threaded one to round-off; a bad value is refused naming the option."""
