@@ -183,28 +183,36 @@ class SlabRFFT:
 
     # -- transforms ------------------------------------------------------------
     def _direct(self, rows: np.ndarray, alignment: int) -> bool:
-        """Whether the one-rank plans can run on ``rows`` itself (no padding, C order, the
+        """Whether the real-side plan can run on ``rows`` itself (no padding, C order, the
         plan's alignment: a PETSc Vec's array is): the copies to and from the plans' own
         buffers cost about a tenth of a transform pair."""
-        return (not self.pad and rows.dtype == np.float64 and rows.shape == (self.Ny, self.Nx)
+        return (not self.pad and rows.dtype == np.float64 and rows.shape == self.real_in.shape
                 and rows.flags.c_contiguous and rows.ctypes.data % alignment == 0)
+
+    def _last_stage(self, plan, spectrum: np.ndarray, out_rows: np.ndarray) -> None:
+        """The backward real-side plan, writing into ``out_rows`` in place where it can."""
+        if out_rows.flags.writeable and self._direct(out_rows, plan.output_alignment):
+            plan.update_arrays(spectrum, out_rows)
+            plan.execute()
+        else:
+            plan.update_arrays(spectrum, self.real_out)
+            plan.execute()
+            np.copyto(out_rows, self.real_out[:out_rows.shape[0], :self.nx])
 
     def forward(self, rows: np.ndarray) -> np.ndarray:
         """Spectrum of the local (ny_loc, nx) rows into ``self.spectrum`` (unnormalised)."""
         ev = log_event("CPFFTForward")
         ev.begin()
-        if self.size == 1:
-            plan = self._plans[0]
-            if self._direct(rows, plan.input_alignment):
-                # the caller's rows are the whole transform input: FFTW reads them in place
-                plan.update_arrays(rows, self.spectrum)
-            else:
-                plan.update_arrays(self.real_in, self.spectrum)
-                self.real_in[:self.ny, :self.nx] = rows
-            plan.execute()
+        plan = self._plans[0]
+        out = self.spectrum if self.size == 1 else self.rows
+        if self._direct(rows, plan.input_alignment):
+            # the caller's rows are the whole input of the (first) stage: FFTW reads them in place
+            plan.update_arrays(rows, out)
         else:
-            self.real_in[:, :self.nx] = rows
-            self._plans[0].execute()
+            plan.update_arrays(self.real_in, out)
+            self.real_in[:rows.shape[0], :self.nx] = rows
+        plan.execute()
+        if self.size > 1:
             for q, blk in zip(self.peers, self.send_blocks):
                 a, b = self.kx_ranges[q]
                 np.copyto(blk, self.rows[:, a:b].T)
@@ -223,14 +231,7 @@ class SlabRFFT:
         ev = log_event("CPFFTBackward")
         ev.begin()
         if self.size == 1:
-            plan = self._plans_bwd[0]
-            if out_rows.flags.writeable and self._direct(out_rows, plan.output_alignment):
-                plan.update_arrays(self.spectrum, out_rows)
-                plan.execute()
-            else:
-                plan.update_arrays(self.spectrum, self.real_out)
-                plan.execute()
-                np.copyto(out_rows, self.real_out[:self.ny, :self.nx])
+            self._last_stage(self._plans_bwd[0], self.spectrum, out_rows)
         else:
             self._plans_bwd[0].execute()
             for q, blk in zip(self.peers, self.send_blocks_bwd):
@@ -244,8 +245,7 @@ class SlabRFFT:
             for q, blk in zip(self.peers, self.recv_blocks_bwd):
                 a, b = self.kx_ranges[q]
                 np.copyto(self.rows[:, a:b], blk)
-            self._plans_bwd[1].execute()
-            np.copyto(out_rows, self.real_out[:, :self.nx])
+            self._last_stage(self._plans_bwd[1], self.rows, out_rows)
         ev.end()
         self.fft_pairs += 1
         return out_rows
