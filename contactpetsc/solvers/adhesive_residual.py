@@ -91,18 +91,20 @@ class AdhesiveCallbacks:
         """Switched evolution relaxation: sigma_k = sigma_{k-1} min(|F_k| / |F_{k-1}|, r), |F| the
         residual's 2-norm (the SNES's), r = ``ptc_shift_rise``.  The norm, not the max error:
         while a few nodes snap, the max error rises by orders of magnitude (nodes stepping
-        into the repulsive wall) and held the shift high -- tiny steps -- for hundreds of
-        steps; the rise is bounded for the same reason.  Where PTC has not lowered its max
-        error in ``ptc_stall_steps`` steps, full steps cycle at a few nodes near their folds
-        (the norm stays small): the shift is raised to at least 0.1 sigma_0."""
+        into the repulsive wall), and a shift that followed it stayed high -- tiny steps --
+        for hundreds of steps; the bounded rise keeps one bad step from doing the same.
+        Where the norm is small but a few nodes near their folds cycle under the (then
+        nearly full) steps, the max error stops falling: after ``ptc_stall_steps`` steps
+        without a smaller one the shift is raised to at least sigma_0 / 10
+        (docs/formulation.md, "Adhesive contact: unknowns and Newton")."""
         err, prev = self._last_fnorm, self._ptc_prev
         if prev > 0 and np.isfinite(err):
-            self.shift = float(np.clip(self.shift * min(err / prev, self.ptc_shift_rise), self.ptc_shift_min, 1e8))
+            self.shift = float(np.clip(self.shift * min(err / prev, self.ptc_shift_rise), 1e-8, 1e8))
         best, at, k = self._ptc_best if prev > 0 else (np.inf, 0, 0)
         if self._last_error < best:
             best, at = self._last_error, k
         elif self.ptc_stall_steps and k - at >= self.ptc_stall_steps:
-            self.shift, at = max(10.0 * self.shift, 0.1 * self.ptc_shift0), k
+            self.shift, at = max(self.shift, 0.1 * self.ptc_shift0), k
         self._ptc_best = (best, at, k + 1)
         self._ptc_prev = err
 
