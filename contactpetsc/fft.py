@@ -30,7 +30,6 @@ import numpy as np
 import pyfftw
 from mpi4py import MPI
 
-from . import fft_wisdom
 from .log_events import log_event
 
 
@@ -101,10 +100,9 @@ class SlabRFFT:
             self.real_in = empty((self.Ny, self.Nx), "float64")
             self.real_out = self.real_in if not pad else empty((self.Ny, self.Nx), "float64")
             self.spectrum = empty((self.Ny, self.nkx), "complex128")
-            with fft_wisdom.planning(comm, planner):
-                self._plans = (pyfftw.FFTW(self.real_in, self.spectrum, axes=(0, 1), **keep),)
-                self._plans_bwd = (pyfftw.FFTW(self.spectrum, self.real_out, axes=(0, 1),
-                                               direction="FFTW_BACKWARD", **kill),)
+            self._plans = (pyfftw.FFTW(self.real_in, self.spectrum, axes=(0, 1), **keep),)
+            self._plans_bwd = (pyfftw.FFTW(self.spectrum, self.real_out, axes=(0, 1),
+                                           direction="FFTW_BACKWARD", **kill),)
         else:
             self.real_in = empty((ny_loc, self.Nx), "float64")
             self.real_out = self.real_in if not pad else empty((ny_loc, self.Nx), "float64")
@@ -145,8 +143,7 @@ class SlabRFFT:
             itemsize = self.sendbuf.itemsize
             self._sent_fwd = itemsize * sum(send_counts)
             self._sent_bwd = itemsize * sum(recv_counts)
-            with fft_wisdom.planning(comm, planner):
-                self._plan_stages(threads, planner)
+            self._plan_stages(threads, planner)
         # planning may scribble on the buffers: zero what must start at zero
         self.real_in[...] = 0
         if self.size > 1:

@@ -34,7 +34,6 @@ import numpy as np
 import pyfftw
 from mpi4py import MPI
 
-from . import fft_wisdom
 from .fft import PLANNER_FLAGS, SlabRFFT, split_range
 from .log_events import log_event
 
@@ -153,8 +152,7 @@ class PencilRFFT(SlabRFFT):
         self._sent_bwd = (8 * (sum(self._spec1[1][0]) - self._spec1[1][0][b])
                           + 16 * (sum(self._spec2[1][0]) - self._spec2[1][0][b])
                           + 16 * (sum(self._spec3[1][0]) - self._spec3[1][0][a]))
-        with fft_wisdom.planning(comm, planner):
-            self._plan_stages(threads, planner)
+        self._plan_stages(threads, planner)
         self.real_in[...] = 0
         self.cols[...] = 0
 

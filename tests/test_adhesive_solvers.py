@@ -130,9 +130,9 @@ def test_mlmi_preconditioner_gives_the_same_state(coll):
 
 
 def test_ptc_alone_reaches_newtons_state_on_any_rank_count(coll):
-    """Newton switched off (max_it 0): PTC alone goes from the previous state to the next one,
-    its shift following the residual's norm; it must reach the state Newton reaches from the
-    same start, and the same on one rank as on all (its norms and max error are global)."""
+    """Newton switched off (max_it 0): PTC alone goes from the previous state to the next one;
+    it must reach the state Newton reaches from the same start, and the same on one rank as
+    on all (its shift follows a global error measure)."""
     n = 64
     law = make_law("lj", work_of_adhesion=0.05, z0=1.0)
     opts = PETSc.Options()

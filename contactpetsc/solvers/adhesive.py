@@ -224,10 +224,6 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
             f"-{self.prefix}stability_check")
         self.stability_steps = opts.getInt("stability_steps", code_default("adhesion", "stability_steps"))
         self.ptc_shift0 = opts.getReal("ptc_shift", code_default("adhesion", "ptc_shift"))
-        self.ptc_shift_rise = opts.getReal("ptc_shift_rise", code_default("adhesion", "ptc_shift_rise"))
-        self.ptc_stall_steps = opts.getInt("ptc_stall_steps", code_default("adhesion", "ptc_stall_steps"))
-        if not self.ptc_shift_rise > 1.0:
-            raise ValueError(f"-{self.prefix}ptc_shift_rise must be > 1, got {self.ptc_shift_rise!r}")
         # Newton without a new smallest error for this many steps has stalled: full steps
         # can cycle for good where a few nodes of one edge sit at their own fold; PTC then
         # goes on from the best iterate (0: never; docs/formulation.md, "Adhesive contact: unknowns and Newton")

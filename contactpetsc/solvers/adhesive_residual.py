@@ -85,28 +85,12 @@ class AdhesiveCallbacks:
             at = np.flatnonzero(rows)
             self._gap_at = (at, slope.reshape(-1)[at])
         if self.shift:
-            self._update_shift()
-
-    def _update_shift(self) -> None:
-        """Switched evolution relaxation: sigma_k = sigma_{k-1} min(|F_k| / |F_{k-1}|, r), |F| the
-        residual's 2-norm (the SNES's), r = ``ptc_shift_rise``.  The norm, not the max error:
-        while a few nodes snap, the max error rises by orders of magnitude (nodes stepping
-        into the repulsive wall), and a shift that followed it stayed high -- tiny steps --
-        for hundreds of steps; the bounded rise keeps one bad step from doing the same.
-        Where the norm is small but a few nodes near their folds cycle under the (then
-        nearly full) steps, the max error stops falling: after ``ptc_stall_steps`` steps
-        without a smaller one the shift is raised to at least sigma_0 / 10
-        (docs/formulation.md, "Adhesive contact: unknowns and Newton")."""
-        err, prev = self._last_fnorm, self._ptc_prev
-        if prev > 0 and np.isfinite(err):
-            self.shift = float(np.clip(self.shift * min(err / prev, self.ptc_shift_rise), 1e-8, 1e8))
-        best, at, k = self._ptc_best if prev > 0 else (np.inf, 0, 0)
-        if self._last_error < best:
-            best, at = self._last_error, k
-        elif self.ptc_stall_steps and k - at >= self.ptc_stall_steps:
-            self.shift, at = max(self.shift, 0.1 * self.ptc_shift0), k
-        self._ptc_best = (best, at, k + 1)
-        self._ptc_prev = err
+            # switched evolution relaxation: the shift follows the residual, falling as
+            # it falls (towards Newton), rising when a step made it worse
+            err, prev = self._last_error, self._ptc_prev
+            if prev > 0 and np.isfinite(err):
+                self.shift = float(np.clip(self.shift * err / prev, 1e-8, 1e8))
+            self._ptc_prev = err
 
     def _measures(self, x, f):
         """(complementarity error [z0], self-consistency error [z0], pressure error [relative],
@@ -156,7 +140,6 @@ class AdhesiveCallbacks:
         # the PTC shift and the stall watch follow the errors in z0 (their trend, not their size)
         err = max(err_c, err_a)
         self._last_error = err
-        self._last_fnorm = float(norms[2])   # the 2-norm of F (VI: on the inactive set)
         # converged: gaps right in z0 and pressures right on the law's scale, both to tol
         full = max(err, err_p)
         if not full >= self._solve_best[0]:   # NaN never replaces a real iterate

@@ -84,9 +84,6 @@ ADHESION = (
     Option(("fallback",), "relaxation,ptc (hard wall); ptc", "where Newton fails or ends unstable: these in turn"),
     Option(("fallback_tol", "fallback_max_cycles"), (1e-3, 5000), "relaxation fallback"),
     Option(("ptc_shift", "ptc_max_it"), (1.0, 300), "pseudo-transient continuation: first shift, steps"),
-    Option(("ptc_shift_rise", "ptc_stall_steps"), (2.0, 6),
-           "PTC: largest rise of the shift per step (it follows the residual's 2-norm); steps without a "
-           "smaller max error after which the shift is raised to at least 0.1 `ptc_shift` (0: never)"),
     Option(("ptc_snes_*",), "vinewtonrsls, line search basic", "the SNES of pseudo-transient continuation"),
     Option(("stall_steps",), (8,),
            "Newton without a smaller error in this many steps has stalled (`STALLED`): PTC goes on from its "
