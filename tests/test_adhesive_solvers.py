@@ -127,3 +127,36 @@ def test_mlmi_preconditioner_gives_the_same_state(coll):
         g = states[0].gap
         dg = pb.grid.rows(g, readonly=True) - pb.grid.rows(states[1].gap, readonly=True)
         assert coll.max(np.abs(dg)) < 1e-6
+
+
+def test_ptc_alone_reaches_newtons_state_on_any_rank_count(coll):
+    """Newton switched off (max_it 0): PTC alone goes from the previous state to the next one;
+    it must reach the state Newton reaches from the same start, and the same on one rank as
+    on all (its shift follows a global error measure)."""
+    n = 64
+    law = make_law("lj", work_of_adhesion=0.05, z0=1.0)
+    opts = PETSc.Options()
+    for key, value in dict(max_it=0, predictor="false", fmg="false").items():
+        opts.setValue("ptconly_" + key, value)
+    gaps = []
+    try:
+        for comm, prefix in ((PETSc.COMM_WORLD, "newton_"), (PETSc.COMM_WORLD, "ptconly_"),
+                             (PETSc.COMM_SELF, "ptconly_")):
+            grid = SurfaceGrid(n, n, 1.0, periodic=True, comm=comm)
+            h = self_affine(grid, hurst=0.8, rms_height=1.0, seed=7)
+            pb = AdhesiveProblem(grid, h, 1.0, law, prefix=prefix)
+            hmin = h.min()[1]
+            first = AdhesiveProblem(grid, h, 1.0, law, prefix="first_")
+            first.solve(approach=hmin + 0.5)
+            a = grid.create_vec()
+            grid.rows(a)[...] = first.blocks(first._x, readonly=True)[-1]
+            pb.warm_start(None, a, hmin + 0.5)
+            st = pb.solve(approach=hmin + 1.0)
+            assert st.converged and st.stable
+            assert ("+ptc" in st.solver) == (prefix == "ptconly_")
+            gaps.append(grid.gather(st.gap))
+    finally:
+        for key in ("max_it", "predictor", "fmg"):
+            opts.delValue("ptconly_" + key)
+    assert coll.max(np.abs(gaps[1] - gaps[0])) < 1e-6
+    assert coll.max(np.abs(gaps[2] - gaps[1])) < 1e-7

@@ -47,7 +47,7 @@ from petsc4py import PETSc  # noqa: E402
 from contactpetsc.solvers.adhesive import AdhesiveProblem  # noqa: E402
 
 sys.path.insert(0, HERE)
-from rough_surface import adhesive_law, calibrate, rough_surface  # noqa: E402
+from rough_surface import adhesive_law, calibrate, path_approaches, rough_surface  # noqa: E402
 
 
 def status_kb(field):
@@ -61,14 +61,6 @@ def status_kb(field):
 
 def emit(**row):
     print(json.dumps(row), flush=True)
-
-
-def path_approaches(lo, hi, states):
-    """About half the states from lo up to hi (both included), the rest back down towards lo
-    (hi not repeated)."""
-    up = max(2, states - states // 2)
-    down = states - up
-    return list(np.linspace(lo, hi, up)) + list(np.linspace(hi, lo, down + 1)[1:])
 
 
 def main():

@@ -83,3 +83,13 @@ def calibrate(grid, h, law, areas, steps=40, max_n=128):
     if len(fractions) < 2:
         return None     # no loading path to interpolate on: the case is reported as failed
     return [float(np.interp(a, fractions, deltas)) for a in areas]
+
+
+def path_approaches(lo, hi, states):
+    """About half the states from lo up to hi (both included), the rest back down towards lo
+    (hi not repeated)."""
+    import numpy as np
+
+    up = max(2, states - states // 2)
+    down = states - up
+    return list(np.linspace(lo, hi, up)) + list(np.linspace(hi, lo, down + 1)[1:])
