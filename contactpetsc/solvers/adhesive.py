@@ -24,13 +24,10 @@ Controls: ``approach`` delta [m] (displacement control) or ``central_gap``
 [m] (the gap at the apex node is prescribed and delta follows: Greenwood's
 device, which traces the unstable branch of the S-shaped curve of a sphere).
 
-Errors (in units of z0, the law's range): the complementarity error
-max |min(K_ii q, g)|, the self-consistency error max K_ii |a - a(g)|, and the
-paper's E_Total (rms of the gap change when a is replaced by a(g), steps 1-4 of
-section 2), computed for every converged state.  These are K_ii times pressure
-errors and vanish with the pressures when w / (E* z0) is small, so a state
-converges only when the pressure error on the law's own scale (``_measures``:
-relative to the peak attraction P) is below the tolerance too.
+Errors (``_measures``): the complementarity error max |min(K_ii q, g)| and the
+self-consistency error max K_ii |a - a(g)| in z0 (with the paper's E_Total per
+state) vanish with the pressures when w / (E* z0) is small, so a state also
+needs the pressure error relative to the law's peak attraction below the tolerance.
 """
 from __future__ import annotations
 
@@ -243,10 +240,8 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
             raise ValueError(f"-{self.prefix}fallback relaxation needs a hard-wall law (the paper's relaxation "
                              f"stores contact pressures apart), got {self.law.name!r}")
         self.fallback_tol = opts.getReal("fallback_tol", code_default("adhesion", "fallback_tol"))
-        # a wall-time budget [s] for all of this problem's solves, counted from the first
-        # (0: none): past it the running solve stops at its next iteration and every later
-        # one at once, with the reason WALL_TIME_BUDGET -- a batch job ends cleanly with its
-        # finished steps written, and an unresolvable case ends in bounded time
+        # past the wall-time budget every solve stops (WALL_TIME_BUDGET): a batch job ends
+        # cleanly with its finished steps written, an unresolvable case in bounded time
         self.time_budget = opts.getReal("time_budget", code_default("adhesion", "time_budget"))
         if not self.time_budget >= 0.0:
             raise ValueError(f"-{self.prefix}time_budget must be >= 0 s (0: no budget), got {self.time_budget!r}")
