@@ -44,8 +44,11 @@ Mapping
 * Units: the peer runs in reduced units (length dx, pressure E*): heights
   h/dx, pixel force p/E* (pixel area 1), so that NuMPI's absolute
   tolerances (the mean projection's bisection stops at |Phi| < 1e-14 after
-  bracketing from [-1, 1]) act on numbers of order one at every n.  The
-  problem is scale-invariant; fields are scaled back before output.
+  bracketing from [-1, 1]) act on numbers of order one at every n: in
+  physical units (L = 1, pixel forces P dx^2 of order 1e-8) the same solver
+  took several times the iterations on the benchmark surface, or stalled
+  (cause not analysed).  The problem is scale-invariant; fields are scaled
+  back before output.
 * Substrate: ``PeriodicFFTElasticHalfSpace((n, n), young=1, physical_sizes=
   (n, n))``; with poisson = 0 ``young`` is the contact modulus, and its
   Green's function 1 / (pi E* |k|), k = 1/wavelength, is our 2 / (E* |q|)
