@@ -67,7 +67,9 @@ Mapping
   delta = mean_{p > 0}(h + v), with v = K p of zero mean (one operator
   evaluation after the timed solve, not counted).
 
-Counts: ``fft_pairs`` = every ``evaluate_disp`` / ``evaluate_force`` of the
+``negative_curvature_steps``: iterations where NuMPI warned that the
+Hessian is negative along its direction (alpha < 0; its warnings go to
+stderr).  Counts: ``fft_pairs`` = every ``evaluate_disp`` / ``evaluate_force`` of the
 substrate during the solve (wrapped and counted; each is one forward and one
 inverse FFT): one gradient per iteration plus one Hessian product, and the
 first gradient, so 2 x iterations + 1.  ``cm_error`` = the solver's own
@@ -79,6 +81,8 @@ Output: one JSON line on stdout; fields pressure, gap, displacement, h, delta
 in ``--out``.
 """
 import argparse
+import contextlib
+import io
 import json
 import os
 import sys
@@ -154,12 +158,15 @@ def main(argv=None):
     force0 = P / estar                     # pixel force in reduced units = p / E*
 
     counter.counting = True
-    t0 = time.perf_counter()
-    res = CCGWithoutRestart.constrained_conjugate_gradients(
-        system.dual_objective(0.0, gradient=True), system.dual_hessian_product,
-        np.full((n, n), force0), mean_val=force0, gtol=args.tol * hstd / dx, maxiter=args.max_iter)
-    t_solve = time.perf_counter() - t0
+    notes = io.StringIO()      # NuMPI prints its warnings to stdout, which carries our JSON line
+    with contextlib.redirect_stdout(notes):
+        t0 = time.perf_counter()
+        res = CCGWithoutRestart.constrained_conjugate_gradients(
+            system.dual_objective(0.0, gradient=True), system.dual_hessian_product,
+            np.full((n, n), force0), mean_val=force0, gtol=args.tol * hstd / dx, maxiter=args.max_iter)
+        t_solve = time.perf_counter() - t0
     counter.counting = False
+    sys.stderr.write(notes.getvalue())
 
     p = res.x.reshape(n, n) * estar
     disp = substrate.evaluate_disp(-res.x.reshape(n, n))
@@ -177,6 +184,7 @@ def main(argv=None):
         "cm_error": float(np.abs(res.jac).max() * dx / hstd),
         "converged": bool(res.success),
         "message": res.message,
+        "negative_curvature_steps": notes.getvalue().count("hessian is negative"),
         "tol": args.tol,
         "cm_version": ContactMechanics.__version__,
         "numpi_version": NuMPI.__version__,
