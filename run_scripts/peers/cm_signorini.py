@@ -35,9 +35,9 @@ offset.  With ``mean_val`` the residual is projected onto zero mean over the
 free (p > 0) nodes each iteration, so the offset drops out (we pass 0) and
 the multiplier of the mean constraint is the approach.  ContactMechanics'
 older ``ConstrainedConjugateGradients`` (``minimize_proxy(external_force=)``)
-is Polonsky-Keer with restarts, the algorithm of Tamaas' PKR peer, and on this
-surface it needs as many operator evaluations (165 at 256^2 against 113);
-NuMPI's ``CCGWithRestart`` is Polonsky-Keer as well (164).
+is Polonsky-Keer with restarts, the algorithm of Tamaas' PKR peer, with
+Tamaas' count of operator evaluations on the benchmark surface and more than
+this one; so is NuMPI's ``CCGWithRestart`` (docs/performance.md).
 
 Mapping
 -------
@@ -45,9 +45,9 @@ Mapping
   h/dx, pixel force p/E* (pixel area 1), so that NuMPI's absolute
   tolerances (the mean projection's bisection stops at |Phi| < 1e-14 after
   bracketing from [-1, 1]) act on numbers of order one at every n: in
-  physical units (L = 1, pixel forces P dx^2 of order 1e-8) the same solver
-  took several times the iterations on the benchmark surface, or stalled
-  (cause not analysed).  The problem is scale-invariant; fields are scaled
+  physical units (pixel forces P dx^2, tiny) the same solver took several
+  times the iterations on the benchmark surface, or stalled (cause not
+  analysed).  The problem is scale-invariant; fields are scaled
   back before output.
 * Substrate: ``PeriodicFFTElasticHalfSpace((n, n), young=1, physical_sizes=
   (n, n))``; with poisson = 0 ``young`` is the contact modulus, and its
