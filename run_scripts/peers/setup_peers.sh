@@ -5,7 +5,8 @@
 #   peer venv     ${CONTACTPETSC_PEER_VENV:-$HOME/.cache/contactpetsc/peer-venv}
 #                 -> tamaas + numpy (used by run_scripts/peers/tamaas_signorini.py)
 #   peer venv cm  ${CONTACTPETSC_PEER_VENV}-cm
-#                 -> ContactMechanics + Adhesion (contact.engineering; best effort)
+#                 -> ContactMechanics + Adhesion (contact.engineering; best effort;
+#                    NuMPI comes with it; used by cm_adhesion.py and cm_signorini.py)
 #
 # Idempotent: a venv whose imports already succeed is left alone, so a second
 # run takes a second or two.  The venvs are created WITHOUT system site
