@@ -80,7 +80,6 @@ is imported); muGrid's FFT engine (PocketFFT) is serial.
 Output: one JSON line on stdout; fields pressure, gap, displacement, h, delta
 in ``--out``.
 """
-import argparse
 import contextlib
 import io
 import json
@@ -92,6 +91,8 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import numpy as np  # noqa: E402
+
+import signorini_cli  # noqa: E402
 
 
 class CountedSubstrate:
@@ -121,25 +122,8 @@ def kernel_check(substrate, n):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("height", help=".npy file with the periodic (n, n) separation h")
-    ap.add_argument("--length", type=float, required=True, help="side length L")
-    ap.add_argument("--estar", type=float, required=True, help="effective modulus E*")
-    ap.add_argument("--mean-pressure", type=float, required=True, help="target mean p")
-    ap.add_argument("--tol", type=float, default=1e-8,
-                    help="gtol / std(h): largest projected gap residual relative to the rms height")
-    ap.add_argument("--max-iter", type=int, default=100000)
-    ap.add_argument("--out", default=None, help=".npz for p, gap, v, h, delta")
-    ap.add_argument("--no-check", action="store_true",
-                    help="skip the kernel check on one Fourier mode (one extra FFT pair)")
-    args = ap.parse_args(argv)
-
-    h = np.load(args.height).astype(np.float64)
-    if h.ndim != 2 or h.shape[0] != h.shape[1]:
-        ap.error(f"expected a square 2-D height field, got shape {h.shape}")
-    for name in ("length", "estar", "mean_pressure", "tol"):
-        if not getattr(args, name) > 0:
-            ap.error(f"--{name.replace('_', '-')} must be > 0, got {getattr(args, name)}")
+    args, h = signorini_cli.parse(__doc__.split("\n")[0], "gtol / std(h): largest projected gap residual relative to the rms height", 100000,
+                                  "skip the kernel check on one Fourier mode (one extra FFT pair)", argv)
     n = h.shape[0]
     L, estar, P = args.length, args.estar, args.mean_pressure
     dx = L / n

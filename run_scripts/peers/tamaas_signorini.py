@@ -59,7 +59,6 @@ Mapping to Tamaas (checked against tamaas 2.9.0, see report / checks below)
 
 Output: one JSON line on stdout; fields p, gap, v, h, delta in ``--out``.
 """
-import argparse
 import json
 import os
 import re
@@ -69,6 +68,8 @@ import time
 
 import numpy as np
 import tamaas as tm
+
+import signorini_cli
 
 
 def _westergaard_np(p, length, estar):
@@ -84,22 +85,8 @@ def _westergaard_np(p, length, estar):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("height", help=".npy file with the periodic (n, n) separation h")
-    ap.add_argument("--length", type=float, required=True, help="side length L")
-    ap.add_argument("--estar", type=float, required=True, help="effective modulus E*")
-    ap.add_argument("--mean-pressure", type=float, required=True, help="target mean p")
-    ap.add_argument("--tol", type=float, default=1e-8,
-                    help="Tamaas tolerance on sum(p g)/(sum(p) std(h))")
-    ap.add_argument("--max-iter", type=int, default=10000)
-    ap.add_argument("--out", default=None, help=".npz for p, gap, v, h, delta")
-    ap.add_argument("--no-check", action="store_true",
-                    help="skip the numpy kernel cross-check (one extra FFT pair)")
-    args = ap.parse_args(argv)
-
-    h = np.load(args.height).astype(np.float64)
-    if h.ndim != 2 or h.shape[0] != h.shape[1]:
-        ap.error(f"expected a square 2-D height field, got shape {h.shape}")
+    args, h = signorini_cli.parse(__doc__.split("\n")[0], "Tamaas tolerance on sum(p g)/(sum(p) std(h))", 10000,
+                                  "skip the numpy kernel cross-check (one extra FFT pair)", argv)
     n = h.shape[0]
     L, estar, P = args.length, args.estar, args.mean_pressure
 
