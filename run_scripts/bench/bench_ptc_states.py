@@ -35,7 +35,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
 ap.add_argument("--size", type=int, default=512)
 ap.add_argument("--mode", choices=("path", "ptc"), default="path")
-ap.add_argument("--states", type=int, default=10, help="states on the whole path (its approaches)")
+ap.add_argument("--states", type=int, default=10, help="path mode: states on the whole path (its approaches)")
 ap.add_argument("--stop-after", type=int, default=None, help="path mode: run only the first states")
 ap.add_argument("--areas", type=float, nargs=2, default=[0.01, 0.10])
 ap.add_argument("--calibrate-max-n", type=int, default=256)
@@ -43,6 +43,8 @@ ap.add_argument("--save", default=None, help="path mode: npz file of the converg
 ap.add_argument("--load", default=None, help="ptc mode: npz file written by path mode")
 ap.add_argument("--only", type=int, nargs="*", default=None, help="ptc mode: the target states to run")
 args, petsc_args = ap.parse_known_args()
+if args.mode == "ptc" and not args.load:
+    ap.error("--mode ptc needs --load, the states file of a path run (--save)")
 if args.mode == "ptc":
     petsc_args += ["-path_max_it", "0", "-path_predictor", "false", "-path_fmg", "false"]
 petsc4py.init([sys.argv[0]] + petsc_args)
@@ -96,8 +98,17 @@ def main():
     n = args.size
     grid, h, _ = rough_surface(n)
     law = adhesive_law(grid)
-    ends = calibrate(grid, h, law, args.areas, max_n=args.calibrate_max_n)
-    approaches = path_approaches(ends[0], ends[1], args.states)
+    if args.mode == "ptc":
+        # the path's own approaches, as saved with its states (no calibration anew)
+        data = np.load(args.load)
+        approaches = list(data["approaches"])
+    else:
+        ends = calibrate(grid, h, law, args.areas, max_n=args.calibrate_max_n)
+        if ends is None:
+            emit(n=n, solver="calibration", converged=False,
+                 message="the calibration sweep converged at fewer than two approaches")
+            return
+        approaches = path_approaches(ends[0], ends[1], args.states)
     opts = PETSc.Options("path_")
     if not opts.hasName("stiffness"):
         opts.setValue("stiffness", False)
@@ -112,7 +123,6 @@ def main():
         if args.save:
             np.savez(args.save, approaches=np.array(approaches), **saved)
         return
-    data = np.load(args.load)
     a = grid.create_vec()
     total = 0.0
     for k in range(len(approaches) - 1):
