@@ -320,8 +320,9 @@ def test_a_text_matrix_scene_takes_its_grid_from_the_file(coll, shared_tmp):
 
 @pytest.mark.parametrize("detrend", ["none", "mean-plane", "curvature"])
 def test_heights_of_a_file_scene_are_detrended_and_shifted(coll, shared_tmp, detrend):
-    """On any number of ranks: none -> the pattern minus its minimum; mean-plane -> numpy's
-    least-squares plane removed; curvature -> a quadric (the pattern) removed to round-off."""
+    """On any number of ranks, the file's heights z being the surface (peaks up): none -> the
+    gap max(z) - z; mean-plane -> the same after numpy's least-squares plane is removed from z;
+    curvature -> a quadric (the pattern) removed to round-off."""
     path = shared_tmp / "scan.txt"
     on_root(coll, lambda: write_matrix(path))
     scene = scenes.validate(file_scene(path, detrend=detrend))
@@ -335,7 +336,7 @@ def test_heights_of_a_file_scene_are_detrended_and_shifted(coll, shared_tmp, det
     if detrend == "curvature":
         assert coll.max(np.abs(got).max()) <= 1e-14 * np.abs(h).max()
         return
-    ref = h - h.min()
+    ref = h.max() - h
     assert coll.max(np.abs(got - ref).max()) <= 1e-13 * ref.max() and coll.max(got.min()) == 0.0
 
 
@@ -355,7 +356,7 @@ def test_imported_files_are_read_with_nothing_restated(coll, shared_tmp):
         assert g["dx"] == pytest.approx(DX * 1e-6, rel=1e-7) and g["dy"] == pytest.approx(DY * 1e-6, rel=1e-7)
         grid = builder.build_grid(scene)
         got = grid.gather(builder.build_heights(scene, grid))
-        assert coll.max(np.abs(got - (ref - ref.min())).max()) <= 1e-15 * np.abs(ref).max()
+        assert coll.max(np.abs(got - (ref.max() - ref)).max()) <= 1e-15 * np.abs(ref).max()   # peaks up
 
 
 def test_a_step_file_scene_needs_only_its_path(coll, shared_tmp):

@@ -66,7 +66,8 @@ def build_heights(scene: dict, grid: SurfaceGrid) -> PETSc.Vec:
         return surfaces.sphere(grid, g["radius"])
     if g["kind"] == "file":
         return surfaces.from_topography(grid, g["path"], g["dataset"], format=g["format"],
-                                        height_unit=g["height_unit"], detrend=g["detrend"])
+                                        height_unit=g["height_unit"], detrend=g["detrend"],
+                                        heights_are=g["heights_are"])
     return surfaces.self_affine(grid, hurst=g["hurst"], seed=g["seed"], rms_height=g["rms_height"],
                                 rms_slope=g["rms_slope"], rolloff_wavelength=g["rolloff_wavelength"],
                                 short_cutoff_wavelength=g["short_cutoff_wavelength"])

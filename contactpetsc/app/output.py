@@ -180,6 +180,8 @@ def write_state(directory: str, step: int, grid, heights, state, attrs: dict, *,
             dset = f.create_dataset(field, (grid.ny, grid.nx), dtype=code)
             dset.attrs["unit"] = UNITS[field]
             dset.attrs["axes"] = AXES
+            if field in ("heights", "gap"):   # gaps (h, and g = h + v - delta): so read back as a height file
+                dset.attrs["heights_are"] = "gap"
             # float32 by rounding to nearest (numpy's cast); masks 0/1; float64 as it is
             data = np.asarray(rows[field], dtype=code)
             if comm.Get_size() > 1:

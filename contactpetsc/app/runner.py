@@ -40,12 +40,8 @@ def plan(scene: dict, grid: SurfaceGrid, law=None, out_dir: str | None = None) -
                             snap=snap)
     chain = "\n".join("  solver: " + line if k == 0 else "          " + line for k, line in enumerate(stack))
     per_rank = builder.memory_per_rank(scene, grid.mpi_comm.Get_size())
-    heights = [] if g["kind"] != "file" else [
-        f"  heights: {g['path']} ({g['format']}, {g['nx']} x {g['ny']} nodes, in "
-        f"{g['height_unit'] or 'the unit it states'}), detrend {g['detrend']}, min h = 0, "
-        + ("periodic" if g["periodic"] else "an isolated window (zero-padded, not tapered)")]
     return [f"scene {scene['name']}: {g['kind']} surface, {_body_text(scene)}, {law_text}",
-            f"  {grid}", *heights,
+            f"  {grid}", _heights_line(g),
             f"  rows per rank {[b - a for a, b in grid.y_ranges]}",
             chain,
             *builder.leave_out(scene),
@@ -53,6 +49,25 @@ def plan(scene: dict, grid: SurfaceGrid, law=None, out_dir: str | None = None) -
             f"  memory estimate: {per_rank / 2**20:.0f} MiB per rank" + _memory_note(grid, per_rank),
             _outputs_line(scene, grid.nx * grid.ny, out_dir or scene["output"]["directory"]),
             _stack_line(grid)]
+
+
+#: which side of a generated surface touches first (docs/scenes.md, "Which side is pressed")
+_GENERATED = {"sphere": "h = r^2 / 2R, the apex touches first",
+              "tip": "the tip's atoms as a profile, the lowest atom touches first",
+              "self-affine": "the random field is the gap h, its lowest point touches first"}
+
+
+def _heights_line(g: dict) -> str:
+    """Which side of the surface is pressed, and how the heights were made (plan and log)."""
+    if g["kind"] != "file":
+        return f"  heights: generated, {_GENERATED[g['kind']]}, min h = 0"
+    side = ("the file's heights are the surface, peaks up: h = max(z) - z, the highest point touches first"
+            if g["heights_are"] == "surface" else
+            "the file's heights are a gap: h = z - min(z), the lowest point touches first")
+    return (f"  heights: {g['path']} ({g['format']}, {g['nx']} x {g['ny']} nodes, in "
+            f"{g['height_unit'] or 'the unit it states'}), detrend {g['detrend']}, {side} "
+            f"(geometry.heights_are = {g['heights_are']}), "
+            + ("periodic" if g["periodic"] else "an isolated window (zero-padded, not tapered)"))
 
 
 def _memory_note(grid: SurfaceGrid, per_rank: float) -> str:

@@ -9,7 +9,8 @@ def read_height_file(g: dict, given: set) -> None:
     """A ``kind = file`` scene's grid from its height file, read once here (the metadata only,
     for .npy and HDF5) so that a run, and a dry run, start only on a file that fits: nx, ny
     and, where the file gives them, dx, dy, periodic and the format are filled in; the keys
-    given must agree with the file."""
+    given must agree with the file; ``heights_are`` is the file's stamp where it has one, else
+    "surface" (the heights are the sample's surface, peaks up)."""
     from ..topography import format_of, grid_mismatch, read_topography
 
     def fail(message):
@@ -46,3 +47,7 @@ def read_height_file(g: dict, given: set) -> None:
         fail(problem)
     if g["periodic"] is None:
         g["periodic"] = bool(topo.periodic)
+    if topo.heights_are is not None and g["heights_are"] not in (None, topo.heights_are):
+        raise SceneError(f"geometry.heights_are = {g['heights_are']!r}, but {g['path']!r} is stamped "
+                         f"heights_are = {topo.heights_are!r}: remove the key")
+    g["heights_are"] = g["heights_are"] or topo.heights_are or "surface"

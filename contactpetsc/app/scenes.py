@@ -19,7 +19,7 @@ import tomllib
 
 from ..operators.layer import INTERFACES
 from ..physics.interactions import LAWS, WORK_OF_ADHESION, adhesive_laws, relaxation_laws
-from ..topography import DETREND, FORMATS, HEIGHT_UNITS
+from ..topography import DETREND, FORMATS, HEIGHT_UNITS, HEIGHTS_ARE
 from .scene_files import read_height_file
 from .scene_material import check_hardness, check_material, e_star, layer  # noqa: F401 (e_star, layer: API)
 from .scene_values import (LOAD_RESOLUTION, NONNEG, POISSON, POS, TOL, SceneError,  # noqa: F401 (API)
@@ -57,7 +57,8 @@ _SCHEMA = {
                   "heights, shape (nx, ny); an HDF5 dataset or file with attribute axes = \"y,x\" is stored "
                   "(ny, nx), as step_NNNN.h5), a text matrix (lines are y, columns x), .xyz points, Gwyddion "
                   ".gsf or .gwy, ISO 25178 .x3p, Digital Surf .sur; nx, ny and, where the file gives them, dx, "
-                  "dy are read from it (keys given must agree); heights are shifted so min h = 0"),
+                  "dy are read from it (keys given must agree); its heights are the surface, peaks up, unless it or "
+                  "heights_are says gap"),
         "dataset": _k(str, "heights", "", "HDF5 dataset name, or .gwy channel title (default: its first "
                       "channel) (kind = file)"),
         "format": _k(str, None, "", "height file format (kind = file; default: by the file's extension)",
@@ -66,6 +67,10 @@ _SCHEMA = {
                           "none (kind = file; default m)", choices=tuple(HEIGHT_UNITS)),
         "detrend": _k(str, "none", "", "least-squares trend subtracted from the file's heights before the "
                       "min h = 0 shift (kind = file)", choices=DETREND),
+        "heights_are": _k(str, None, "", "what the file's heights are (kind = file): surface (the sample's "
+                          "surface, peaks up: the gap is h = max(z) - z, the highest point touches first) or "
+                          "gap (a composite gap: the lowest point touches first); default: the file's stamp "
+                          "(contactpetsc's step files say gap), else surface", choices=HEIGHTS_ARE),
     },
     "material": {
         "e_star": _k(float, None, "Pa", "effective modulus E*, 1/E* = (1-nu1^2)/E1 + (1-nu2^2)/E2 (or "
@@ -241,7 +246,7 @@ KIND_KEYS = {"sphere": ("radius",),
              "tip": ("radius", "tip", "atom_spacing", "atom_radius", "seed"),
              "self-affine": ("hurst", "rms_height", "rms_slope", "rolloff_wavelength",
                              "short_cutoff_wavelength", "seed"),
-             "file": ("path", "dataset", "format", "height_unit", "detrend")}
+             "file": ("path", "dataset", "format", "height_unit", "detrend", "heights_are")}
 
 
 def _check_geometry(g: dict, given: set) -> None:

@@ -1,6 +1,10 @@
 """Composite surface heights h on a ``SurfaceGrid`` (assumption 1 of the reference paper).
 
-h is the separation of the undeformed bodies [m].  Every constructor returns a
+h is the separation of the undeformed bodies [m], min h = 0 (approach 0 is first touch).
+Generated surfaces are gaps as built: a sphere's h = r^2 / 2R touches at its apex, a random
+surface's field is the gap (its lowest points touch first; the counter-surface is z = -h,
+statistically alike for Gaussian phases).  A measured map holds the sample's surface z, peaks
+up, and ``from_topography`` turns it over: h = max(z) - z.  Every constructor returns a
 global Vec and gives the same field on any number of ranks: arrays and files
 are sliced by rows, generators are evaluated on each rank's nodes, and random
 surfaces draw their Fourier coefficients per kx column from a generator seeded
@@ -16,7 +20,7 @@ from petsc4py import PETSc
 from ..collective import collective_call
 from ..pencil_fft import grid_rfft
 from ..grid import GridError, SurfaceGrid
-from ..topography import centred_coordinates, grid_mismatch, read_topography, trend
+from ..topography import HEIGHTS_ARE, centred_coordinates, grid_mismatch, read_topography, trend
 
 
 class HeightDtypeWarning(UserWarning):
@@ -61,7 +65,7 @@ def from_file(grid: SurfaceGrid, path: str, dataset: str = "heights", *, format:
     """Heights [m] from a file in any format of ``topography.FORMATS`` (``.npy``, HDF5
     ``dataset``, text matrix, ``.xyz``, ``.gsf``, ``.gwy`` channel ``dataset``, ``.x3p``,
     ``.sur``; ``format``: by extension unless named), as the file holds them (no shift, no
-    detrending).
+    detrending, no turning over: ``from_topography`` makes the composite gap of them).
 
     The map must have the grid's (nx, ny) points and, where the file gives its spacing, the
     grid's dx, dy (1e-9 relative); ``height_unit`` for files that state no unit (default m).
@@ -69,6 +73,12 @@ def from_file(grid: SurfaceGrid, path: str, dataset: str = "heights", *, format:
     rank (instrument files are small).  Errors (missing, unreadable, truncated, wrongly
     shaped or stamped files, heights that are not real numbers) are raised on every rank.
     """
+    return _read_file(grid, path, dataset, format, height_unit)[0]
+
+
+def _read_file(grid: SurfaceGrid, path: str, dataset: str, format: str | None,
+               height_unit: str | None) -> tuple[PETSc.Vec, str | None]:
+    """(``from_file``'s Vec, the file's ``heights_are`` stamp or None)."""
     def read():
         topo = read_topography(path, format=format, dataset=dataset, height_unit=height_unit,
                                metadata_only=True)
@@ -76,15 +86,16 @@ def from_file(grid: SurfaceGrid, path: str, dataset: str = "heights", *, format:
         if problem:
             raise ValueError(problem)
         check_height_dtype(topo.dtype, path)
+        stamp = topo.heights_are
         topo = read_topography(path, format=format, dataset=dataset, height_unit=height_unit,
                                rows=(grid.ys, grid.ye))
-        return np.asarray(topo.heights, dtype=float)
+        return np.asarray(topo.heights, dtype=float), stamp
 
     grid.require_slabs("reading heights from a file (by rows)")
     v = grid.create_vec()
-    local = collective_call(grid.mpi_comm, GridError, f"cannot read heights from {path}: {{error}}", read)
+    local, stamp = collective_call(grid.mpi_comm, GridError, f"cannot read heights from {path}: {{error}}", read)
     grid.local_array(v)[...] = local
-    return _check_finite(grid, v, path)
+    return _check_finite(grid, v, path), stamp
 
 
 def detrended(grid: SurfaceGrid, h: PETSc.Vec, mode: str = "none") -> PETSc.Vec:
@@ -104,12 +115,30 @@ def detrended(grid: SurfaceGrid, h: PETSc.Vec, mode: str = "none") -> PETSc.Vec:
 
 
 def from_topography(grid: SurfaceGrid, path: str, dataset: str = "heights", *, format: str | None = None,
-                    height_unit: str | None = None, detrend: str = "none") -> PETSc.Vec:
-    """A measured topography as the composite surface: ``from_file`` (the same arguments), then
-    ``detrended`` (``detrend``: "none", "mean-plane" or "curvature"), min h = 0.  Files in
-    formats read only by SurfaceTopography: convert them with ``contactpetsc import``
-    (docs/topography.md)."""
-    return detrended(grid, from_file(grid, path, dataset, format=format, height_unit=height_unit), detrend)
+                    height_unit: str | None = None, detrend: str = "none",
+                    heights_are: str | None = None) -> PETSc.Vec:
+    """A measured topography as the composite gap h [m] that a rigid flat meets.
+
+    The file's numbers are read by ``from_file`` (the same arguments) and detrended
+    (``detrend``: "none", "mean-plane" or "curvature").  ``heights_are`` says what they are:
+
+    - "surface": the sample's surface z, peaks up (instrument files, ``contactpetsc import``):
+      h = max(z) - z, the highest point touches first;
+    - "gap": already a composite gap (the ``heights`` of contactpetsc's step files):
+      h = z - min(z), the lowest point touches first.
+
+    Default (None): what the file says (attribute or sidecar key ``heights_are``), else
+    "surface"; a value that contradicts the file's stamp is refused.  Files in formats read
+    only by SurfaceTopography: convert them with ``contactpetsc import`` (docs/topography.md).
+    """
+    if heights_are is not None and heights_are not in HEIGHTS_ARE:
+        raise GridError(f"heights_are = {heights_are!r}; accepted: {', '.join(HEIGHTS_ARE)}")
+    z, stamp = _read_file(grid, path, dataset, format, height_unit)
+    if heights_are is not None and stamp is not None and stamp != heights_are:
+        raise GridError(f"{path} holds heights_are = {stamp!r} (its stamp), not {heights_are!r}")
+    if (heights_are or stamp or "surface") == "surface":
+        z.scale(-1.0)   # peaks up: the highest point is the smallest gap (detrending commutes)
+    return detrended(grid, z, detrend)
 
 
 def from_function(grid: SurfaceGrid, func) -> PETSc.Vec:

@@ -17,12 +17,12 @@ import os
 import numpy as np
 
 from . import arrays, gsf, gwy, sur, text, x3p
-from .base import FormatError, Topography
+from .base import HEIGHTS_ARE, FormatError, Topography
 from .detrend import DETREND, centred_coordinates, trend
 from .units import HEIGHT_UNITS, canonical, metres_per
 
 __all__ = ["Topography", "FormatError", "FORMATS", "read_topography", "format_of", "DETREND",
-           "HEIGHT_UNITS", "trend", "centred_coordinates", "grid_mismatch"]
+           "HEIGHT_UNITS", "HEIGHTS_ARE", "trend", "centred_coordinates", "grid_mismatch"]
 
 #: format name -> (reader, file extensions)
 FORMATS = {

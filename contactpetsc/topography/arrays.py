@@ -4,8 +4,10 @@
 where h5py is missing) may give ``dx``, ``dy`` [m], ``unit`` and ``periodic``.  HDF5 datasets
 hold (nx, ny) unless the dataset, or else its file, carries the attribute ``axes``: "y,x"
 (stored (ny, nx), as contactpetsc's step files) or "x,y"; any other stamp is refused.
-Attributes ``dx``, ``dy`` [m] give the spacing, ``unit`` the heights' unit and ``periodic``
-whether the map is periodic (for a step file: its run's scene, attribute ``scene``).  Only
+Attributes ``dx``, ``dy`` [m] give the spacing, ``unit`` the heights' unit, ``periodic``
+whether the map is periodic (for a step file: its run's scene, attribute ``scene``) and
+``heights_are`` what the heights are: "surface" (peaks up; the default) or "gap" (a
+composite gap, as the ``heights`` of contactpetsc's step files).  Only
 the metadata is read unless heights are asked for, and then only the rows asked for (each
 MPI rank its own).
 """
@@ -16,7 +18,7 @@ import os
 
 import numpy as np
 
-from .base import FormatError, Topography
+from .base import FormatError, Topography, heights_are
 
 HDF5_EXTENSIONS = (".h5", ".hdf5", ".hdf")
 AXES = {"x,y": False, "y,x": True}   #: the ``axes`` stamp -> stored transposed, (ny, nx)
@@ -64,6 +66,7 @@ def read_npy(path: str, rows=None, **_) -> Topography:
         topo.dx, topo.dy = meta.get("dx"), meta.get("dy", meta.get("dx"))
         topo.lateral_unit = "m" if topo.dx is not None else None
         topo.height_unit, topo.periodic = meta.get("unit"), meta.get("periodic")
+        topo.heights_are = heights_are(meta.get("heights_are"), f"heights_are in {sidecar(path)}")
         topo.metadata.update(meta)
     if rows is not None:
         topo.heights = np.load(path, mmap_mode="r")[:, rows[0]:rows[1]]
@@ -106,6 +109,7 @@ def read_hdf5(path: str, rows=None, dataset: str = "heights", **_) -> Topography
                           lateral_unit="m" if dx is not None else None,
                           height_unit=attr("unit"),
                           periodic=None if periodic is None else bool(periodic),
+                          heights_are=heights_are(attr("heights_are"), f"attribute heights_are of {dataset!r}"),
                           metadata={"axes": stamp, "dataset": dataset})
         for key in ("source", "source_format", "converter", "channel"):
             if attr(key) is not None:
@@ -119,23 +123,24 @@ def read_hdf5(path: str, rows=None, dataset: str = "heights", **_) -> Topography
 def write_hdf5(path: str, topo: Topography) -> None:
     """``topo`` (heights and spacing in m) as an HDF5 file that ``read_hdf5`` reads with nothing
     restated: dataset ``heights`` stored (nx, ny), attributes axes = "x,y", unit = "m", dx,
-    dy [m], periodic, and the source's metadata."""
+    dy [m], periodic, heights_are = "surface" and the source's metadata."""
     import h5py
     with h5py.File(path, "w") as f:
         ds = f.create_dataset("heights", data=np.asarray(topo.heights, dtype=float))
-        ds.attrs.update(axes="x,y", unit="m", dx=topo.dx, dy=topo.dy)
+        ds.attrs.update(axes="x,y", unit="m", dx=topo.dx, dy=topo.dy, heights_are=topo.heights_are or "surface")
         if topo.periodic is not None:
             ds.attrs["periodic"] = bool(topo.periodic)
         for key, value in topo.metadata.items():
-            if key not in ("axes", "dataset"):
+            if key not in ("axes", "dataset", "heights_are"):
                 ds.attrs[key] = str(value)
 
 
 def write_npy(path: str, topo: Topography) -> None:
     """``topo`` as ``.npy`` (nx, ny) heights [m] and its sidecar ``NAME.npy.json`` (dx, dy [m],
-    unit, periodic, the source's metadata), for installations without h5py."""
+    unit, periodic, heights_are, the source's metadata), for installations without h5py."""
     np.save(path, np.asarray(topo.heights, dtype=float))
     meta = {k: str(v) for k, v in topo.metadata.items() if k not in ("axes", "dataset")}
-    meta.update(dx=topo.dx, dy=topo.dy, unit="m", periodic=topo.periodic)
+    meta.update(dx=topo.dx, dy=topo.dy, unit="m", periodic=topo.periodic,
+                heights_are=topo.heights_are or "surface")
     with open(sidecar(path), "w") as f:
         json.dump(meta, f, indent=1)

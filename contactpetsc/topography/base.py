@@ -23,12 +23,31 @@ class Topography:
     lateral_unit: str | None = None    #: the unit of dx, dy; None: the heights' unit
     unit_stated: bool = False          #: read_topography: the file stated height_unit
     periodic: bool | None = None       #: the file says its map is periodic, or not; None: it says nothing
+    #: what the heights are: "surface" (the sample's surface z, peaks up: instrument files and
+    #: ``contactpetsc import``), "gap" (a composite gap h, lowest point first: contactpetsc's
+    #: step files); None: the file does not say, which means "surface" (``HEIGHTS_ARE``)
+    heights_are: str | None = None
     format: str = ""
     metadata: dict = field(default_factory=dict)   #: what else the file says (title, instrument, ...)
 
 
 class FormatError(ValueError):
     """A file that does not follow its format's specification (the message says where)."""
+
+
+#: what a height file's numbers may be (``Topography.heights_are``; scene key ``geometry.heights_are``)
+HEIGHTS_ARE = ("surface", "gap")
+
+
+def heights_are(value, where: str) -> str | None:
+    """A file's stamp of what its heights are, checked: "surface", "gap" or None (unstated)."""
+    if value is None:
+        return None
+    if isinstance(value, bytes):
+        value = value.decode("utf-8", "replace")
+    if not isinstance(value, str) or value.strip().lower() not in HEIGHTS_ARE:
+        raise FormatError(f"{where} = {value!r}; accepted: {', '.join(HEIGHTS_ARE)}")
+    return value.strip().lower()
 
 
 def header_text(raw: bytes) -> str:
