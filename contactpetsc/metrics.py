@@ -47,9 +47,13 @@ def contact_area(grid, pressure) -> float:
 
 
 def mean_gap(grid, gap, pressure=None) -> float:
-    """Mean gap [m] over the grid, or over the non-contacting nodes (p <= 0) when
-    ``pressure`` is given; collective."""
-    g = grid.rows(gap, readonly=True)
+    """Mean separation of the surfaces [m]: the mean of max(g, 0) over the grid, or over the
+    non-contacting nodes (p <= 0) when ``pressure`` is given; collective.
+
+    A node where material was flattened (p = H under a hardness: g < 0, its plastic
+    displacement -g) is touching, at separation 0, not at a negative gap; Tamaas reports the
+    same mean.  Without a hardness g >= 0 up to the solve's error, and this is mean(g)."""
+    g = np.maximum(grid.rows(gap, readonly=True), 0.0)
     keep = np.ones(g.shape, bool) if pressure is None else grid.rows(pressure, readonly=True) <= 0
     total, n = _allsum(grid, [g[keep].sum(), keep.sum()])
     return float(total / n) if n else float("nan")

@@ -131,7 +131,7 @@ def test_mean_gap_of_a_hertz_contact_is_the_closed_form_over_the_window(coll, sh
 
 
 def test_mean_gap_column_is_the_step_files_gap_and_the_periodic_mean_plane(coll, shared_tmp):
-    """curve.csv's mean_gap_m is the mean of the step file's gap; on a periodic cell it is
+    """curve.csv's mean_gap_m is the mean separation max(g, 0) of the step file's gap; on a periodic cell it is
     mean(h) - delta (K has no mean mode); mean_gap_error_m is the complementarity error in
     metres (relative to the rms height); history.csv labels its rows with their step."""
     out = shared_tmp / "rough"
@@ -142,7 +142,7 @@ def test_mean_gap_column_is_the_step_files_gap_and_the_periodic_mean_plane(coll,
     for k, r in enumerate(rows, 1):
         with h5py.File(out / f"step_{k:04d}.h5", "r") as f:
             gap, h = f["gap"][:], f["heights"][:]
-        assert coll.max(abs(float(r["mean_gap_m"]) / gap.mean() - 1)) < 1e-12
+        assert coll.max(abs(float(r["mean_gap_m"]) / np.maximum(gap, 0).mean() - 1)) < 1e-12
         expect = h.mean() - float(r["approach_m"])
         assert coll.max(abs(float(r["mean_gap_m"]) - expect) / h.std()) < 1e-12
         assert float(r["mean_gap_error_m"]) == pytest.approx(float(r["complementarity_error"]) * h.std(), rel=1e-9)
@@ -150,6 +150,27 @@ def test_mean_gap_column_is_the_step_files_gap_and_the_periodic_mean_plane(coll,
     assert coll.all(np.all(np.diff([float(r["mean_gap_m"]) for r in rows]) < 0))
     steps = [r["step"] for r in read_rows(out / "history.csv")]
     assert coll.all(set(steps) == {"1", "2", "3"} and steps == sorted(steps))
+
+
+def test_mean_gap_with_a_hardness_is_the_separation_and_the_flattened_volume_closes_it(coll, shared_tmp):
+    """Under a hardness the nodes at p = H overlap (g < 0, material flattened away): the mean
+    gap is the surfaces' separation mean(max(g, 0)) of the step file's gap, and volume is
+    conserved on a periodic cell: mean_gap_m - plastic_volume_m3 / (nx dx ny dy) = mean(h) - delta
+    (K has no mean mode), the same identity as without a hardness."""
+    out, hardness = shared_tmp / "plastic", 3e7
+    scene = rough(out, values=(3e6, 1.5e7))
+    scene["material"]["hardness"] = hardness
+    runner.run(scenes.validate(scene), comm=PETSc.COMM_WORLD)
+    for k, r in enumerate(read_rows(out / "curve.csv"), 1):
+        with h5py.File(out / f"step_{k:04d}.h5", "r") as f:
+            gap, h = f["gap"][:], f["heights"][:]
+        assert coll.all(float(r["plastic_fraction"]) > 0 and gap.min() < 0)
+        separation = float(r["mean_gap_m"])
+        assert coll.max(abs(separation / np.maximum(gap, 0).mean() - 1)) < 1e-12
+        plastic = float(r["plastic_volume_m3"]) / (h.size * 1e-8 * 1e-8)
+        expect = h.mean() - float(r["approach_m"])
+        assert coll.max(abs(separation - plastic - expect) / h.std()) < 1e-10
+        assert coll.all(separation > expect)
 
 
 def test_restart_of_a_run_without_the_new_columns(coll, shared_tmp):

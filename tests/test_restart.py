@@ -16,6 +16,7 @@ import sys
 import time
 
 import h5py
+import numpy as np
 import pytest
 from petsc4py import PETSc
 
@@ -276,3 +277,34 @@ def test_step_files_carry_the_axis_order_and_restart_checks_it(coll, shared_tmp)
     world.Barrier()
     coll.raises(RunDirectoryError, ["step_0002.h5", "axes 'x,y'"], runner.run,
                 rough(out, protocol__values=[5e6, 1e7, 2e7]), comm=PETSc.COMM_WORLD, restart=True)
+
+
+def test_restart_after_the_height_file_was_rewritten_is_refused_naming_it(coll, shared_tmp):
+    """Steps 1-2 solved on one map; the file rewritten with other heights: --restart refuses,
+    naming the file, and keeps the steps on disk; the same heights rewritten (another file's
+    bytes, the same numbers) restart."""
+    path, out = shared_tmp / "scan.npy", shared_tmp / "scan-run"
+    x, y = np.meshgrid(np.arange(16), np.arange(16), indexing="ij")
+    bump = 1e-9 * np.exp(-((x - 7) ** 2 + (y - 9) ** 2) / 8.0)
+
+    def write(z):
+        if coll.rank == 0:
+            np.save(path, z)
+        coll.comm.Barrier()
+
+    def scene(values):
+        return scenes.validate({"geometry": {"kind": "file", "path": str(path), "dx": 1e-9},
+                                "material": {"e_star": 1e9},
+                                "protocol": {"control": "approach", "values": values},
+                                "output": {"directory": str(out)}})
+    write(bump)
+    runner.run(scene([1e-10, 2e-10]), comm=PETSc.COMM_WORLD)
+    before = (out / "curve.csv").read_text() if coll.rank == 0 else None
+    write(1.5 * bump)
+    coll.raises(RunDirectoryError, ["cannot restart", "scan.npy", "geometry.path", "rewritten"],
+                runner.run, scene([1e-10, 2e-10, 3e-10]), comm=PETSc.COMM_WORLD, restart=True)
+    if coll.rank == 0:
+        assert (out / "curve.csv").read_text() == before
+    write(np.asfortranarray(bump))   # other bytes on disk, the same heights
+    states = runner.run(scene([1e-10, 2e-10, 3e-10]), comm=PETSc.COMM_WORLD, restart=True)
+    assert len(states) == 1 and coll.all(states[0].converged)

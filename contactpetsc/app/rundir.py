@@ -11,7 +11,8 @@ and then decides what to do with a directory that already holds a run's files
 - ``restart`` compares the scene stored there (``scene.json``; older runs: the
   ``scene`` attribute of their first step file) with the new one and refuses
   when the physics differ, naming the keys: the geometry, the material, the
-  interaction, the control mode and the values of the steps already done.
+  interaction, the control mode and the values of the steps already done, and for a
+  height file the digest of its heights (a file rewritten since is refused, named).
   Output keys, the name, the solver's settings and the path's numerical
   settings (jump and pull-off refinement, sub-steps) may differ.
 
@@ -104,9 +105,16 @@ def release(comm, out_dir: str) -> None:
 def differences(old: dict, new: dict, done: int) -> list[str]:
     """The physics keys in which scene ``new`` differs from ``old`` (see the module docstring);
     ``protocol.values`` is compared over the ``done`` steps already on disk."""
+    from .scene_files import DIGEST
     a, b = _flat(json.loads(json.dumps(old))), _flat(json.loads(json.dumps(new)))
     out = [f"{k}: {a.get(k)!r} on disk, {b.get(k)!r} now" for k in sorted(set(a) | set(b))
-           if not k.startswith(NOT_PHYSICS) and a.get(k) != b.get(k)]
+           if not k.startswith(NOT_PHYSICS) and a.get(k) != b.get(k) and k != f"geometry.{DIGEST}"]
+    was, now = a.get(f"geometry.{DIGEST}"), b.get(f"geometry.{DIGEST}")
+    if was != now:
+        out.append(f"the heights in {b.get('geometry.path')!r} (geometry.path) are not those the steps on disk "
+                   "were solved on: " + ("the run on disk recorded no digest of its heights" if was is None else
+                                         f"the file was rewritten since (SHA-256 of its heights {was[:12]}... "
+                                         f"on disk, {str(now)[:12]}... now)"))
     old_values = [float(v) for v in old.get("protocol", {}).get("values", [])[:done]]
     new_values = [float(v) for v in new["protocol"]["values"][:done]]
     if len(new_values) < done:

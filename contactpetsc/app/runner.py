@@ -121,6 +121,10 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
     # a tip's profile and atom ownership are built once, for the solve and the forces per atom
     tip = builder.build_tip(scene, grid) if scene["geometry"]["kind"] == "tip" else None
     h = tip[1] if tip else builder.build_heights(scene, grid)
+    if scene["geometry"]["kind"] == "file":   # ties the steps to these heights (a restart compares it)
+        from .scene_files import DIGEST, heights_digest
+        scene = {**scene, "geometry": {**scene["geometry"], DIGEST: heights_digest(scene["geometry"],
+                                                                                    grid.mpi_comm)}}
     out_dir = output or scene["output"]["directory"]
     stored = rundir.open_directory(scene, grid, out_dir, restart=restart, overwrite=overwrite)
     try:

@@ -23,13 +23,15 @@ NAN = float("nan")
 
 
 def mean_gap(grid, st, error_scale: float) -> dict:
-    """``mean_gap_m``: the mean of the gap g = h + v - delta over the grid's nodes [m] (the
-    nominal area; on an isolated window the window, not the contact); ``mean_gap_error_m``:
+    """``mean_gap_m``: the mean separation of the surfaces, the mean of max(g, 0) over the
+    grid's nodes [m] (``metrics.mean_gap``: the nominal area; on an isolated window the
+    window, not the contact); ``mean_gap_error_m``:
     ``error_scale`` [m], the state's largest nodal violation of its contact conditions in
     metres.  Read as the exact solution for a surface moved by at most that much at each node,
     the state's gaps are off by at most as much (the obstacle problem's comparison principle),
     and so is their mean (docs/outputs.md).  Collective."""
-    return dict(mean_gap_m=float(st.gap.sum()) / (grid.nx * grid.ny), mean_gap_error_m=error_scale)
+    from ..metrics import mean_gap as mean_separation
+    return dict(mean_gap_m=mean_separation(grid, st.gap), mean_gap_error_m=error_scale)
 
 
 class ContactSteps:
