@@ -133,3 +133,25 @@ def test_a_file_that_holds_a_gap_is_pressed_from_its_lowest_point(coll, shared_t
     assert coll.max(np.abs(h - (g - g.min())).max()) <= 1e-24
     surface = grid.gather(surfaces.from_topography(grid, path))
     assert coll.max(np.abs(surface - (g.max() - g)).max()) <= 1e-24
+
+
+def test_an_afm_scan_gives_the_peers_contact_under_the_same_load(coll):
+    """The real AFM scan matrix-3.txt (tests/data/topography-samples), detrended, under the same
+    force on an isolated window, as ContactMechanics solved it reading the file itself
+    (contact_reference.json, run_scripts/checks/measured_peer.py): the same contact nodes and the
+    same largest pressures.  Upside down the contact is 64 % larger."""
+    import json
+    import os
+    from contactpetsc.topography import read_topography
+    samples = os.path.join(os.path.dirname(__file__), "data", "topography-samples")
+    with open(os.path.join(samples, "contact_reference.json")) as f:
+        ref = json.load(f)["matrix-3.txt"]
+    path = os.path.join(samples, "matrix-3.txt")
+    topo = read_topography(path, metadata_only=True)
+    grid = SurfaceGrid(*topo.shape, topo.dx, topo.dy, periodic=False)
+    h = surfaces.from_topography(grid, path, detrend="mean-plane")
+    p = grid.gather(ContactProblem(grid, h, ref["estar_Pa"]).solve(force=ref["force_N"]).pressure)
+    assert coll.all(np.count_nonzero(p > 0) == ref["contact_nodes"])
+    for node, want in ref["largest_pressures_Pa"].items():
+        i, j = map(int, node.split(","))
+        assert coll.max(abs(p[i, j] / want - 1)) < 1e-6
