@@ -42,7 +42,7 @@ def plan(scene: dict, grid: SurfaceGrid, law=None, out_dir: str | None = None) -
     per_rank = builder.memory_per_rank(scene, grid.mpi_comm.Get_size())
     heights = [] if g["kind"] != "file" else [
         f"  heights: {g['path']} ({g['format']}, {g['nx']} x {g['ny']} nodes, in "
-        f"{g['height_unit'] or 'the unit it states'}), detrend {g['detrend']}, min h = 0, "
+        f"{g['height_unit'] or 'the unit it states'}), fill {g['fill']}, detrend {g['detrend']}, min h = 0, "
         + ("periodic" if g["periodic"] else "an isolated window (zero-padded, not tapered)")]
     return [f"scene {scene['name']}: {g['kind']} surface, {_body_text(scene)}, {law_text}",
             f"  {grid}", *heights,
@@ -105,7 +105,11 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
         collective_call(grid.mpi_comm, ImportError, "{error}", require)
     # a tip's profile and atom ownership are built once, for the solve and the forces per atom
     tip = builder.build_tip(scene, grid) if scene["geometry"]["kind"] == "tip" else None
-    h = tip[1] if tip else builder.build_heights(scene, grid)
+    info = {}
+    h = tip[1] if tip else builder.build_heights(scene, grid, info)
+    if info.get("filled_points"):
+        PETSc.Sys.Print(f"  heights: {info['filled_points']} points not measured, filled "
+                        f"(geometry.fill = {scene['geometry']['fill']})")
     out_dir = output or scene["output"]["directory"]
     stored = rundir.open_directory(scene, grid, out_dir, restart=restart, overwrite=overwrite)
     try:
@@ -119,6 +123,8 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
             recorder.resume(stepper.fields, stored)
             if recorder.rows:
                 stepper.resume(recorder)
+        if scene["geometry"]["kind"] == "file":   # summary.json: the points the fill made up
+            recorder.summary["filled_points"] = info.get("filled_points", 0)
         rundir.write_scene(grid.mpi_comm, out_dir, scene)
         states = _steps(scene, stepper, recorder)
         recorder.write_summary(**stepper.finish())

@@ -19,7 +19,7 @@ import tomllib
 
 from ..operators.layer import INTERFACES
 from ..physics.interactions import LAWS, WORK_OF_ADHESION, adhesive_laws, relaxation_laws
-from ..topography import DETREND, FORMATS, HEIGHT_UNITS
+from ..topography import DETREND, FILLS, FORMATS, HEIGHT_UNITS
 from .scene_files import read_height_file
 from .scene_material import check_hardness, check_material, e_star, layer  # noqa: F401 (e_star, layer: API)
 from .scene_values import (LOAD_RESOLUTION, NONNEG, POISSON, POS, TOL, SceneError,  # noqa: F401 (API)
@@ -66,6 +66,9 @@ _SCHEMA = {
                           "none (kind = file; default m)", choices=tuple(HEIGHT_UNITS)),
         "detrend": _k(str, "none", "", "least-squares trend subtracted from the file's heights before the "
                       "min h = 0 shift (kind = file)", choices=DETREND),
+        "fill": _k(str, "none", "", "points the file marks not measured (NaN): none refuses the file, "
+                   "harmonic fills them by Laplace's equation with the measured points as boundary values "
+                   "(kind = file; docs/topography.md)", choices=FILLS),
     },
     "material": {
         "e_star": _k(float, None, "Pa", "effective modulus E*, 1/E* = (1-nu1^2)/E1 + (1-nu2^2)/E2 (or "
@@ -241,7 +244,7 @@ KIND_KEYS = {"sphere": ("radius",),
              "tip": ("radius", "tip", "atom_spacing", "atom_radius", "seed"),
              "self-affine": ("hurst", "rms_height", "rms_slope", "rolloff_wavelength",
                              "short_cutoff_wavelength", "seed"),
-             "file": ("path", "dataset", "format", "height_unit", "detrend")}
+             "file": ("path", "dataset", "format", "height_unit", "detrend", "fill")}
 
 
 def _check_geometry(g: dict, given: set) -> None:

@@ -26,7 +26,9 @@ class HeightDtypeWarning(UserWarning):
 def check_height_dtype(dtype, what: str = "heights") -> None:
     """Refuse heights that are not real numbers (complex, bool, text, objects); warn for integers.
 
-    Floating-point heights of any precision are taken as they are [m].
+    Floating-point heights of any precision are taken as they are [m].  ``dtype`` is that of
+    the heights as given: a reader that scales a file's integers (``.sur``, ``.x3p``) returns
+    floats, so only integers really taken as raw numbers (``.npy``, HDF5, arrays) warn.
     """
     dtype = np.dtype(dtype)
     if dtype.kind == "f":
@@ -57,7 +59,7 @@ def from_array(grid: SurfaceGrid, heights: np.ndarray) -> PETSc.Vec:
 
 
 def from_file(grid: SurfaceGrid, path: str, dataset: str = "heights", *, format: str | None = None,
-              height_unit: str | None = None) -> PETSc.Vec:
+              height_unit: str | None = None, fill: str = "none", info: dict | None = None) -> PETSc.Vec:
     """Heights [m] from a file in any format of ``topography.FORMATS`` (``.npy``, HDF5
     ``dataset``, text matrix, ``.xyz``, ``.gsf``, ``.gwy`` channel ``dataset``, ``.x3p``,
     ``.sur``; ``format``: by extension unless named), as the file holds them (no shift, no
@@ -68,22 +70,28 @@ def from_file(grid: SurfaceGrid, path: str, dataset: str = "heights", *, format:
     ``.npy`` and HDF5 files are read by rows, each rank its own; the others whole on every
     rank (instrument files are small).  Errors (missing, unreadable, truncated, wrongly
     shaped or stamped files, heights that are not real numbers) are raised on every rank.
+    Points not measured (NaN): ``fill`` "none" refuses them, "harmonic" fills them
+    (``topography.fill``; every rank reads and fills the whole map, then takes its rows: the
+    same field on any number of ranks); ``info["filled_points"]`` gets the count filled.
     """
     def read():
         topo = read_topography(path, format=format, dataset=dataset, height_unit=height_unit,
-                               metadata_only=True)
+                               metadata_only=True, fill=fill)
         problem = grid_mismatch(topo, grid.shape, (grid.dx, grid.dy))
         if problem:
             raise ValueError(problem)
         check_height_dtype(topo.dtype, path)
         topo = read_topography(path, format=format, dataset=dataset, height_unit=height_unit,
-                               rows=(grid.ys, grid.ye))
-        return np.asarray(topo.heights, dtype=float)
+                               rows=(grid.ys, grid.ye), fill=fill)
+        return np.asarray(topo.heights, dtype=float), topo.metadata.get("filled_points", 0)
 
     grid.require_slabs("reading heights from a file (by rows)")
     v = grid.create_vec()
-    local = collective_call(grid.mpi_comm, GridError, f"cannot read heights from {path}: {{error}}", read)
+    local, filled = collective_call(grid.mpi_comm, GridError, f"cannot read heights from {path}: {{error}}",
+                                    read)
     grid.local_array(v)[...] = local
+    if info is not None:
+        info["filled_points"] = filled
     return _check_finite(grid, v, path)
 
 
@@ -104,12 +112,14 @@ def detrended(grid: SurfaceGrid, h: PETSc.Vec, mode: str = "none") -> PETSc.Vec:
 
 
 def from_topography(grid: SurfaceGrid, path: str, dataset: str = "heights", *, format: str | None = None,
-                    height_unit: str | None = None, detrend: str = "none") -> PETSc.Vec:
+                    height_unit: str | None = None, detrend: str = "none", fill: str = "none",
+                    info: dict | None = None) -> PETSc.Vec:
     """A measured topography as the composite surface: ``from_file`` (the same arguments), then
     ``detrended`` (``detrend``: "none", "mean-plane" or "curvature"), min h = 0.  Files in
     formats read only by SurfaceTopography: convert them with ``contactpetsc import``
     (docs/topography.md)."""
-    return detrended(grid, from_file(grid, path, dataset, format=format, height_unit=height_unit), detrend)
+    return detrended(grid, from_file(grid, path, dataset, format=format, height_unit=height_unit,
+                                     fill=fill, info=info), detrend)
 
 
 def from_function(grid: SurfaceGrid, func) -> PETSc.Vec:
