@@ -365,3 +365,21 @@ def test_a_binary_dat_is_named_and_handed_to_surfacetopography(tmp_path, capsys)
     else:
         assert convert.main([sample("metropro-1.dat"), out]) == 0
         check_against_reference(read_topography(out), "metropro-1.dat")
+
+
+def test_a_run_records_the_fill_and_the_count_filled(coll, shared_tmp):
+    """geometry.fill goes into the scene stored with the run; summary.json counts the points filled."""
+    from contactpetsc.app import runner
+    path = shared_tmp / "holes.npy"
+    if coll.rank == 0:
+        np.save(path, punch(harmonic_map(dx=1.0, dy=1.0)) * 1e-9)
+        with open(str(path) + ".json", "w") as f:
+            json.dump({"dx": 1e-9, "dy": 1e-9, "unit": "m"}, f)
+    coll.comm.Barrier()
+    scene = scenes.validate(dict(file_scene(path, fill="harmonic"), protocol={"values": [1e-10]}))
+    out = str(shared_tmp / "run")
+    runner.run(scene, output=out)
+    with open(os.path.join(out, "summary.json")) as f:
+        assert json.load(f)["filled_points"] == 91
+    with open(os.path.join(out, "scene.json")) as f:
+        assert json.load(f)["geometry"]["fill"] == "harmonic"

@@ -117,6 +117,12 @@ def convert(source: str, destination: str, *, reader: str = "auto", format: str 
             topo = read_with_surfacetopography(source, channel, height_unit, spacing, fill)
         except ImportError:
             raise ValueError(f"{source}: {why_not or 'read by SurfaceTopography'}; {INSTALL}") from None
+        except Exception as exc:  # noqa: BLE001 - SurfaceTopography's errors have many types
+            if why_not is None:
+                raise
+            first = (str(exc).strip().splitlines() or [""])[0][:200]     # its tries of every reader: long
+            raise ValueError(f"{source}: {why_not}; SurfaceTopography cannot read it either "
+                             f"({type(exc).__name__}: {first})") from None
     if spacing is not None:
         if topo.dx is not None and not np.allclose((topo.dx, topo.dy), spacing, rtol=1e-9, atol=0):
             raise ValueError(f"{source} gives its spacing ({topo.dx!r}, {topo.dy!r}) m, not "
