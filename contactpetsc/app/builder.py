@@ -56,8 +56,9 @@ def build_tip(scene: dict, grid: SurfaceGrid):
     return tip, h, owner
 
 
-def build_heights(scene: dict, grid: SurfaceGrid) -> PETSc.Vec:
-    """The composite surface h [m] of the scene's geometry."""
+def build_heights(scene: dict, grid: SurfaceGrid, info: dict | None = None) -> PETSc.Vec:
+    """The composite surface h [m] of the scene's geometry; ``info`` (a file's): gets
+    ``filled_points``, the points not measured that ``geometry.fill`` filled."""
     from ..geometry import surfaces
     g = scene["geometry"]
     if g["kind"] == "tip":
@@ -67,7 +68,7 @@ def build_heights(scene: dict, grid: SurfaceGrid) -> PETSc.Vec:
     if g["kind"] == "file":
         return surfaces.from_topography(grid, g["path"], g["dataset"], format=g["format"],
                                         height_unit=g["height_unit"], detrend=g["detrend"],
-                                        heights_are=g["heights_are"])
+                                        heights_are=g["heights_are"], fill=g["fill"], info=info)
     return surfaces.self_affine(grid, hurst=g["hurst"], seed=g["seed"], rms_height=g["rms_height"],
                                 rms_slope=g["rms_slope"], rolloff_wavelength=g["rolloff_wavelength"],
                                 short_cutoff_wavelength=g["short_cutoff_wavelength"])

@@ -65,7 +65,7 @@ def _heights_line(g: dict) -> str:
             if g["heights_are"] == "surface" else
             "the file's heights are a gap: h = z - min(z), the lowest point touches first")
     return (f"  heights: {g['path']} ({g['format']}, {g['nx']} x {g['ny']} nodes, in "
-            f"{g['height_unit'] or 'the unit it states'}), detrend {g['detrend']}, {side} "
+            f"{g['height_unit'] or 'the unit it states'}), fill {g['fill']}, detrend {g['detrend']}, {side} "
             f"(geometry.heights_are = {g['heights_are']}), "
             + ("periodic" if g["periodic"] else "an isolated window (zero-padded, not tapered)"))
 
@@ -120,7 +120,11 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
         collective_call(grid.mpi_comm, ImportError, "{error}", require)
     # a tip's profile and atom ownership are built once, for the solve and the forces per atom
     tip = builder.build_tip(scene, grid) if scene["geometry"]["kind"] == "tip" else None
-    h = tip[1] if tip else builder.build_heights(scene, grid)
+    info = {}
+    h = tip[1] if tip else builder.build_heights(scene, grid, info)
+    if info.get("filled_points"):
+        PETSc.Sys.Print(f"  heights: {info['filled_points']} points not measured, filled "
+                        f"(geometry.fill = {scene['geometry']['fill']})")
     if scene["geometry"]["kind"] == "file":   # ties the steps to these heights (a restart compares it)
         from .scene_files import DIGEST, heights_digest
         scene = {**scene, "geometry": {**scene["geometry"], DIGEST: heights_digest(scene["geometry"],
@@ -138,6 +142,8 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
             recorder.resume(stepper.fields, stored)
             if recorder.rows:
                 stepper.resume(recorder)
+        if scene["geometry"]["kind"] == "file":   # summary.json: the points the fill made up
+            recorder.summary["filled_points"] = info.get("filled_points", 0)
         rundir.write_scene(grid.mpi_comm, out_dir, scene)
         states = _steps(scene, stepper, recorder)
         recorder.write_summary(**stepper.finish())

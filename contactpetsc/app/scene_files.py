@@ -29,7 +29,8 @@ def read_height_file(g: dict, given: set) -> None:
         raise SceneError(f"geometry.dataset = {g['dataset']!r} is used by HDF5 and .gwy files only; "
                          f"{g['path']!r} is {g['format']}")
     try:
-        topo = read_topography(g["path"], format=g["format"], dataset=g["dataset"], metadata_only=True)
+        topo = read_topography(g["path"], format=g["format"], dataset=g["dataset"], metadata_only=True,
+                               fill=g["fill"])
     except (OSError, ValueError, KeyError) as exc:
         fail(exc.args[0] if isinstance(exc, KeyError) and exc.args else exc)
     if topo.unit_stated and g["height_unit"] is not None and g["height_unit"] != topo.height_unit:
@@ -72,7 +73,7 @@ def heights_digest(g: dict, comm) -> str:
 
     def digest():
         topo = read_topography(g["path"], format=g["format"], dataset=g["dataset"],
-                               height_unit=g["height_unit"])
+                               height_unit=g["height_unit"], fill=g["fill"])
         data = np.ascontiguousarray(np.asarray(topo.heights, dtype=np.float64))
         return hashlib.sha256(data.tobytes()).hexdigest()
 

@@ -19,7 +19,7 @@ import tomllib
 
 from ..operators.layer import INTERFACES
 from ..physics.interactions import LAWS, WORK_OF_ADHESION, adhesive_laws, relaxation_laws
-from ..topography import DETREND, FORMATS, HEIGHT_UNITS, HEIGHTS_ARE
+from ..topography import DETREND, FILLS, FORMATS, HEIGHT_UNITS, HEIGHTS_ARE
 from .scene_files import read_height_file
 from .scene_material import check_hardness, check_material, e_star, layer  # noqa: F401 (e_star, layer: API)
 from .scene_values import (LOAD_RESOLUTION, NONNEG, POISSON, POS, TOL, SceneError,  # noqa: F401 (API)
@@ -71,6 +71,9 @@ _SCHEMA = {
                           "surface, peaks up: the gap is h = max(z) - z, the highest point touches first) or "
                           "gap (a composite gap: the lowest point touches first); default: the file's stamp "
                           "(contactpetsc's step files say gap), else surface", choices=HEIGHTS_ARE),
+        "fill": _k(str, "none", "", "points the file marks not measured (NaN): none refuses the file, "
+                   "harmonic fills them by Laplace's equation with the measured points as boundary values "
+                   "(kind = file; docs/topography.md)", choices=FILLS),
     },
     "material": {
         "e_star": _k(float, None, "Pa", "effective modulus E*, 1/E* = (1-nu1^2)/E1 + (1-nu2^2)/E2 (or "
@@ -246,7 +249,7 @@ KIND_KEYS = {"sphere": ("radius",),
              "tip": ("radius", "tip", "atom_spacing", "atom_radius", "seed"),
              "self-affine": ("hurst", "rms_height", "rms_slope", "rolloff_wavelength",
                              "short_cutoff_wavelength", "seed"),
-             "file": ("path", "dataset", "format", "height_unit", "detrend", "heights_are")}
+             "file": ("path", "dataset", "format", "height_unit", "detrend", "heights_are", "fill")}
 
 
 def _check_geometry(g: dict, given: set) -> None:

@@ -30,7 +30,9 @@ class HeightDtypeWarning(UserWarning):
 def check_height_dtype(dtype, what: str = "heights") -> None:
     """Refuse heights that are not real numbers (complex, bool, text, objects); warn for integers.
 
-    Floating-point heights of any precision are taken as they are [m].
+    Floating-point heights of any precision are taken as they are [m].  ``dtype`` is that of
+    the heights as given: a reader that scales a file's integers (``.sur``, ``.x3p``) returns
+    floats, so only integers really taken as raw numbers (``.npy``, HDF5, arrays) warn.
     """
     dtype = np.dtype(dtype)
     if dtype.kind == "f":
@@ -61,7 +63,7 @@ def from_array(grid: SurfaceGrid, heights: np.ndarray) -> PETSc.Vec:
 
 
 def from_file(grid: SurfaceGrid, path: str, dataset: str = "heights", *, format: str | None = None,
-              height_unit: str | None = None) -> PETSc.Vec:
+              height_unit: str | None = None, fill: str = "none", info: dict | None = None) -> PETSc.Vec:
     """Heights [m] from a file in any format of ``topography.FORMATS`` (``.npy``, HDF5
     ``dataset``, text matrix, ``.xyz``, ``.gsf``, ``.gwy`` channel ``dataset``, ``.x3p``,
     ``.sur``; ``format``: by extension unless named), as the file holds them (no shift, no
@@ -72,29 +74,35 @@ def from_file(grid: SurfaceGrid, path: str, dataset: str = "heights", *, format:
     ``.npy`` and HDF5 files are read by rows, each rank its own; the others whole on every
     rank (instrument files are small).  Errors (missing, unreadable, truncated, wrongly
     shaped or stamped files, heights that are not real numbers) are raised on every rank.
+    Points not measured (NaN): ``fill`` "none" refuses them, "harmonic" fills them
+    (``topography.fill``; every rank reads and fills the whole map, then takes its rows: the
+    same field on any number of ranks); ``info["filled_points"]`` gets the count filled.
     """
-    return _read_file(grid, path, dataset, format, height_unit)[0]
+    return _read_file(grid, path, dataset, format, height_unit, fill, info)[0]
 
 
-def _read_file(grid: SurfaceGrid, path: str, dataset: str, format: str | None,
-               height_unit: str | None) -> tuple[PETSc.Vec, str | None]:
+def _read_file(grid: SurfaceGrid, path: str, dataset: str, format: str | None, height_unit: str | None,
+               fill: str = "none", info: dict | None = None) -> tuple[PETSc.Vec, str | None]:
     """(``from_file``'s Vec, the file's ``heights_are`` stamp or None)."""
     def read():
         topo = read_topography(path, format=format, dataset=dataset, height_unit=height_unit,
-                               metadata_only=True)
+                               metadata_only=True, fill=fill)
         problem = grid_mismatch(topo, grid.shape, (grid.dx, grid.dy))
         if problem:
             raise ValueError(problem)
         check_height_dtype(topo.dtype, path)
         stamp = topo.heights_are
         topo = read_topography(path, format=format, dataset=dataset, height_unit=height_unit,
-                               rows=(grid.ys, grid.ye))
-        return np.asarray(topo.heights, dtype=float), stamp
+                               rows=(grid.ys, grid.ye), fill=fill)
+        return np.asarray(topo.heights, dtype=float), stamp, topo.metadata.get("filled_points", 0)
 
     grid.require_slabs("reading heights from a file (by rows)")
     v = grid.create_vec()
-    local, stamp = collective_call(grid.mpi_comm, GridError, f"cannot read heights from {path}: {{error}}", read)
+    local, stamp, filled = collective_call(grid.mpi_comm, GridError, f"cannot read heights from {path}: {{error}}",
+                                           read)
     grid.local_array(v)[...] = local
+    if info is not None:
+        info["filled_points"] = filled
     return _check_finite(grid, v, path), stamp
 
 
@@ -116,11 +124,12 @@ def detrended(grid: SurfaceGrid, h: PETSc.Vec, mode: str = "none") -> PETSc.Vec:
 
 def from_topography(grid: SurfaceGrid, path: str, dataset: str = "heights", *, format: str | None = None,
                     height_unit: str | None = None, detrend: str = "none",
-                    heights_are: str | None = None) -> PETSc.Vec:
+                    heights_are: str | None = None, fill: str = "none", info: dict | None = None) -> PETSc.Vec:
     """A measured topography as the composite gap h [m] that a rigid flat meets.
 
-    The file's numbers are read by ``from_file`` (the same arguments) and detrended
-    (``detrend``: "none", "mean-plane" or "curvature").  ``heights_are`` says what they are:
+    The file's numbers are read by ``from_file`` (the same arguments, ``fill`` and ``info``
+    too) and detrended (``detrend``: "none", "mean-plane" or "curvature").  ``heights_are``
+    says what they are:
 
     - "surface": the sample's surface z, peaks up (instrument files, ``contactpetsc import``):
       h = max(z) - z, the highest point touches first;
@@ -133,7 +142,7 @@ def from_topography(grid: SurfaceGrid, path: str, dataset: str = "heights", *, f
     """
     if heights_are is not None and heights_are not in HEIGHTS_ARE:
         raise GridError(f"heights_are = {heights_are!r}; accepted: {', '.join(HEIGHTS_ARE)}")
-    z, stamp = _read_file(grid, path, dataset, format, height_unit)
+    z, stamp = _read_file(grid, path, dataset, format, height_unit, fill, info)
     if heights_are is not None and stamp is not None and stamp != heights_are:
         raise GridError(f"{path} holds heights_are = {stamp!r} (its stamp), not {heights_are!r}")
     if (heights_are or stamp or "surface") == "surface":

@@ -16,13 +16,14 @@ import os
 
 import numpy as np
 
-from . import arrays, gsf, gwy, sur, text, x3p
-from .base import HEIGHTS_ARE, FormatError, Topography
+from . import arrays, gsf, gwy, sniff, sur, text, x3p
+from .base import HEIGHTS_ARE, FormatError, Topography, UnsupportedFeature
+from .fill import FILLS, apply_fill
 from .detrend import DETREND, centred_coordinates, trend
 from .units import HEIGHT_UNITS, canonical, metres_per
 
-__all__ = ["Topography", "FormatError", "FORMATS", "read_topography", "format_of", "DETREND",
-           "HEIGHT_UNITS", "HEIGHTS_ARE", "trend", "centred_coordinates", "grid_mismatch"]
+__all__ = ["Topography", "FormatError", "UnsupportedFeature", "FILLS", "FORMATS", "read_topography", "format_of",
+           "DETREND", "HEIGHT_UNITS", "HEIGHTS_ARE", "trend", "centred_coordinates", "grid_mismatch"]
 
 #: format name -> (reader, file extensions)
 FORMATS = {
@@ -48,30 +49,38 @@ def format_of(path: str, format: str | None = None) -> str:
     ext = os.path.splitext(path)[1].lower()
     for name, (_, extensions) in FORMATS.items():
         if ext in extensions:
+            if name == "text":
+                sniff.refuse_binary(path)     # ".dat" is also many instruments' binary extension
             return name
     known = ", ".join(e for _, exts in FORMATS.values() for e in exts)
     raise ValueError(f"unknown height file type {ext!r} (accepted: {known}; or name the format)")
 
 
 def read_topography(path: str, *, format: str | None = None, dataset: str = "heights",
-                    height_unit: str | None = None, rows=None, metadata_only: bool = False) -> Topography:
+                    height_unit: str | None = None, rows=None, metadata_only: bool = False,
+                    fill: str = "none") -> Topography:
     """The height map in ``path``, heights and spacing in metres.
 
     ``height_unit``: the unit of the file's heights when the file states none (default "m");
     a file that states a different one is refused.  The x, y of a ``.xyz`` file are in the
     heights' unit.  ``rows`` = (ys, ye): only the columns j in [ys, ye) of the heights (read
     from the file alone for ``.npy`` and HDF5).  ``metadata_only``: shape, spacing and units
-    without the heights where the format allows (``.npy``, HDF5).  Raises ValueError (a
+    without the heights where the format allows (``.npy``, HDF5).  Points not measured are NaN
+    in the readers; ``fill``: "none" refuses them (the count and the fix named), "harmonic"
+    fills them (``fill.harmonic``; the count in ``metadata["filled_points"]``; the whole map is
+    read for it, then the rows asked for are cut).  Raises ValueError (a
     ``FormatError`` for a file that breaks its format), KeyError or OSError with the cause.
     """
     name = format_of(path, format)
     reader = FORMATS[name][0]
+    if fill not in FILLS:
+        raise ValueError(f"fill = {fill!r}; accepted: {', '.join(FILLS)}")
+    whole = name not in BY_ROWS or fill == "harmonic"    # a fill needs every point: read all, cut after
     if name in BY_ROWS:
-        topo = reader(path, dataset=dataset, rows=None if metadata_only else (rows or (0, None)))
+        topo = reader(path, dataset=dataset,
+                      rows=None if metadata_only else ((0, None) if whole else (rows or (0, None))))
     else:
         topo = reader(path, dataset=dataset)
-        if rows is not None:
-            topo.heights = topo.heights[:, rows[0]:rows[1]]
     if topo.dtype.kind not in "iuf":
         kind = {"b": "boolean", "c": "complex"}.get(topo.dtype.kind, "not numeric")
         raise ValueError(f"heights of dtype {topo.dtype} ({kind}); heights must be real numbers")
@@ -96,6 +105,9 @@ def read_topography(path: str, *, format: str | None = None, dataset: str = "hei
             raise FormatError(f"the file's spacing ({topo.dx!r}, {topo.dy!r}) m is not positive")
     topo.unit_stated = topo.height_unit is not None
     topo.height_unit, topo.lateral_unit = canonical(unit), "m"
+    apply_fill(topo, fill, solve=not metadata_only)
+    if rows is not None and whole and topo.heights is not None:
+        topo.heights = topo.heights[:, rows[0]:rows[1]]
     return topo
 
 

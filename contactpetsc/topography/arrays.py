@@ -30,6 +30,38 @@ def _attr_text(value) -> str:
     return str(value).replace(" ", "").lower()
 
 
+def _scalar(value):
+    """An attribute's value as a Python scalar: bytes decoded, one-element arrays unwrapped."""
+    if isinstance(value, np.ndarray) and value.size == 1:
+        value = value.reshape(()).item()
+    if isinstance(value, np.generic):
+        value = value.item()
+    return value.decode("utf-8", "replace") if isinstance(value, bytes) else value
+
+
+def flag(value, name: str) -> bool | None:
+    """A boolean attribute read strictly: True/False, 1/0, numpy booleans, "true"/"false" (any
+    case); None stays None; anything else is refused with ``name`` (``bool("false")`` is True)."""
+    value = _scalar(value)
+    if value is None or isinstance(value, bool):
+        return value
+    if isinstance(value, (int, float)) and value in (0, 1):
+        return bool(value)
+    if isinstance(value, str) and value.strip().lower() in ("true", "false"):
+        return value.strip().lower() == "true"
+    raise FormatError(f"{name} = {value!r}: not a boolean (true or false, 1 or 0)")
+
+
+def spacing(value, name: str) -> float | None:
+    """A spacing attribute [m]: a finite number > 0 (or None), refused with ``name`` otherwise."""
+    value = _scalar(value)
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or value <= 0:
+        raise FormatError(f"{name} = {value!r}: a spacing is a number > 0, in m")
+    return float(value)
+
+
 def _npy_header(path: str):
     """(shape, fortran_order, dtype, data offset) of a .npy file, without reading its data."""
     with open(path, "rb") as f:
@@ -62,11 +94,19 @@ def read_npy(path: str, rows=None, **_) -> Topography:
     topo = Topography(shape=tuple(stored), dtype=dtype, format="npy", metadata={"axes": "x,y"})
     if os.path.exists(sidecar(path)):
         with open(sidecar(path)) as f:
-            meta = json.load(f)
-        topo.dx, topo.dy = meta.get("dx"), meta.get("dy", meta.get("dx"))
+            try:
+                meta = json.load(f)
+            except ValueError as exc:
+                raise FormatError(f"{sidecar(path)} is not JSON ({exc})") from None
+        if not isinstance(meta, dict):
+            raise FormatError(f"{sidecar(path)} holds {type(meta).__name__}, not a JSON object")
+        where = os.path.basename(sidecar(path))
+        topo.dx = spacing(meta.get("dx"), f"{where}: dx")
+        topo.dy = spacing(meta.get("dy"), f"{where}: dy") or topo.dx
         topo.lateral_unit = "m" if topo.dx is not None else None
-        topo.height_unit, topo.periodic = meta.get("unit"), meta.get("periodic")
-        topo.heights_are = heights_are(meta.get("heights_are"), f"heights_are in {sidecar(path)}")
+        topo.height_unit = meta.get("unit")
+        topo.periodic = flag(meta.get("periodic"), f"{where}: periodic")
+        topo.heights_are = heights_are(meta.get("heights_are"), f"{where}: heights_are")
         topo.metadata.update(meta)
     if rows is not None:
         topo.heights = np.load(path, mmap_mode="r")[:, rows[0]:rows[1]]
@@ -97,18 +137,19 @@ def read_hdf5(path: str, rows=None, dataset: str = "heights", **_) -> Topography
             value = ds.attrs.get(name, f.attrs.get(name))
             return value.decode() if isinstance(value, bytes) else value
 
-        dx, dy, periodic = attr("dx"), attr("dy"), attr("periodic")
+        dx = spacing(attr("dx"), f"attribute dx of {dataset!r}")
+        dy = spacing(attr("dy"), f"attribute dy of {dataset!r}")
+        periodic = flag(attr("periodic"), f"attribute periodic of {dataset!r}")
         if periodic is None and attr("scene") is not None:   # a step file: its run's grid
             try:
-                periodic = json.loads(attr("scene"))["geometry"]["periodic"]
+                periodic = flag(json.loads(attr("scene"))["geometry"]["periodic"],
+                                "the step file's scene: geometry.periodic")
             except (ValueError, KeyError, TypeError):
                 periodic = None
         topo = Topography(shape=tuple(shape), dtype=ds.dtype, format="hdf5",
-                          dx=None if dx is None else float(dx),
-                          dy=None if dx is None else float(dx if dy is None else dy),
+                          dx=dx, dy=None if dx is None else (dy or dx),
                           lateral_unit="m" if dx is not None else None,
-                          height_unit=attr("unit"),
-                          periodic=None if periodic is None else bool(periodic),
+                          height_unit=attr("unit"), periodic=periodic,
                           heights_are=heights_are(attr("heights_are"), f"attribute heights_are of {dataset!r}"),
                           metadata={"axes": stamp, "dataset": dataset})
         for key in ("source", "source_format", "converter", "channel"):

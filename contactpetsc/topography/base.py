@@ -53,3 +53,9 @@ def heights_are(value, where: str) -> str | None:
 def header_text(raw: bytes) -> str:
     """Bytes of a header (NUL-padded, maybe Windows-1252: "µm") as text."""
     return raw.split(b"\0", 1)[0].decode("latin-1").strip()
+
+
+class UnsupportedFeature(FormatError):
+    """A file that follows its format but uses a feature contactpetsc's reader does not read
+    (a compressed .sur, a profile): ``contactpetsc import --reader auto`` passes it on to
+    SurfaceTopography."""

@@ -15,6 +15,20 @@ from .base import FormatError, Topography
 MAGIC = b"Gwyddion Simple Field 1.0\n"
 
 
+def _value(header: dict, key: str, kind):
+    """Header value ``key`` as a positive ``kind`` (int or float): refused with the key named."""
+    if key not in header:
+        raise FormatError(f"the header lacks {key} (required)")
+    try:
+        value = kind(header[key])
+    except ValueError:
+        value = None
+    if value is None or not np.isfinite(value) or value <= 0:
+        raise FormatError(f"header {key} = {header[key]!r}: must be a {'whole ' if kind is int else ''}"
+                          f"number > 0")
+    return value
+
+
 def read_gsf(path: str, **_) -> Topography:
     with open(path, "rb") as f:
         data = f.read()
@@ -30,12 +44,7 @@ def read_gsf(path: str, **_) -> Topography:
             if not eq:
                 raise FormatError(f"header line {line!r} is not 'name = value'")
             header[name.strip()] = value.strip()
-    try:
-        nx, ny = int(header["XRes"]), int(header["YRes"])
-    except KeyError as exc:
-        raise FormatError(f"the header lacks {exc.args[0]} (required)") from None
-    except ValueError:
-        raise FormatError(f"XRes = {header['XRes']!r}, YRes = {header['YRes']!r}: not integers") from None
+    nx, ny = (_value(header, key, int) for key in ("XRes", "YRes"))
     start = (end // 4 + 1) * 4                      # one to four NULs: the next multiple of 4
     if data[end:start].strip(b"\0"):
         raise FormatError("the header's NUL padding holds other bytes")
@@ -48,6 +57,7 @@ def read_gsf(path: str, **_) -> Topography:
                       metadata={k: v for k, v in header.items() if k not in ("XRes", "YRes")})
     if "XReal" in header:
         # Gwyddion writes SI base units; a file without XYUnits has its extent in metres
-        lx, ly = float(header["XReal"]), float(header.get("YReal", header["XReal"]))
+        lx = _value(header, "XReal", float)
+        ly = _value(header, "YReal", float) if "YReal" in header else lx
         topo.dx, topo.dy, topo.lateral_unit = lx / nx, ly / ny, header.get("XYUnits") or "m"
     return topo

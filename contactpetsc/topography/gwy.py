@@ -8,7 +8,8 @@ letters ``C I Q D S O`` are arrays, a uint32 count then the items.  The top obje
 ``GwyContainer`` whose component ``/N/data`` is channel N, a ``GwyDataField``: ``xres``,
 ``yres`` (int32), ``xreal``, ``yreal`` (the extent, double), ``si_unit_xy``, ``si_unit_z``
 (``GwySIUnit`` objects with a ``unitstr``) and ``data``, xres x yres doubles row after row
-(a row is one y, the first y = 0); ``/N/data/title`` names the channel.
+(a row is one y, the first y = 0); ``/N/data/title`` names the channel.  Objects nest
+(container, data field, unit): nesting deeper than ``MAX_DEPTH`` is refused, not recursed into.
 """
 from __future__ import annotations
 
@@ -19,11 +20,12 @@ import numpy as np
 from .base import FormatError, Topography
 
 _ATOMS = {"b": "<?", "c": "<c", "i": "<i4", "q": "<i8", "d": "<f8"}
+MAX_DEPTH = 32     #: Gwyddion's own files nest 3 or 4 objects deep
 
 
 class _Reader:
     def __init__(self, data: bytes):
-        self.data, self.pos = data, 0
+        self.data, self.pos, self.depth = data, 0, 0
 
     def take(self, n: int) -> bytes:
         if self.pos + n > len(self.data):
@@ -60,6 +62,16 @@ class _Reader:
         raise FormatError(f"unknown component type {kind!r} at byte {self.pos - 1}")
 
     def object(self) -> tuple:
+        if self.depth >= MAX_DEPTH:
+            raise FormatError(f"objects nested more than {MAX_DEPTH} deep at byte {self.pos} (a "
+                              f"damaged file: Gwyddion's nest 3 or 4)")
+        self.depth += 1
+        try:
+            return self._object()
+        finally:
+            self.depth -= 1
+
+    def _object(self) -> tuple:
         name = self.string()
         size = self.count()
         end = self.pos + size
@@ -107,7 +119,13 @@ def read_gwy(path: str, dataset: str = "heights", **_) -> Topography:
         nx, ny, lx, ly, values = (field[k] for k in ("xres", "yres", "xreal", "yreal", "data"))
     except KeyError as exc:
         raise FormatError(f"{key} lacks its {exc.args[0]}") from None
-    if len(values) != nx * ny:
+    for k, v in (("xres", nx), ("yres", ny)):
+        if not isinstance(v, int) or v < 1:
+            raise FormatError(f"{key}: {k} = {v!r}; a map needs 1 or more")
+    for k, v in (("xreal", lx), ("yreal", ly)):
+        if not (isinstance(v, float) and np.isfinite(v) and v > 0):
+            raise FormatError(f"{key}: {k} = {v!r}; an extent is finite and > 0")
+    if not isinstance(values, np.ndarray) or len(values) != nx * ny:
         raise FormatError(f"{key}: {len(values)} data values, xres x yres = {nx} x {ny}")
     return Topography(shape=(nx, ny), dtype=np.dtype("<f8"),
                       heights=np.asarray(values, float).reshape(ny, nx).T.copy(),

@@ -10,28 +10,84 @@ points inline in ``Record3/DataList/Datum``.  The binary points are little-endia
 CZ's DataType (I int16, L int32, F float32, D float64), x fastest then y:
 z(i, j) = Increment_z * value[i + SizeX j] + Offset_z at x = i Increment_x, y = j Increment_y.
 An optional ``ValidPointsLink`` member holds one bit per point, least significant bit first,
-1 for a measured point.
+1 for a measured point; points not measured (and NaN float values) are returned as NaN.
+
+Every member's size is checked from the archive's directory before it is inflated, and it is
+inflated through a bounded stream: a member that would inflate beyond what the map needs (a
+damaged or hostile archive) is refused without being held in memory.
 """
 from __future__ import annotations
 
 import hashlib
+import os
 import xml.etree.ElementTree as ET
 import zipfile
+import zlib
 
 import numpy as np
 
-from .base import FormatError, Topography
+from .base import FormatError, Topography, UnsupportedFeature
 
 DATA_TYPES = {"I": "<i2", "L": "<i4", "F": "<f4", "D": "<f8"}
+MAIN_XML_LIMIT = 64 * 2**20     #: bytes: main.xml with every point inline stays far below
 
 
 def _find(root, path, required=True):
     node = root.find(path)
-    if node is None or node.text is None:
+    if node is None or node.text is None or not node.text.strip():
         if required:
             raise FormatError(f"main.xml lacks {path}")
         return None
     return node.text.strip()
+
+
+def _number(root, path, kind, required=True, positive=False):
+    """The number at ``path`` of main.xml (``kind`` int or float), checked: named if not one."""
+    text = _find(root, path, required)
+    if text is None:
+        return None
+    try:
+        value = kind(text)
+    except ValueError:
+        raise FormatError(f"main.xml {path} = {text!r}: not {'an integer' if kind is int else 'a number'}") from None
+    if not np.isfinite(value) or (positive and value <= 0):
+        raise FormatError(f"main.xml {path} = {text!r}: must be finite" + (" and > 0" if positive else ""))
+    return value
+
+
+def _member(archive: zipfile.ZipFile, name: str, size, what: str) -> bytes:
+    """Member ``name`` of ``archive``, refused (before inflating it) unless its size is ``size``
+    bytes (an int), or at most ``size[1]`` bytes (a (None, limit) pair); read through a bounded
+    stream so that a directory entry that lies about the size inflates no more."""
+    try:
+        info = archive.getinfo(name)
+    except KeyError:
+        raise FormatError(f"the archive has no {name} ({what})") from None
+    exact = isinstance(size, int)
+    limit = size if exact else size[1]
+    if info.file_size > limit or (exact and info.file_size != size):
+        raise FormatError(f"{name} ({what}) inflates to {info.file_size} bytes; "
+                          + (f"the map needs {size}" if exact else f"at most {limit} are accepted"))
+    try:
+        with archive.open(info) as stream:
+            data = stream.read(limit + 1)
+    except (zipfile.BadZipFile, zlib.error, EOFError, NotImplementedError) as exc:
+        raise FormatError(f"{name} ({what}) cannot be inflated: {exc}") from None
+    if len(data) > limit or (exact and len(data) != size):
+        raise FormatError(f"{name} ({what}) holds {'more than' if len(data) > limit else ''} "
+                          f"{min(len(data), limit)} bytes, not the {info.file_size} its directory entry says")
+    return data
+
+
+def _fits_in_memory(nx: int, ny: int) -> None:
+    """Refuse a map whose float64 heights alone exceed this machine's memory (a damaged SizeX)."""
+    try:
+        total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return
+    if 8 * nx * ny > total:
+        raise FormatError(f"SizeX x SizeY = {nx} x {ny}: {8 * nx * ny / 2**30:.3g} GiB of heights, more "
+                          f"than this machine's {total / 2**30:.3g} GiB of memory")
 
 
 def read_x3p(path: str, **_) -> Topography:
@@ -41,43 +97,40 @@ def read_x3p(path: str, **_) -> Topography:
         raise FormatError("not a zip archive: an .x3p file is a zip with main.xml") from None
     with archive:
         try:
-            root = ET.fromstring(archive.read("main.xml"))
-        except KeyError:
-            raise FormatError("the archive has no main.xml") from None
+            root = ET.fromstring(_member(archive, "main.xml", (None, MAIN_XML_LIMIT), "the file's index"))
         except ET.ParseError as exc:
             raise FormatError(f"main.xml is not XML ({exc})") from None
         feature = _find(root, "Record1/FeatureType")
         if feature != "SUR":
-            raise FormatError(f"Record1/FeatureType = {feature!r}: a height map is 'SUR' "
-                              f"('PRF' is a profile, 'PCL' a point cloud)")
-        nx, ny, nz = (int(_find(root, f"Record3/MatrixDimension/Size{a}")) for a in "XYZ")
+            raise UnsupportedFeature(f"Record1/FeatureType = {feature!r}: a height map is 'SUR' "
+                                     f"('PRF' is a profile, 'PCL' a point cloud)")
+        nx, ny = (_number(root, f"Record3/MatrixDimension/Size{a}", int, positive=True) for a in "XY")
+        nz = _number(root, "Record3/MatrixDimension/SizeZ", int)
         if nz != 1:
-            raise FormatError(f"SizeZ = {nz}: layered maps are not height maps (SizeZ = 1)")
-        axes = {}
-        for a in ("CX", "CY", "CZ"):
-            axes[a] = {k: _find(root, f"Record1/Axes/{a}/{k}", required=False)
-                       for k in ("AxisType", "DataType", "Increment", "Offset")}
-        for a in ("CX", "CY"):
-            if axes[a]["AxisType"] != "I":
-                raise FormatError(f"Record1/Axes/{a}/AxisType = {axes[a]['AxisType']!r}: only "
-                                  f"incremental axes ('I') make a uniform grid")
-        dtype = DATA_TYPES.get(axes["CZ"]["DataType"])
-        if dtype is None:
-            raise FormatError(f"Record1/Axes/CZ/DataType = {axes['CZ']['DataType']!r}; accepted: "
-                              f"{', '.join(DATA_TYPES)}")
+            raise UnsupportedFeature(f"SizeZ = {nz}: layered maps are not height maps (SizeZ = 1)")
+        _fits_in_memory(nx, ny)
+        for a, kind in (("CX", "I"), ("CY", "I"), ("CZ", "A")):
+            axis_type = _find(root, f"Record1/Axes/{a}/AxisType")
+            if axis_type != kind:
+                raise UnsupportedFeature(f"Record1/Axes/{a}/AxisType = {axis_type!r}: a height map has "
+                                         f"incremental x, y axes ('I') and an absolute z axis ('A')")
+        # x, y: the spacing [m], required; z: value * Increment + Offset, Increment 1 if absent
+        dx, dy = (_number(root, f"Record1/Axes/{a}/Increment", float, positive=True) for a in ("CX", "CY"))
+        z_type = _find(root, "Record1/Axes/CZ/DataType", required=False)
+        z_scale = _number(root, "Record1/Axes/CZ/Increment", float, required=False)
+        z_offset = _number(root, "Record1/Axes/CZ/Offset", float, required=False) or 0.0
+        if z_scale == 0:
+            raise FormatError("main.xml Record1/Axes/CZ/Increment = 0: every height would be the offset")
         link = _find(root, "Record3/DataLink/PointDataLink", required=False)
         if link is not None:
-            try:
-                data = archive.read(link)
-            except KeyError:
-                raise FormatError(f"the archive has no {link} (Record3/DataLink/PointDataLink)") from None
+            dtype = DATA_TYPES.get(z_type)
+            if dtype is None:
+                raise FormatError(f"Record1/Axes/CZ/DataType = {z_type!r}; accepted: {', '.join(DATA_TYPES)}")
+            data = _member(archive, link, nx * ny * np.dtype(dtype).itemsize,
+                           f"Record3/DataLink/PointDataLink: {nx} x {ny} values of type {z_type}")
             md5 = _find(root, "Record3/DataLink/MD5ChecksumPointData", required=False)
             if md5 and hashlib.md5(data).hexdigest().lower() != md5.lower():
                 raise FormatError(f"{link} does not match its MD5 checksum (a damaged file)")
-            if len(data) != nx * ny * np.dtype(dtype).itemsize:
-                raise FormatError(f"{link} holds {len(data)} bytes, SizeX x SizeY = {nx} x {ny} "
-                                  f"values of type {axes['CZ']['DataType']} need "
-                                  f"{nx * ny * np.dtype(dtype).itemsize}")
             values = np.frombuffer(data, dtype).astype(float)
         else:
             datums = root.findall("Record3/DataList/Datum")
@@ -86,20 +139,15 @@ def read_x3p(path: str, **_) -> Topography:
             values = np.array([float(d.text) if d.text and d.text.strip() else np.nan for d in datums])
         valid_link = _find(root, "Record3/DataLink/ValidPointsLink", required=False)
         if valid_link is not None:
-            bits = np.unpackbits(np.frombuffer(archive.read(valid_link), np.uint8),
-                                 bitorder="little")[:nx * ny]
+            packed = _member(archive, valid_link, (nx * ny + 7) // 8,
+                             f"Record3/DataLink/ValidPointsLink: one bit per point of {nx} x {ny}")
+            bits = np.unpackbits(np.frombuffer(packed, np.uint8), bitorder="little")[:nx * ny]
             values[bits == 0] = np.nan
         meta = {k: v for k in ("Record2/Date", "Record2/Creator", "Record2/Instrument/Manufacturer",
                                "Record2/Instrument/Model", "Record2/Comment")
                 if (v := _find(root, k, required=False))}
-    z = axes["CZ"]
-    scale = float(z["Increment"]) if z["Increment"] else 1.0
-    offset = float(z["Offset"]) if z["Offset"] else 0.0
-    heights = (values * scale + offset).reshape(ny, nx).T      # x fastest in the file
-    missing = int(np.count_nonzero(~np.isfinite(heights)))
-    if missing:
-        raise FormatError(f"{missing} of the {nx} x {ny} points are not measured (invalid); fill "
-                          f"them first (interpolate them, e.g. in Gwyddion or MountainsMap)")
-    return Topography(shape=(nx, ny), dtype=np.dtype(dtype), heights=heights, height_unit="m",
-                      dx=float(axes["CX"]["Increment"]), dy=float(axes["CY"]["Increment"]),
-                      lateral_unit="m", format="x3p", metadata=meta)
+    heights = (values * (1.0 if z_scale is None else z_scale) + z_offset).reshape(ny, nx).T   # x fastest
+    meta.update(stored=z_type or "inline", not_measured=int(np.count_nonzero(np.isnan(heights))))
+    # the heights are scaled floats (float64) whatever the stored type: in m, not raw integers
+    return Topography(shape=(nx, ny), dtype=heights.dtype, heights=heights, height_unit="m",
+                      dx=dx, dy=dy, lateral_unit="m", format="x3p", metadata=meta)
