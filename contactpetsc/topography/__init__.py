@@ -13,15 +13,18 @@ instrument formats of SurfaceTopography: ``contactpetsc import`` (docs/topograph
 from __future__ import annotations
 
 import os
+import struct
+import zipfile
+import zlib
 
 import numpy as np
 
 from . import arrays, gsf, gwy, sur, text, x3p
-from .base import FormatError, Topography
+from .base import FormatError, HeightUnitConflict, Topography
 from .detrend import DETREND, centred_coordinates, trend
-from .units import HEIGHT_UNITS, canonical, metres_per
+from .units import HEIGHT_UNITS, TopographyUnitWarning, canonical, metres_per, warn_units
 
-__all__ = ["Topography", "FormatError", "FORMATS", "read_topography", "format_of", "DETREND",
+__all__ = ["Topography", "FormatError", "HeightUnitConflict", "TopographyUnitWarning", "warn_units", "FORMATS", "read_topography", "format_of", "DETREND",
            "HEIGHT_UNITS", "trend", "centred_coordinates", "grid_mismatch"]
 
 #: format name -> (reader, file extensions)
@@ -57,19 +60,69 @@ def read_topography(path: str, *, format: str | None = None, dataset: str = "hei
                     height_unit: str | None = None, rows=None, metadata_only: bool = False) -> Topography:
     """The height map in ``path``, heights and spacing in metres.
 
-    ``height_unit``: the unit of the file's heights when the file states none (default "m");
-    a file that states a different one is refused.  The x, y of a ``.xyz`` file are in the
+    ``format``: by the file's extension when None (then a ``.txt``-like file of x y z points
+    on a grid is read as ``xyz``; ``Topography.format`` says which was read).  ``height_unit``:
+    the unit of the file's heights when the file states none (default "m"); a file that states
+    a different one is refused (``HeightUnitConflict``).  The x, y of a ``.xyz`` file are in the
     heights' unit.  ``rows`` = (ys, ye): only the columns j in [ys, ye) of the heights (read
     from the file alone for ``.npy`` and HDF5).  ``metadata_only``: shape, spacing and units
-    without the heights where the format allows (``.npy``, HDF5).  Raises ValueError (a
-    ``FormatError`` for a file that breaks its format), KeyError or OSError with the cause.
+    without the heights where the format allows (``.npy``, HDF5).
+
+    Errors start with the file's name and say the cause: KeyError for a missing dataset or
+    channel, OSError for a file that cannot be opened, else ValueError (a ``FormatError`` for a
+    file that breaks its format or that its reader fails on, whatever the reader raised).
     """
+    name = os.path.basename(path) or path
+    try:
+        return _read(path, format, dataset, height_unit, rows, metadata_only)
+    except KeyError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - every reader failure, named and explained
+        raise _named(name, format_of_or(path, format), exc) from exc
+
+
+def format_of_or(path: str, format: str | None) -> str:
+    """The format of ``path`` for messages ("height" when it has none)."""
+    try:
+        return format_of(path, format)
+    except ValueError:
+        return "height"
+
+
+#: reader failures that are not ValueErrors, and the cause in words
+_CAUSES = ((struct.error, "its data end before the sizes its header announces (truncated?)"),
+           (EOFError, "it ends early (truncated?)"),
+           (ZeroDivisionError, "its header gives a size or scale of zero"),
+           (RecursionError, "its structure is nested too deeply (damaged?)"),
+           (zipfile.BadZipFile, "it is not a readable zip archive (damaged, or another format?)"),
+           (zlib.error, "its compressed data are damaged"),
+           (OverflowError, "a number or size in it is out of range (a damaged header?)"),
+           (MemoryError, "its header announces more data than fits in memory (a damaged header?)"),
+           (ImportError, "reading it needs a package that is not installed"))
+
+
+def _named(name: str, fmt: str, exc: Exception) -> Exception:
+    """``exc`` of reading file ``name`` as an error whose message starts with the name."""
+    text = str(exc) if str(exc).startswith(name) else f"{name}: {exc}"
+    if isinstance(exc, OSError):
+        return exc if exc.filename is not None else OSError(text)
+    if isinstance(exc, HeightUnitConflict):
+        return HeightUnitConflict(text, exc.stated)
+    if isinstance(exc, ValueError) and not isinstance(exc, UnicodeError):
+        return (FormatError if isinstance(exc, FormatError) else ValueError)(text)
+    cause = next((words for kind, words in _CAUSES if isinstance(exc, kind)),
+                 "its reader failed on it (damaged, or another format?)")
+    return FormatError(f"{name}: cannot be read as a {fmt} file: {cause} [{type(exc).__name__}: "
+                       f"{exc}]; check that the file is whole and of this format (or name its format)")
+
+
+def _read(path, format, dataset, height_unit, rows, metadata_only) -> Topography:
     name = format_of(path, format)
     reader = FORMATS[name][0]
     if name in BY_ROWS:
         topo = reader(path, dataset=dataset, rows=None if metadata_only else (rows or (0, None)))
     else:
-        topo = reader(path, dataset=dataset)
+        topo = reader(path, dataset=dataset, sniff=format is None)
         if rows is not None:
             topo.heights = topo.heights[:, rows[0]:rows[1]]
     if topo.dtype.kind not in "iuf":
@@ -79,7 +132,8 @@ def read_topography(path: str, *, format: str | None = None, dataset: str = "hei
         metres_per(height_unit)
     if topo.height_unit is not None and height_unit is not None and \
             metres_per(topo.height_unit) != metres_per(height_unit):
-        raise ValueError(f"the file states its heights in {topo.height_unit!r}, not {height_unit!r}")
+        raise HeightUnitConflict(f"the file states its heights in {topo.height_unit!r}, not "
+                                 f"{height_unit!r}", topo.height_unit)
     unit = topo.height_unit or height_unit or "m"
     try:
         metres_per(unit)
@@ -91,6 +145,11 @@ def read_topography(path: str, *, format: str | None = None, dataset: str = "hei
     if topo.heights is not None:
         topo.heights = np.asarray(topo.heights) * scale if scale != 1.0 else np.asarray(topo.heights)
     if topo.dx is not None:
+        for key in ("dx", "dy"):
+            value = getattr(topo, key)
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+                raise FormatError(f"its {key} = {value!r} is not a number (for .npy: in NAME.npy.json; "
+                                  f"write it without quotes, in m)")
         topo.dx, topo.dy = topo.dx * metres_per(lateral), topo.dy * metres_per(lateral)
         if not (np.isfinite([topo.dx, topo.dy]).all() and topo.dx > 0 and topo.dy > 0):
             raise FormatError(f"the file's spacing ({topo.dx!r}, {topo.dy!r}) m is not positive")

@@ -31,6 +31,14 @@ class FormatError(ValueError):
     """A file that does not follow its format's specification (the message says where)."""
 
 
+class HeightUnitConflict(ValueError):
+    """A file that states its heights in a unit other than the one given (``stated``)."""
+
+    def __init__(self, message: str, stated: str):
+        super().__init__(message)
+        self.stated = stated
+
+
 def header_text(raw: bytes) -> str:
     """Bytes of a header (NUL-padded, maybe Windows-1252: "µm") as text."""
     return raw.split(b"\0", 1)[0].decode("latin-1").strip()

@@ -17,7 +17,7 @@ import sys
 
 import numpy as np
 
-from . import FORMATS, HEIGHT_UNITS, Topography, arrays, format_of, read_topography
+from . import FORMATS, HEIGHT_UNITS, Topography, arrays, format_of, read_topography, warn_units
 from .units import canonical, metres_per
 
 READERS = ("auto", "native", "surfacetopography")
@@ -69,7 +69,7 @@ def read_with_surfacetopography(path: str, channel: int | None, height_unit: str
     heights = np.asarray(topo.heights(), dtype=float) * scale
     (lx, ly), (nx, ny) = topo.physical_sizes, heights.shape
     return Topography(shape=(nx, ny), dtype=np.dtype(float), heights=heights, height_unit="m",
-                      dx=lx * scale / nx, dy=ly * scale / ny, lateral_unit="m",
+                      dx=lx * scale / nx, dy=ly * scale / ny, lateral_unit="m", unit_stated=info.unit is not None,
                       periodic=bool(topo.is_periodic), format=str(reader.format()),
                       metadata={"channel": f"{info.index} ({info.name})",
                                 "converter": f"SurfaceTopography {SurfaceTopography.__version__}"})
@@ -105,6 +105,8 @@ def convert(source: str, destination: str, *, reader: str = "auto", format: str 
         topo.dx, topo.dy = spacing
     if topo.dx is None:
         raise ValueError(f"{source} does not give its spacing: give --dx (and --dy) in m")
+    warn_units(os.path.basename(source) or source, topo.shape, topo.dx, topo.dy, topo.heights,
+               stated=topo.unit_stated, given=height_unit is not None, keys=("--height-unit", "--dx"))
     if not np.isfinite(topo.heights).all():
         raise ValueError(f"{source}: some heights are NaN or Inf (points not measured); fill them first")
     topo.metadata.update(source=os.path.basename(source), source_format=topo.format)
