@@ -125,6 +125,8 @@ def _read(path, format, dataset, height_unit, rows, metadata_only) -> Topography
         topo = reader(path, dataset=dataset, sniff=format is None)
         if rows is not None:
             topo.heights = topo.heights[:, rows[0]:rows[1]]
+    if min(topo.shape) < 1:
+        raise FormatError(f"an empty map ({' x '.join(map(str, topo.shape))} points)")
     if topo.dtype.kind not in "iuf":
         kind = {"b": "boolean", "c": "complex"}.get(topo.dtype.kind, "not numeric")
         raise ValueError(f"heights of dtype {topo.dtype} ({kind}); heights must be real numbers")
