@@ -112,8 +112,8 @@ def test_gwyddion_exports_match_surfacetopography(name):
 
 @pytest.mark.serial
 def test_gwyddion_headers_in_other_languages_short_or_latin1(tmp_path):
-    """Gwyddion's German labels (Latin-1 µm, decimal commas), a UTF-8 byte-order mark, and a
-    short header (channel and unit only) read as the English export; a Width without its
+    """Gwyddion's German labels (Latin-1 µm, decimal commas), a UTF-8 byte-order mark, UTF-16,
+    and a short header (channel and unit only) read as the English export; a Width without its
     Height is refused with what to add."""
     english = ["# Channel: Height", "# Width: 8 µm", "# Height: 4.5 µm", "# Value units: nm"]
     german = ["# Kanal: Höhe", "# Breite: 8 µm", "# Höhe: 4,5 µm", "# Werteeinheiten: nm"]
@@ -121,7 +121,8 @@ def test_gwyddion_headers_in_other_languages_short_or_latin1(tmp_path):
     (tmp_path / "en.txt").write_text("\n".join(english + body) + "\n", encoding="utf-8")
     (tmp_path / "de.txt").write_bytes("\n".join(german + body).encode("latin-1"))
     (tmp_path / "bom.txt").write_bytes(b"\xef\xbb\xbf" + "\n".join(english + body).encode("utf-8"))
-    for name in ("en.txt", "de.txt", "bom.txt"):
+    (tmp_path / "u16.txt").write_bytes("\n".join(english + body).encode("utf-16"))
+    for name in ("en.txt", "de.txt", "bom.txt", "u16.txt"):
         topo = read_topography(str(tmp_path / name))
         assert topo.shape == (4, 3) and np.array_equal(topo.heights, MAP * 1e-9), name
         assert (topo.dx, topo.dy) == pytest.approx((2e-6, 1.5e-6), rel=1e-15)

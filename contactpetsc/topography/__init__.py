@@ -7,7 +7,8 @@ Heights of formats that state no unit (``.npy``, text, ``.xyz``) are in ``height
 (default metres).  The readers follow the formats' published specifications (each module's
 docstring); nothing here needs more than numpy (h5py for HDF5 files, imported when one is
 read), so the converter ``contactpetsc import`` runs in an environment without MPI or PETSc.
-Detrending: ``detrend.trend`` (used by ``geometry.surfaces.detrended``).  Files in the ~40
+Every reader failure is reported with the file's name and its cause (``read_topography``);
+``units.warn_units`` warns of unstated or implausible units.  Detrending: ``detrend.trend`` (used by ``geometry.surfaces.detrended``).  Files in the ~40
 instrument formats of SurfaceTopography: ``contactpetsc import`` (docs/topography.md).
 """
 from __future__ import annotations
@@ -78,10 +79,10 @@ def read_topography(path: str, *, format: str | None = None, dataset: str = "hei
     except KeyError:
         raise
     except Exception as exc:  # noqa: BLE001 - every reader failure, named and explained
-        raise _named(name, format_of_or(path, format), exc) from exc
+        raise _named(name, _format_name(path, format), exc) from exc
 
 
-def format_of_or(path: str, format: str | None) -> str:
+def _format_name(path: str, format: str | None) -> str:
     """The format of ``path`` for messages ("height" when it has none)."""
     try:
         return format_of(path, format)

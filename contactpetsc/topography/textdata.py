@@ -1,7 +1,7 @@
 """The words and numbers of a plain-text height file: its encoding, header and decimal separator.
 
-Encoding: UTF-8 (a byte-order mark is dropped), else Latin-1 as older instruments and Windows
-programs write it ("µm" as the byte 0xB5).  Lines: blank lines are skipped; lines starting with
+Encoding: UTF-8 (a byte-order mark is dropped), UTF-16 with its byte-order mark, else Latin-1
+as older instruments and Windows programs write it ("µm" as the byte 0xB5).  Lines: blank lines are skipped; lines starting with
 ``#`` are comments, and so are the lines before the first line of numbers (an instrument's
 header without ``#``).  Header keys read, each ``key`` then ``:``, ``=`` or ``：`` and its value:
 
@@ -60,7 +60,10 @@ _DECIMAL_COMMA = re.compile(r"^[-+]?(?:\d+,\d*|,\d+)(?:[eE][-+]?\d+)?$")
 
 
 def decode(raw: bytes) -> str:
-    """The text of a file's bytes: UTF-8 (without its byte-order mark), else Latin-1."""
+    """The text of a file's bytes: UTF-8 (without its byte-order mark), UTF-16 (with one), else
+    Latin-1; FormatError for binary data."""
+    if raw.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):   # Windows' "Unicode" text
+        return raw.decode("utf-16")
     if b"\0" in raw[:4096]:
         raise FormatError("binary data (NUL bytes), not a text file: a .dat or .txt file of an "
                           "instrument's binary format? convert it with `contactpetsc import` "
