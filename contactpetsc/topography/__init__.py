@@ -8,8 +8,9 @@ Heights of formats that state no unit (``.npy``, text, ``.xyz``) are in ``height
 docstring); nothing here needs more than numpy (h5py for HDF5 files, imported when one is
 read), so the converter ``contactpetsc import`` runs in an environment without MPI or PETSc.
 Every reader failure is reported with the file's name and its cause (``read_topography``);
-``units.warn_units`` warns of unstated or implausible units.  Detrending: ``detrend.trend`` (used by ``geometry.surfaces.detrended``).  Files in the ~40
-instrument formats of SurfaceTopography: ``contactpetsc import`` (docs/topography.md).
+``units.warn_units`` warns of unstated or implausible units.  Detrending: ``detrend.trend``
+(used by ``geometry.surfaces.detrended``).  Files in the ~40 instrument formats of
+SurfaceTopography: ``contactpetsc import`` (docs/topography.md).
 """
 from __future__ import annotations
 
