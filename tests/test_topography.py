@@ -177,8 +177,11 @@ def test_text_matrix_lines_are_y_and_the_header_gives_extent_and_unit(tmp_path):
     path.write_text("1 2 3\n4 5\n")
     with pytest.raises(FormatError, match="different lengths"):
         read_topography(str(path))
-    path.write_text("0 0 1\n0 1 2\n1 0 3\n1 1 4\n")
-    with pytest.raises(FormatError, match="x y z point list"):
+    path.write_text("0 0 1\n0 1 2\n1 0 3\n1 1 4\n")       # x y z points on a full grid: a point list
+    topo = read_topography(str(path))
+    assert topo.format == "xyz" and np.array_equal(topo.heights, [[1.0, 2.0], [3.0, 4.0]])
+    path.write_text("0 0 1\n0 1 2\n1 0 3\n1 3 4\n")       # off a full grid: neither
+    with pytest.raises(FormatError, match="not an x y z point list"):
         read_topography(str(path))
 
 

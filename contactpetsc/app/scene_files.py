@@ -16,26 +16,28 @@ def read_height_file(g: dict, given: set) -> None:
     and, where the file gives them, dx, dy, periodic and the format are filled in; the keys
     given must agree with the file; ``heights_are`` is the file's stamp where it has one, else
     "surface" (the heights are the sample's surface, peaks up)."""
-    from ..topography import format_of, grid_mismatch, read_topography
+    from ..topography import HeightUnitConflict, format_of, grid_mismatch, read_topography, warn_units
 
     def fail(message):
         raise SceneError(f"geometry.path = {g['path']!r}: {message}")
 
     try:
-        g["format"] = format_of(g["path"], g["format"])
+        named = format_of(g["path"], g["format"])
     except ValueError as exc:
         fail(exc)
-    if "dataset" in given and g["format"] not in ("hdf5", "gwy") and g["dataset"] != "heights":
+    if "dataset" in given and named not in ("hdf5", "gwy") and g["dataset"] != "heights":
         raise SceneError(f"geometry.dataset = {g['dataset']!r} is used by HDF5 and .gwy files only; "
-                         f"{g['path']!r} is {g['format']}")
+                         f"{g['path']!r} is {named}")
     try:
-        topo = read_topography(g["path"], format=g["format"], dataset=g["dataset"], metadata_only=True,
-                               fill=g["fill"])
+        # the scene's height unit is read with the file: an .xyz file's x, y are in it too
+        topo = read_topography(g["path"], format=g["format"], dataset=g["dataset"],
+                               height_unit=g["height_unit"], metadata_only=True, fill=g["fill"])
+    except HeightUnitConflict as exc:
+        raise SceneError(f"geometry.height_unit = {g['height_unit']!r}, but {g['path']!r} states its "
+                         f"heights in {exc.stated!r}: remove the key") from None
     except (OSError, ValueError, KeyError) as exc:
         fail(exc.args[0] if isinstance(exc, KeyError) and exc.args else exc)
-    if topo.unit_stated and g["height_unit"] is not None and g["height_unit"] != topo.height_unit:
-        raise SceneError(f"geometry.height_unit = {g['height_unit']!r}, but {g['path']!r} states its "
-                         f"heights in {topo.height_unit!r}: remove the key")
+    g["format"] = topo.format                        # what was read: a .txt of x y z points is xyz
     if g["height_unit"] is None and topo.height_unit in HEIGHT_UNITS:
         g["height_unit"] = topo.height_unit          # the file's own (or metres): for the plan
     for key, value in zip(("nx", "ny"), topo.shape):
@@ -51,6 +53,8 @@ def read_height_file(g: dict, given: set) -> None:
     problem = grid_mismatch(topo, (g["nx"], g["ny"]), (g["dx"], g["dy"]))
     if problem:
         fail(problem)
+    warn_units(f"geometry.path = {g['path']!r}", (g["nx"], g["ny"]), g["dx"], g["dy"], topo.heights,
+               stated=topo.unit_stated, given="height_unit" in given)
     if g["periodic"] is None:
         g["periodic"] = bool(topo.periodic)
     if topo.heights_are is not None and g["heights_are"] not in (None, topo.heights_are):

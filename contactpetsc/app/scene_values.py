@@ -36,7 +36,14 @@ def check_value(path: str, spec: dict, value):
     if kind is float and isinstance(value, int) and not isinstance(value, bool):
         value = float(value)
     if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
-        raise SceneError(f"{path} = {value!r}: expected {kind_name(kind)}")
+        quoted = ""
+        if isinstance(value, str) and kind in (float, int):
+            try:
+                float(value)
+                quoted = f" (a string: write the number without quotes, {path.split('.')[-1]} = {value})"
+            except ValueError:
+                pass
+        raise SceneError(f"{path} = {value!r}: expected {kind_name(kind)}{quoted}")
     if spec["choices"] is not None and value not in spec["choices"]:
         raise SceneError(f"{path} = {value!r}: accepted values are {', '.join(spec['choices'])}")
     if spec["range"] is not None:

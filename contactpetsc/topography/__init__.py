@@ -7,23 +7,29 @@ Heights of formats that state no unit (``.npy``, text, ``.xyz``) are in ``height
 (default metres).  The readers follow the formats' published specifications (each module's
 docstring); nothing here needs more than numpy (h5py for HDF5 files, imported when one is
 read), so the converter ``contactpetsc import`` runs in an environment without MPI or PETSc.
-Detrending: ``detrend.trend`` (used by ``geometry.surfaces.detrended``).  Files in the ~40
-instrument formats of SurfaceTopography: ``contactpetsc import`` (docs/topography.md).
+Every reader failure is reported with the file's name and its cause (``read_topography``);
+``units.warn_units`` warns of unstated or implausible units.  Detrending: ``detrend.trend``
+(used by ``geometry.surfaces.detrended``).  Files in the ~40 instrument formats of
+SurfaceTopography: ``contactpetsc import`` (docs/topography.md).
 """
 from __future__ import annotations
 
 import os
+import struct
+import zipfile
+import zlib
 
 import numpy as np
 
 from . import arrays, gsf, gwy, sniff, sur, text, x3p
-from .base import HEIGHTS_ARE, FormatError, Topography, UnsupportedFeature
-from .fill import FILLS, apply_fill
+from .base import HEIGHTS_ARE, FormatError, HeightUnitConflict, Topography, UnsupportedFeature
 from .detrend import DETREND, centred_coordinates, trend
-from .units import HEIGHT_UNITS, canonical, metres_per
+from .fill import FILLS, apply_fill
+from .units import HEIGHT_UNITS, TopographyUnitWarning, canonical, metres_per, warn_units
 
-__all__ = ["Topography", "FormatError", "UnsupportedFeature", "FILLS", "FORMATS", "read_topography", "format_of",
-           "DETREND", "HEIGHT_UNITS", "HEIGHTS_ARE", "trend", "centred_coordinates", "grid_mismatch"]
+__all__ = ["Topography", "FormatError", "HeightUnitConflict", "UnsupportedFeature", "TopographyUnitWarning",
+           "warn_units", "FILLS", "FORMATS", "HEIGHTS_ARE", "read_topography", "format_of", "DETREND",
+           "HEIGHT_UNITS", "trend", "centred_coordinates", "grid_mismatch"]
 
 #: format name -> (reader, file extensions)
 FORMATS = {
@@ -61,16 +67,67 @@ def read_topography(path: str, *, format: str | None = None, dataset: str = "hei
                     fill: str = "none") -> Topography:
     """The height map in ``path``, heights and spacing in metres.
 
-    ``height_unit``: the unit of the file's heights when the file states none (default "m");
-    a file that states a different one is refused.  The x, y of a ``.xyz`` file are in the
+    ``format``: by the file's extension when None (then a ``.txt``-like file of x y z points
+    on a grid is read as ``xyz``; ``Topography.format`` says which was read).  ``height_unit``:
+    the unit of the file's heights when the file states none (default "m"); a file that states
+    a different one is refused (``HeightUnitConflict``).  The x, y of a ``.xyz`` file are in the
     heights' unit.  ``rows`` = (ys, ye): only the columns j in [ys, ye) of the heights (read
     from the file alone for ``.npy`` and HDF5).  ``metadata_only``: shape, spacing and units
     without the heights where the format allows (``.npy``, HDF5).  Points not measured are NaN
     in the readers; ``fill``: "none" refuses them (the count and the fix named), "harmonic"
     fills them (``fill.harmonic``; the count in ``metadata["filled_points"]``; the whole map is
-    read for it, then the rows asked for are cut).  Raises ValueError (a
-    ``FormatError`` for a file that breaks its format), KeyError or OSError with the cause.
+    read for it, then the rows asked for are cut).
+
+    Errors start with the file's name and say the cause: KeyError for a missing dataset or
+    channel, OSError for a file that cannot be opened, else ValueError (a ``FormatError`` for a
+    file that breaks its format or that its reader fails on, whatever the reader raised).
     """
+    name = os.path.basename(path) or path
+    try:
+        return _read(path, format, dataset, height_unit, rows, metadata_only, fill)
+    except KeyError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - every reader failure, named and explained
+        raise _named(name, _format_name(path, format), exc) from exc
+
+
+def _format_name(path: str, format: str | None) -> str:
+    """The format of ``path`` for messages ("height" when it has none)."""
+    try:
+        return format_of(path, format)
+    except ValueError:
+        return "height"
+
+
+#: reader failures that are not ValueErrors, and the cause in words
+_CAUSES = ((struct.error, "its data end before the sizes its header announces (truncated?)"),
+           (EOFError, "it ends early (truncated?)"),
+           (ZeroDivisionError, "its header gives a size or scale of zero"),
+           (RecursionError, "its structure is nested too deeply (damaged?)"),
+           (zipfile.BadZipFile, "it is not a readable zip archive (damaged, or another format?)"),
+           (zlib.error, "its compressed data are damaged"),
+           (OverflowError, "a number or size in it is out of range (a damaged header?)"),
+           (MemoryError, "its header announces more data than fits in memory (a damaged header?)"),
+           (ImportError, "reading it needs a package that is not installed"))
+
+
+def _named(name: str, fmt: str, exc: Exception) -> Exception:
+    """``exc`` of reading file ``name`` as an error whose message starts with the name."""
+    text = str(exc) if str(exc).startswith(name) else f"{name}: {exc}"
+    if isinstance(exc, OSError):
+        return exc if exc.filename is not None else OSError(text)
+    if isinstance(exc, HeightUnitConflict):
+        return HeightUnitConflict(text, exc.stated)
+    if isinstance(exc, ValueError) and not isinstance(exc, UnicodeError):
+        # the class is kept: an UnsupportedFeature sends ``contactpetsc import`` to SurfaceTopography
+        return type(exc)(text) if type(exc) in (ValueError, FormatError, UnsupportedFeature) else ValueError(text)
+    cause = next((words for kind, words in _CAUSES if isinstance(exc, kind)),
+                 "its reader failed on it (damaged, or another format?)")
+    return FormatError(f"{name}: cannot be read as a {fmt} file: {cause} [{type(exc).__name__}: "
+                       f"{exc}]; check that the file is whole and of this format (or name its format)")
+
+
+def _read(path, format, dataset, height_unit, rows, metadata_only, fill) -> Topography:
     name = format_of(path, format)
     reader = FORMATS[name][0]
     if fill not in FILLS:
@@ -80,7 +137,9 @@ def read_topography(path: str, *, format: str | None = None, dataset: str = "hei
         topo = reader(path, dataset=dataset,
                       rows=None if metadata_only else ((0, None) if whole else (rows or (0, None))))
     else:
-        topo = reader(path, dataset=dataset)
+        topo = reader(path, dataset=dataset, sniff=format is None)
+    if min(topo.shape) < 1:
+        raise FormatError(f"an empty map ({' x '.join(map(str, topo.shape))} points)")
     if topo.dtype.kind not in "iuf":
         kind = {"b": "boolean", "c": "complex"}.get(topo.dtype.kind, "not numeric")
         raise ValueError(f"heights of dtype {topo.dtype} ({kind}); heights must be real numbers")
@@ -88,7 +147,8 @@ def read_topography(path: str, *, format: str | None = None, dataset: str = "hei
         metres_per(height_unit)
     if topo.height_unit is not None and height_unit is not None and \
             metres_per(topo.height_unit) != metres_per(height_unit):
-        raise ValueError(f"the file states its heights in {topo.height_unit!r}, not {height_unit!r}")
+        raise HeightUnitConflict(f"the file states its heights in {topo.height_unit!r}, not "
+                                 f"{height_unit!r}", topo.height_unit)
     unit = topo.height_unit or height_unit or "m"
     try:
         metres_per(unit)

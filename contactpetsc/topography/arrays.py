@@ -58,7 +58,8 @@ def spacing(value, name: str) -> float | None:
     if value is None:
         return None
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or value <= 0:
-        raise FormatError(f"{name} = {value!r}: a spacing is a number > 0, in m")
+        fix = ": write it without quotes" if isinstance(value, str) else ""
+        raise FormatError(f"{name} = {value!r}: a spacing is a number > 0, in m{fix}")
     return float(value)
 
 

@@ -50,6 +50,14 @@ def heights_are(value, where: str) -> str | None:
     return value.strip().lower()
 
 
+class HeightUnitConflict(ValueError):
+    """A file that states its heights in a unit other than the one given (``stated``)."""
+
+    def __init__(self, message: str, stated: str):
+        super().__init__(message)
+        self.stated = stated
+
+
 def header_text(raw: bytes) -> str:
     """Bytes of a header (NUL-padded, maybe Windows-1252: "µm") as text."""
     return raw.split(b"\0", 1)[0].decode("latin-1").strip()

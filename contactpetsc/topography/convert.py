@@ -22,7 +22,7 @@ import sys
 
 import numpy as np
 
-from . import FILLS, FORMATS, HEIGHT_UNITS, Topography, UnsupportedFeature, arrays, format_of, read_topography
+from . import FILLS, FORMATS, HEIGHT_UNITS, Topography, UnsupportedFeature, arrays, format_of, read_topography, warn_units
 from .fill import apply_fill
 from .units import canonical, metres_per
 
@@ -78,7 +78,7 @@ def read_with_surfacetopography(path: str, channel: int | None, height_unit: str
     heights = np.ma.filled(np.ma.asarray(topo.heights(), dtype=float), np.nan) * scale
     (lx, ly), (nx, ny) = topo.physical_sizes, heights.shape
     out = Topography(shape=(nx, ny), dtype=np.dtype(float), heights=heights, height_unit="m",
-                     dx=lx * scale / nx, dy=ly * scale / ny, lateral_unit="m",
+                     dx=lx * scale / nx, dy=ly * scale / ny, lateral_unit="m", unit_stated=info.unit is not None,
                      periodic=bool(topo.is_periodic), format=str(reader.format()),
                      metadata={"channel": f"{info.index} ({info.name})",
                                "converter": f"SurfaceTopography {SurfaceTopography.__version__}"})
@@ -130,6 +130,8 @@ def convert(source: str, destination: str, *, reader: str = "auto", format: str 
         topo.dx, topo.dy = spacing
     if topo.dx is None:
         raise ValueError(f"{source} does not give its spacing: give --dx (and --dy) in m")
+    warn_units(os.path.basename(source) or source, topo.shape, topo.dx, topo.dy, topo.heights,
+               stated=topo.unit_stated, given=height_unit is not None, keys=("--height-unit", "--dx"))
     if not np.isfinite(topo.heights).all():
         raise ValueError(f"{source}: some heights are Inf")
     topo.metadata.update(source=os.path.basename(source), source_format=topo.format)

@@ -4,9 +4,12 @@ magic is known).
 Extensions such as ``.dat`` are used for text exports and for instruments' binary files alike
 (Zygo MetroPro writes ``.dat``), so a file is taken as text only when its first ``HEAD``
 bytes hold no NUL and no control characters other than white space (text in UTF-8 or in a
-one-byte code page, "µm" in latin-1, passes).
+one-byte code page, "µm" in latin-1, passes), or when it starts with a UTF-16 byte-order mark
+(Windows' "Unicode" text, whose NULs are half of every character).
 """
 from __future__ import annotations
+
+import codecs
 
 from .base import UnsupportedFeature
 
@@ -27,20 +30,28 @@ def kind(head: bytes) -> str | None:
     for magic, name in MAGICS.items():
         if head.startswith(magic):
             return name
+    if head.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
+        return None
     if any(b < 32 and b not in _WHITE for b in head):     # NUL and other control bytes
         return "binary"
     return None
 
 
 def refuse_binary(path: str) -> None:
-    """FormatError (an ``UnsupportedFeature``: ``contactpetsc import`` hands the file on) when
-    ``path`` is not text; nothing when it cannot be opened (the reader says why)."""
+    """``check_text`` of the first bytes of ``path``; nothing when it cannot be opened (the
+    reader says why)."""
     try:
         with open(path, "rb") as f:
             head = f.read(HEAD)
     except OSError:
         return
-    name = kind(head)
+    check_text(head)
+
+
+def check_text(head: bytes) -> None:
+    """FormatError (an ``UnsupportedFeature``: ``contactpetsc import`` hands the file on) when a
+    file's first bytes ``head`` are not text."""
+    name = kind(head[:HEAD])
     if name is None:
         return
     looks = "" if name == "binary" else f" (looks like {name})"

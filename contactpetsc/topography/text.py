@@ -2,82 +2,120 @@
 
 Text matrix (``.txt``, ``.asc``, ``.csv``, ``.dat``): one line per row of the image, a row
 being one y (the first line y = 0), its columns along x: the number in line j, column i is
-h(x_i, y_j), so a matrix of ny lines and nx columns is an nx x ny map.  Numbers are separated
-by blanks, tabs, commas or semicolons.  Lines starting with ``#`` are comments; three of
-them, as Gwyddion's "ASCII data matrix" export writes them, are read: ``# Width: 10 µm`` and
-``# Height: 7.5 µm`` (the map's extent nx dx and ny dy) and ``# Value units: nm`` (the
-heights' unit).
+h(x_i, y_j), so ny lines of nx numbers are an nx x ny map.  Encoding, header keys (Gwyddion's
+export in its languages; an instrument's ``w= h=``, ``pixel size=``, ``height conversion
+factor (-> m)=``) and decimal separators: ``textdata``.  Spacing: Gwyddion's ``Width`` / nx
+and ``Height`` / ny, or the ``pixel size``; height unit: the conversion factor's, else
+``Value units``, else ``data unit``; a file with none of them states no unit.
 
-Point list (``.xyz``): one point per line, ``x y z`` (blanks, tabs or commas), in any order,
-on a uniform grid, each node of the grid listed once; x, y and z are in one unit
+A map has two or more columns and lines.  A single column or line, and without a header that
+declares a matrix two columns (x, z pairs) or two lines, are a line scan and refused: contact
+needs a 2-D map.  Three columns on four or more lines without a header are read as an x y z
+point list when their points make a full grid and the format was not named (``sniff``); named
+``text``, they are a matrix of three columns.
+
+Point list (``.xyz``): one point per line, ``x y z`` (blanks, tabs, commas or semicolons), in
+any order, on a uniform grid, each node of the grid listed once; x, y and z are in one unit
 (the heights' unit).
 """
 from __future__ import annotations
 
-import re
-
 import numpy as np
 
+from . import textdata
 from .base import FormatError, Topography
 
-_SEPARATORS = re.compile(r"[,;\s]+")
-_EXTENT = re.compile(r"^#\s*(Width|Height)\s*:\s*([-+0-9.eE]+)\s*(\S+)\s*$")
-_UNITS = re.compile(r"^#\s*Value units\s*:\s*(\S+)\s*$")
 
-
-def _numbers(path: str):
-    """(rows of floats, comment lines) of a text file."""
-    rows, comments = [], []
-    with open(path, encoding="utf-8", errors="replace") as f:
-        for n, line in enumerate(f, 1):
-            text = line.strip()
-            if not text:
-                continue
-            if text.startswith("#"):
-                comments.append(text)
-                continue
-            try:
-                rows.append([float(w) for w in _SEPARATORS.split(text) if w])
-            except ValueError:
-                raise FormatError(f"line {n} is not numbers: {text[:60]!r}") from None
-    if not rows:
-        raise FormatError("no numbers (an empty text file)")
-    return rows, comments
-
-
-def read_matrix(path: str, **_) -> Topography:
-    rows, comments = _numbers(path)
+def _lines(path: str):
+    """(header keys, rows of floats, metadata) of a text height file."""
+    with open(path, "rb") as f:
+        header, data = textdata.split_lines(textdata.decode(f.read()))
+    rows, comma = textdata.numbers(data)
     widths = {len(r) for r in rows}
     if len(widths) != 1:
         raise FormatError(f"lines of different lengths ({sorted(widths)} numbers): a text matrix "
                           f"has the same number of columns (x) on every line (y)")
+    return textdata.header_keys(header), rows, {"decimal comma": True} if comma else {}
+
+
+def _refuse_line_scan(ncols: int, nlines: int, declared: bool) -> None:
+    """FormatError for the shapes of a line scan (module docstring)."""
+    what = None
+    if ncols == 1:
+        what = f"a single column of {nlines} numbers: a line scan (one profile)"
+    elif nlines == 1:
+        what = f"a single line of {ncols} numbers: a line scan (one profile)"
+    elif ncols == 2 and not declared:
+        what = f"{nlines} lines of 2 numbers: a line scan (x, z pairs)"
+    elif nlines == 2 and not declared:
+        what = f"2 lines of {ncols} numbers and no header: a line scan (x and z lines)"
+    if what:
+        raise FormatError(f"{what}: contact needs a 2-D map (a matrix with one line per y and one "
+                          f"column per x, or an x y z point list on a full grid)")
+
+
+def read_matrix(path: str, sniff: bool = False, **_) -> Topography:
+    keys, rows, meta = _lines(path)
     matrix = np.array(rows, dtype=float)          # [j, i]: lines are y
     ny, nx = matrix.shape
-    if nx == 3 and ny > 3:
-        raise FormatError(f"3 columns on {ny} lines: an x y z point list? name the format xyz "
-                          f"(geometry.format); a text matrix has one column per x")
+    if nx == 3 and ny > 3 and not keys and sniff:    # named "text": a matrix of 3 columns
+        try:
+            return _points(matrix, meta)
+        except FormatError as exc:
+            raise FormatError(f"3 columns on {ny} lines and no header: not an x y z point list "
+                              f"({exc}); if it is a matrix of 3 columns (x), name the format "
+                              f"text (geometry.format, --format)") from None
+    _refuse_line_scan(nx, ny, bool(keys))
     topo = Topography(shape=(nx, ny), dtype=np.dtype(float), heights=matrix.T.copy(), format="text",
-                      metadata={"layout": "lines are y, columns are x"})
-    extent, units = {}, set()
-    for line in comments:
-        if m := _EXTENT.match(line):
-            extent[m.group(1)] = (float(m.group(2)), m.group(3))
-        elif m := _UNITS.match(line):
-            topo.height_unit = m.group(1)
-    if "Width" in extent:
-        (width, unit), (height, unit_y) = extent["Width"], extent.get("Height", extent["Width"])
-        units = {unit, unit_y}
-        if len(units) > 1:
-            raise FormatError(f"# Width and # Height in different units ({', '.join(sorted(units))})")
-        topo.dx, topo.dy, topo.lateral_unit = width / nx, height / ny, unit
+                      metadata=dict(meta, layout="lines are y, columns are x"))
+    _apply_header(topo, keys)
     return topo
 
 
+def _apply_header(topo: Topography, keys: dict) -> None:
+    """The grid, spacing [m] and height unit that the header keys give (module docstring)."""
+    nx, ny = topo.shape
+    for key, n in (("nx", nx), ("ny", ny)):
+        if key in keys and int(keys[key][0]) != n:
+            raise FormatError(f"the header announces {'w' if key == 'nx' else 'h'} = {keys[key][0]} "
+                              f"({'values per line' if key == 'nx' else 'lines'}), the file has {n}: "
+                              f"truncated, or lines wrapped?")
+    if ("width" in keys) != ("height" in keys):
+        given, missing = ("Width", "Height") if "width" in keys else ("Height", "Width")
+        raise FormatError(f"the header gives # {given} but not # {missing}: add '# {missing}: "
+                          f"<extent> <unit>' (the map's extent along {'y' if missing == 'Height' else 'x'})")
+    if "width" in keys:
+        topo.dx = textdata.length(*keys["width"], "Width") / nx
+        topo.dy = textdata.length(*keys["height"], "Height") / ny
+    elif "pixel_size" in keys:
+        topo.dx = topo.dy = textdata.length(*keys["pixel_size"], "pixel size")
+    topo.lateral_unit = "m" if topo.dx is not None else None
+    if "factor" in keys:
+        unit, factor = keys["factor"]
+        topo.heights *= textdata.number(factor)
+        topo.height_unit = unit
+    elif "value_units" in keys:
+        topo.height_unit = keys["value_units"][0]
+    elif "data_unit" in keys:
+        topo.height_unit = keys["data_unit"][0]
+    for key in ("channel", "data_unit"):
+        if key in keys:
+            topo.metadata[key] = keys[key][0]
+
+
 def read_xyz(path: str, **_) -> Topography:
-    rows, _ = _numbers(path)
-    if {len(r) for r in rows} != {3}:
-        raise FormatError("every line of an .xyz file holds three numbers: x y z")
-    x, y, z = np.array(rows, dtype=float).T
+    _, rows, meta = _lines(path)
+    ncols = len(rows[0])
+    if ncols != 3:
+        _refuse_line_scan(ncols, len(rows), False)
+        raise FormatError(f"{ncols} numbers on each line: every line of an x y z point list holds "
+                          f"three numbers, x y z")
+    return _points(np.array(rows, dtype=float), meta)
+
+
+def _points(points: np.ndarray, meta: dict) -> Topography:
+    """The map of x y z points (rows of ``points``) on a full uniform grid."""
+    x, y, z = points.T
     i, nx, dx = _grid_index(x, "x")
     j, ny, dy = _grid_index(y, "y")
     heights = np.full((nx, ny), np.nan)
@@ -92,7 +130,7 @@ def read_xyz(path: str, **_) -> Topography:
                           f"a height map needs every point of its grid")
     heights[i, j] = z
     return Topography(shape=(nx, ny), dtype=np.dtype(float), heights=heights, dx=dx, dy=dy,
-                      format="xyz", metadata={"x0": float(x.min()), "y0": float(y.min())})
+                      format="xyz", metadata=dict(meta, x0=float(x.min()), y0=float(y.min())))
 
 
 def _grid_index(c: np.ndarray, name: str):
