@@ -87,25 +87,6 @@ def test_psd_of_a_generated_surface_has_the_hurst_slope(coll, hurst):
     assert coll.max(abs(plots.rms_slope(h, dx, dx) / 0.2 - 1)) < 1e-10
 
 
-@pytest.mark.serial
-def test_psd_normalisation_is_parseval():
-    """A cosine of amplitude a has <h^2> = a^2 / 2 in two modes +-q0: C(q0) = a^2 Lx Ly / (16 pi^2)
-    (<h^2> = integral of C d^2q, dq^2 = (2 pi)^2 / (Lx Ly)); its ring also holds the two
-    empty modes (0, +-q0) of the half-plane, so the ring's mean is a third of it."""
-    n, dx, dy, a = 64, 1e-8, 2e-8, 3e-9
-    x = np.arange(n) * dx
-    h = np.tile(a * np.cos(2 * np.pi * 8 * x / (n * dx)), (n, 1))        # (ny, nx), along x
-    q, c = plots.radial_psd(h, dx, dy, bins=2000)
-    q0 = 2 * np.pi * 8 / (n * dx)
-    ring = np.argmin(abs(q - q0))
-    assert q[ring] == pytest.approx(q0, rel=2e-3)
-    lx, ly = n * dx, n * dy
-    # the half-plane's modes in the ring: (q0, 0), which carries the cosine, and (0, +-q0)
-    modes = [(2 * np.pi * i / lx, 2 * np.pi * j / ly) for i in range(n // 2 + 1) for j in range(-n // 2, n // 2)
-             if abs(np.hypot(2 * np.pi * i / lx, 2 * np.pi * j / ly) / q0 - 1) < 3e-3]
-    assert c[ring] == pytest.approx(a * a * lx * ly / (16 * np.pi ** 2) / len(modes), rel=1e-10)
-
-
 # -- the mean gap ----------------------------------------------------------------------------
 def test_mean_gap_of_a_hertz_contact_is_the_closed_form_over_the_window(coll, shared_tmp):
     """Over an isolated window, the mean displacement mean(g) - mean(h) + delta of a smooth sphere
