@@ -203,6 +203,45 @@ def test_plots_of_a_rough_run_without_field_files(coll, shared_tmp):
         assert image[..., :3].std() > 0.05, f"{name} is blank"
 
 
+MEASURED = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "examples", "scenes",
+                        "measured_surface.toml")
+
+
+def test_plots_of_a_measured_window(coll, shared_tmp):
+    """examples/scenes/measured_surface.toml (a non-periodic height file, 3 loaded steps) gets
+    the load curves and the spectrum as a periodic rough cell does: every planned plot is
+    written and drawn, and the load curves' axes name the window's nominal area."""
+    pytest.importorskip("matplotlib")
+    out = shared_tmp / "measured"
+    scene = scenes.load(MEASURED)
+    scene["output"].update(directory=str(out), plots=True)
+    runner.run(scene, comm=PETSc.COMM_WORLD)
+    names = set(plots.PLOTS)
+    assert coll.all(names == set(plots.planned(scene)) == {f for f in os.listdir(out) if f.endswith(".png")})
+    from matplotlib.image import imread
+    for name in names:
+        assert imread(out / name)[..., :3].std() > 0.05, f"{name} is blank"
+    curve = plots.read_csv(out / "curve.csv")
+    assert plots.loaded_steps(curve) == 3
+    for draw in (plots.contact_area, plots.mean_gap):
+        ax = draw(curve, 10e9, 0.04, window=True).axes[0]
+        assert "window's area" in ax.get_xlabel() and "F / (nx dx ny dy)" in ax.get_xlabel()
+    assert "nx dx ny dy" in plots.contact_area(curve, 10e9, window=True).axes[0].get_ylabel()
+
+
+@pytest.mark.serial
+def test_load_curves_are_planned_for_rough_surfaces_with_two_steps():
+    """Self-affine and file surfaces, periodic or an isolated window, get contact_area.png and
+    mean_gap.png when the path has two steps or more (plot_run also wants two loaded ones);
+    a smooth isolated sphere does not; psd.png is for rough surfaces."""
+    window = rough("x")
+    window["geometry"]["periodic"] = False
+    assert {"contact_area.png", "mean_gap.png", "psd.png"} <= set(plots.planned(window))
+    one = rough("x", values=(1e7,))
+    assert "contact_area.png" not in plots.planned(one) and "psd.png" in plots.planned(one)
+    assert plots.loaded_steps({"mean_pressure_Pa": np.array([0.0, 1e6, 2e6]), "converged": np.array([1, 1, 0])}) == 1
+
+
 @pytest.mark.serial
 def test_plot_step_is_the_most_pressed_unless_asked():
     assert plots.plot_step([1.0, 3.0, 2.0], [1, 1, 1]) == 2

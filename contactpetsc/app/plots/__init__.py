@@ -41,7 +41,7 @@ from .spectrum import power_spectrum, radial_psd, rms_slope
 __all__ = ["plot_run", "plot_step", "require", "read_csv", "is_number", "prefix", "load_approach",
            "contact_area", "mean_gap", "sphere_overlays", "pressure_map", "histograms", "psd",
            "radial_psd", "power_spectrum", "rms_slope", "pressure_limits", "histogram_range", "error_vs_time",
-           "BRANCH_STYLE", "ERRORS", "PLOTS", "planned"]
+           "BRANCH_STYLE", "ERRORS", "PLOTS", "planned", "loaded_steps"]
 
 MAP_PIXELS = 2048      #: a larger field is read every k-th node for the map and the histograms
 HEIGHT_NODES = 8192    #: the heights (spectrum, rms slope) are read whole up to this many per side

@@ -71,9 +71,12 @@ def histograms(pressure: np.ndarray, gap: np.ndarray, path: str | None = None, t
         ax.stairs(density, edges, fill=True, alpha=0.6, color="C0" if unit == "Pa" else "C2")
         ax.set_xlabel(f"{what} [{u}]")
         ax.set_ylabel(f"density [1/{u}] ({(values.size - out) / n:.3g} of the nodes)")
-        if out:
-            ax.text(0.98, 0.97, f"{out} outlier node(s) outside the {100 - PERCENTILE:g}th to\n{PERCENTILE:g}th percentiles left out "
-                    f"(extremes {values.min() / s:.4g}, {values.max() / s:.4g} {u})",
+        if out:   # name what the range leaves out, each end apart
+            ends = [f"{np.count_nonzero(values < lo)} below {lo / s:.4g} (to {values.min() / s:.4g})"
+                    if values.min() < lo else "",
+                    f"{np.count_nonzero(values > hi)} above {hi / s:.4g} (to {values.max() / s:.4g})"
+                    if values.max() > hi else ""]
+            ax.text(0.98, 0.97, f"outlier nodes left out [{u}]:\n" + "\n".join(e for e in ends if e),
                     transform=ax.transAxes, ha="right", va="top", fontsize=8, color="0.3")
         if log:
             ax.set_yscale("log")
@@ -112,10 +115,19 @@ def psd(heights: np.ndarray, dx: float, dy: float, periodic: bool = True, hurst:
                         textcoords="offset points", fontsize=8, color="0.4")
     ax.set_xlabel("wavevector |q| [1/m]")
     sl, ul = prefix([2 * np.pi / q.min()] if q.size else [1.0], "m")
-    top = ax.secondary_xaxis("top", functions=(lambda v: 2 * np.pi / (np.maximum(v, 1e-300) * sl),
-                                               lambda v: 2 * np.pi / (np.maximum(v, 1e-300) * sl)))
+    top = ax.secondary_xaxis("top", functions=(lambda v: _reciprocal(v, 2 * np.pi / sl),
+                                               lambda v: _reciprocal(v, 2 * np.pi / sl)))
     top.set_xlabel(f"wavelength 2π / |q| [{ul}]")
     ax.set_ylabel("C(q) [m⁴]  (<h²> = ∫ C d²q)")
     ax.set_title(title or "power spectrum of the surface")
     ax.legend(fontsize=8, loc="lower left")
     return save(fig, path)
+
+
+def _reciprocal(v, k: float):
+    """k / v, inf at v = 0 without numpy's warning: the wavelength axis's map to and from |q|
+    (matplotlib calls it on 0 and on tiny values while it sets the axis up)."""
+    v = np.array(v, float)
+    out = np.full(v.shape, np.inf)
+    np.divide(k, v, out=out, where=np.abs(v) > 1e-300 * abs(k))
+    return out

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 PERCENTILE = 99.5   #: the bulk: the values up to this percentile (and from 100 minus it)
-STANDOUT = 0.25     #: a tail is clipped only when it reaches this share of the bulk's span beyond it
+STANDOUT = 0.5      #: a tail is clipped only when it reaches this share of the bulk's span beyond it
 
 
 def _percentile(v: np.ndarray, share: float) -> float:
