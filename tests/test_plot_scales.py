@@ -43,7 +43,7 @@ def test_adhesive_scale_is_symmetric_and_robust_on_both_sides():
     p[9, 9] = -2e8                         # a tensile outlier
     lim = scales.pressure_limits(p)
     assert lim.diverging and lim.vmin == -lim.vmax
-    assert lim.vmax == pytest.approx(scales.robust_range(p[p > 0])[1])
+    assert lim.vmax == pytest.approx(scales.robust_max(p[p > 0]))
     assert lim.vmax < 2.01e6 and lim.extend == "both" and (lim.low, lim.high) == (-2e8, 1e9)
 
 
@@ -51,6 +51,10 @@ def test_histogram_range_leaves_out_the_tails_and_counts_them():
     v = np.concatenate([np.linspace(1.0, 2.0, 1000), [1e3]])
     lo, hi, out = scales.histogram_range(v)
     assert lo == pytest.approx(1.0, abs=0.01) and hi == pytest.approx(2.0, abs=0.01) and 1 <= out <= 11
+    # an adhesive field: many small tensile values do not make the compressive tail an outlier
+    adhesive = np.concatenate([-np.linspace(0.0, 5e7, 5000), np.linspace(1e8, 1e9, 300)])
+    assert scales.histogram_range(adhesive) == (-5e7, 1e9, 0)
+    assert scales.histogram_range(np.append(adhesive, 1e11))[1:] == (pytest.approx(1e9, rel=0.01), 1)
     assert scales.histogram_range([3.0, 3.0]) == (3.0, 3.0, 0)
     assert scales.histogram_range([]) == (0.0, 1.0, 0)
 

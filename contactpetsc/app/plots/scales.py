@@ -4,7 +4,7 @@ A contact pressure field has a few nodes far above the rest: the edge of a conta
 grid (a square-root singularity sampled at a node), a measured map's spike.  Scaled to its
 maximum, a map of 90 % contact shows the bulk in the palest colour and looks empty.  The
 limits here are a high percentile of the values instead where a tail stands out
-(``robust_range``); what lies beyond is drawn at the limit's colour (a colorbar with
+(``robust_max``, each sign apart); what lies beyond is drawn at the limit's colour (a colorbar with
 ``extend``) and named on the plot.
 """
 from __future__ import annotations
@@ -13,29 +13,22 @@ from dataclasses import dataclass
 
 import numpy as np
 
-PERCENTILE = 99.5   #: the bulk: the values up to this percentile (and from 100 minus it)
-STANDOUT = 0.5      #: a tail is clipped only when it reaches this share of the bulk's span beyond it
+PERCENTILE = 99.5   #: the bulk: the values up to this percentile
+STANDOUT = 0.5      #: a tail is clipped only where it reaches this share of the bulk's end beyond it
 
 
-def _percentile(v: np.ndarray, share: float) -> float:
-    """numpy's "higher" (below 50 %: "lower") percentile, a value of the sample: with fewer than
-    1 / (1 - PERCENTILE / 100) = 200 values the bulk's ends are the extremes."""
-    return float(np.percentile(v, share, method="higher" if share >= 50 else "lower"))
-
-
-def robust_range(values) -> tuple[float, float]:
-    """(lo, hi): the range of the finite ``values`` without their outliers.  The bulk spans the
-    (100 - PERCENTILE)-th to the PERCENTILE-th percentile, [b_lo, b_hi]; an end is the bulk's
-    where a value lies more than STANDOUT * max(b_hi - b_lo, |b_lo|, |b_hi|) beyond it, else
-    the extreme value (a smooth tail, a Hertzian peak, is not clipped for nothing).  (0, 0) for
-    no values."""
+def robust_max(values) -> float:
+    """The largest of the positive ``values`` [any unit] without outliers: the bulk's end b,
+    their PERCENTILE-th percentile (numpy's "higher" method, a value of the sample: with fewer
+    than 1 / (1 - PERCENTILE / 100) = 200 values their maximum), where the maximum exceeds
+    (1 + STANDOUT) b; else the maximum itself (a smooth tail, a Hertzian peak, is not clipped
+    for nothing).  0 for no values."""
     v = np.asarray(values, float).ravel()
     v = v[np.isfinite(v)]
     if v.size == 0:
-        return 0.0, 0.0
-    lo, hi = _percentile(v, 100 - PERCENTILE), _percentile(v, PERCENTILE)
-    reach = STANDOUT * max(hi - lo, abs(hi), abs(lo))
-    return (lo if v.min() < lo - reach else float(v.min())), (hi if v.max() > hi + reach else float(v.max()))
+        return 0.0
+    b, top = float(np.percentile(v, PERCENTILE, method="higher")), float(v.max())
+    return b if top > (1.0 + STANDOUT) * b else top
 
 
 @dataclass(frozen=True)
@@ -57,17 +50,17 @@ class Limits:
 
 def pressure_limits(pressure) -> Limits:
     """The colour scale of a pressure field p [Pa], compressive positive.  Without tension
-    (p >= 0 everywhere): [0, top], top the upper end of the ``robust_range`` of the contact
-    pressures p > 0.  With tension (adhesion): a diverging scale [-top, top] centred at zero,
-    top the larger of that end for p over p > 0 and for -p over p < 0 (each side's outliers
-    clipped alike; zero stays in the middle).  ``extend`` says which ends clip a value; a field
+    (p >= 0 everywhere): [0, top], top the ``robust_max`` of the contact pressures p > 0.
+    With tension (adhesion): a diverging scale [-top, top] centred at zero, top the larger of
+    the ``robust_max`` of p over p > 0 and of -p over p < 0 (each side's outliers clipped
+    alike; zero stays in the middle).  ``extend`` says which ends clip a value; a field
     without pressure gets [0, 1]."""
     p = np.asarray(pressure, float)
     p = p[np.isfinite(p)]
     high = float(p.max()) if p.size else 0.0
     low = float(p.min()) if p.size else 0.0
     diverging = low < 0
-    top = max(robust_range(p[p > 0])[1], robust_range(-p[p < 0])[1])
+    top = max(robust_max(p[p > 0]), robust_max(-p[p < 0]))
     if not top > 0:
         top = 1.0
     over, under = high > top, diverging and low < -top
@@ -77,12 +70,15 @@ def pressure_limits(pressure) -> Limits:
 
 
 def histogram_range(values) -> tuple[float, float, int]:
-    """(lo, hi, n_out): the ``robust_range`` of ``values``, the span of a histogram whose bins the
-    bulk fills, and the number of values outside it, which the histogram leaves out and names.
-    All values equal: that value twice (numpy widens it); none: (0, 1, 0)."""
+    """(lo, hi, n_out): the span of a histogram of ``values`` whose bins the bulk fills, each
+    sign apart as on the pressure map (an adhesive field's many small tensile values must not
+    make its compressive tail an outlier): hi the ``robust_max`` of the positive values (else
+    the maximum), lo minus that of the negative ones (else the minimum); and the number of
+    values outside it, which the histogram leaves out and names.  None: (0, 1, 0)."""
     v = np.asarray(values, float).ravel()
     v = v[np.isfinite(v)]
     if v.size == 0:
         return 0.0, 1.0, 0
-    lo, hi = robust_range(v)
+    hi = robust_max(v[v > 0]) if np.any(v > 0) else float(v.max())
+    lo = -robust_max(-v[v < 0]) if np.any(v < 0) else float(v.min())
     return lo, hi, int(np.count_nonzero((v < lo) | (v > hi)))
