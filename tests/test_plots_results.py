@@ -87,25 +87,6 @@ def test_psd_of_a_generated_surface_has_the_hurst_slope(coll, hurst):
     assert coll.max(abs(plots.rms_slope(h, dx, dx) / 0.2 - 1)) < 1e-10
 
 
-@pytest.mark.serial
-def test_psd_normalisation_is_parseval():
-    """A cosine of amplitude a has <h^2> = a^2 / 2 in two modes +-q0: C(q0) = a^2 Lx Ly / (16 pi^2)
-    (<h^2> = integral of C d^2q, dq^2 = (2 pi)^2 / (Lx Ly)); its ring also holds the two
-    empty modes (0, +-q0) of the half-plane, so the ring's mean is a third of it."""
-    n, dx, dy, a = 64, 1e-8, 2e-8, 3e-9
-    x = np.arange(n) * dx
-    h = np.tile(a * np.cos(2 * np.pi * 8 * x / (n * dx)), (n, 1))        # (ny, nx), along x
-    q, c = plots.radial_psd(h, dx, dy, bins=2000)
-    q0 = 2 * np.pi * 8 / (n * dx)
-    ring = np.argmin(abs(q - q0))
-    assert q[ring] == pytest.approx(q0, rel=2e-3)
-    lx, ly = n * dx, n * dy
-    # the half-plane's modes in the ring: (q0, 0), which carries the cosine, and (0, +-q0)
-    modes = [(2 * np.pi * i / lx, 2 * np.pi * j / ly) for i in range(n // 2 + 1) for j in range(-n // 2, n // 2)
-             if abs(np.hypot(2 * np.pi * i / lx, 2 * np.pi * j / ly) / q0 - 1) < 3e-3]
-    assert c[ring] == pytest.approx(a * a * lx * ly / (16 * np.pi ** 2) / len(modes), rel=1e-10)
-
-
 # -- the mean gap ----------------------------------------------------------------------------
 def test_mean_gap_of_a_hertz_contact_is_the_closed_form_over_the_window(coll, shared_tmp):
     """Over an isolated window, the mean displacement mean(g) - mean(h) + delta of a smooth sphere
@@ -241,6 +222,45 @@ def test_plots_of_a_rough_run_without_field_files(coll, shared_tmp):
     for name in names:
         image = imread(out / name)
         assert image[..., :3].std() > 0.05, f"{name} is blank"
+
+
+MEASURED = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "examples", "scenes",
+                        "measured_surface.toml")
+
+
+def test_plots_of_a_measured_window(coll, shared_tmp):
+    """examples/scenes/measured_surface.toml (a non-periodic height file, 3 loaded steps) gets
+    the load curves and the spectrum as a periodic rough cell does: every planned plot is
+    written and drawn, and the load curves' axes name the window's nominal area."""
+    pytest.importorskip("matplotlib")
+    out = shared_tmp / "measured"
+    scene = scenes.load(MEASURED)
+    scene["output"].update(directory=str(out), plots=True)
+    runner.run(scene, comm=PETSc.COMM_WORLD)
+    names = set(plots.PLOTS)
+    assert coll.all(names == set(plots.planned(scene)) == {f for f in os.listdir(out) if f.endswith(".png")})
+    from matplotlib.image import imread
+    for name in names:
+        assert imread(out / name)[..., :3].std() > 0.05, f"{name} is blank"
+    curve = plots.read_csv(out / "curve.csv")
+    assert plots.loaded_steps(curve) == 3
+    for draw in (plots.contact_area, plots.mean_gap):
+        ax = draw(curve, 10e9, 0.04, window=True).axes[0]
+        assert "window's area" in ax.get_xlabel() and "F / (nx dx ny dy)" in ax.get_xlabel()
+    assert "nx dx ny dy" in plots.contact_area(curve, 10e9, window=True).axes[0].get_ylabel()
+
+
+@pytest.mark.serial
+def test_load_curves_are_planned_for_rough_surfaces_with_two_steps():
+    """Self-affine and file surfaces, periodic or an isolated window, get contact_area.png and
+    mean_gap.png when the path has two steps or more (plot_run also wants two loaded ones);
+    a smooth isolated sphere does not; psd.png is for rough surfaces."""
+    window = rough("x")
+    window["geometry"]["periodic"] = False
+    assert {"contact_area.png", "mean_gap.png", "psd.png"} <= set(plots.planned(window))
+    one = rough("x", values=(1e7,))
+    assert "contact_area.png" not in plots.planned(one) and "psd.png" in plots.planned(one)
+    assert plots.loaded_steps({"mean_pressure_Pa": np.array([0.0, 1e6, 2e6]), "converged": np.array([1, 1, 0])}) == 1
 
 
 @pytest.mark.serial

@@ -137,9 +137,9 @@ _SCHEMA = {
         "length_unit": _k(str, "m", "", "the length unit ParaView shows (XDMF geometry, approach as time, "
                           "gap, displacement, heights); the HDF5 data stay in metres", choices=("m", "um", "nm")),
         "plots": _k(bool, False, "", "save the plots (needs matplotlib; docs/outputs.md): load_approach.png "
-                    "(jumps, pull-off, closed forms on spheres), contact_area.png and mean_gap.png (periodic "
-                    "cells), pressure_map.png and histograms.png (the plotted step), psd.png (rough "
-                    "surfaces), error_vs_time.png"),
+                    "(jumps, pull-off, closed forms on spheres), contact_area.png and mean_gap.png (rough "
+                    "surfaces, periodic or a window, and periodic cells; two loaded steps or more), pressure_map.png "
+                    "and histograms.png (the plotted step), psd.png (rough surfaces), error_vs_time.png"),
         "plot_step": _k(int, None, "", "the step whose pressure map and distributions are plotted "
                         "(default: the step at the largest approach, the most pressed)", (1, 2**31 - 1, True, True)),
         "atom_forces": _k(bool, False, "", "write atom_forces.csv: the force on each atom of a tip "

@@ -8,13 +8,16 @@ saves, in the same directory (docs/outputs.md, "Plots"):
 - ``load_approach.png``: force against approach, loading and unloading apart, jumps and the
   pull-off force; on smooth spheres the closed forms (Hertz; DMT, JKR, Maugis-Dugdale) and,
   with adhesion, Greenwood's alpha* and W* on the top and right axes (``curves``).
-- ``contact_area.png`` and ``mean_gap.png`` (periodic cells): A/A0 against p/E* with the
-  small-load laws of Persson and Bush-Gibson-Thomas, and the mean gap against log p/E*.
+- ``contact_area.png`` and ``mean_gap.png`` (rough surfaces, self-affine or from a file, and
+  periodic cells; at least two steps with load): A/A0 against p/E* with the small-load laws of
+  Persson and Bush-Gibson-Thomas, and the mean gap against log p/E*; on an isolated window A0
+  is the window's area nx dx ny dy and p = F / A0.
 - ``pressure_map.png`` and ``histograms.png``: the pressure, and the pressure and gap
   distributions, of the plotted step: ``output.plot_step``, by default the step at the largest
-  approach (``fields``).
+  approach (``fields``), on scales that an outlier node does not set (``scales``).
 - ``psd.png`` (rough surfaces: self-affine or from a file): the radially averaged power
-  spectrum of the heights, with the generator's slope -2(1 + H) for a self-affine one.
+  spectrum of the heights (``spectrum``; a non-periodic map Hann-windowed), with the
+  generator's slope -2(1 + H) for a self-affine one.
 - ``error_vs_time.png``: the error of every iteration against run time and FFT pairs, one colour
   per step (``history``).
 
@@ -30,12 +33,15 @@ import numpy as np
 
 from .common import is_number, prefix, read_csv, require
 from .curves import BRANCH_STYLE, contact_area, load_approach, mean_gap, sphere_overlays
-from .fields import histograms, pressure_map, psd, radial_psd, rms_slope
+from .fields import histograms, pressure_map, psd
 from .history import ERRORS, error_vs_time
+from .scales import histogram_range, pressure_limits
+from .spectrum import power_spectrum, radial_psd, rms_slope
 
 __all__ = ["plot_run", "plot_step", "require", "read_csv", "is_number", "prefix", "load_approach",
            "contact_area", "mean_gap", "sphere_overlays", "pressure_map", "histograms", "psd",
-           "radial_psd", "rms_slope", "error_vs_time", "BRANCH_STYLE", "ERRORS", "PLOTS", "planned"]
+           "radial_psd", "power_spectrum", "rms_slope", "pressure_limits", "histogram_range", "error_vs_time",
+           "BRANCH_STYLE", "ERRORS", "PLOTS", "planned", "loaded_steps"]
 
 MAP_PIXELS = 2048      #: a larger field is read every k-th node for the map and the histograms
 HEIGHT_NODES = 8192    #: the heights (spectrum, rms slope) are read whole up to this many per side
@@ -43,17 +49,23 @@ JUMP_NUMBERS = ("approach_before_m", "approach_after_m", "force_before_N", "forc
 #: every file ``plot_run`` may write (the run directory's own files, docs/outputs.md)
 PLOTS = ("load_approach.png", "contact_area.png", "mean_gap.png", "pressure_map.png", "histograms.png",
          "psd.png", "error_vs_time.png")
+ROUGH = ("self-affine", "file")   #: the geometry kinds whose heights are a rough surface
+LOAD_CURVES = ("contact_area.png", "mean_gap.png")
 
 
 def planned(scene: dict | None) -> tuple:
     """The plots a run of ``scene`` draws (those whose data it writes: ``plot_run`` leaves out a
-    plot whose data a directory lacks); all of them when the scene is not known."""
+    plot whose data a directory lacks, such as the load curves of a path with fewer than two
+    loaded steps); all of them when the scene is not known.  The load curves: rough surfaces
+    (periodic or an isolated window) and periodic cells, with two steps or more; the spectrum:
+    rough surfaces."""
     if scene is None:
         return PLOTS
     g = scene["geometry"]
-    return tuple(name for name in PLOTS if not (
-        name in ("contact_area.png", "mean_gap.png") and not g["periodic"]
-        or name == "psd.png" and g["kind"] not in ("self-affine", "file")))
+    rough = g["kind"] in ROUGH
+    curves = (rough or g["periodic"]) and len(scene["protocol"]["values"]) >= 2
+    return tuple(name for name in PLOTS if not (name in LOAD_CURVES and not curves
+                                                or name == "psd.png" and not rough))
 
 
 def plot_step(approach, converged, requested: int | None = None) -> int:
@@ -72,6 +84,13 @@ def plot_step(approach, converged, requested: int | None = None) -> int:
         return int(approach.size)
     best = np.where(ok, approach, -np.inf)
     return int(np.flatnonzero(best == best.max())[-1]) + 1
+
+
+def loaded_steps(curve: dict) -> int:
+    """The converged steps of ``curve.csv`` that carry a compressive load (mean pressure > 0):
+    the points of the load curves, which need two."""
+    ok = np.asarray(curve.get("converged", np.ones(len(curve["mean_pressure_Pa"]))), float) == 1
+    return int(np.count_nonzero(ok & (np.asarray(curve["mean_pressure_Pa"], float) > 0)))
 
 
 def read_fields(directory: str, step: int) -> dict | None:
@@ -137,15 +156,19 @@ def plot_run(directory: str, fields: dict | None = None, step: int | None = None
     draw("load_approach.png", load_approach, curve, jumps, pull_off, title=f"{name}: load against approach",
          overlays=sphere_overlays(scene, curve["approach_m"]) if scene else [])
     g = scene["geometry"] if scene else {}
+    periodic = bool(g.get("periodic", True))
     heights = fields.get("heights") if fields else None
-    slope = rms_slope(heights, fields["hdx"], fields["hdy"]) if heights is not None else g.get("rms_slope")
-    if "contact_area.png" in wanted and scene and np.any(curve["mean_pressure_Pa"] > 0):
+    slope = (rms_slope(heights, fields["hdx"], fields["hdy"], periodic) if heights is not None
+             else g.get("rms_slope"))
+    if LOAD_CURVES[0] in wanted and scene and loaded_steps(curve) >= 2:
         from ..scenes import e_star as e_star_of   # E* or E, nu (the scene module needs PETSc)
-        e_star = e_star_of(scene)
-        draw("contact_area.png", contact_area, curve, e_star, slope, title=f"{name}: contact area against load")
+        e_star, window = e_star_of(scene), not periodic
+        draw("contact_area.png", contact_area, curve, e_star, slope, window=window,
+             title=f"{name}: contact area against load")
         if np.any(np.isfinite(curve.get("mean_gap_m", np.nan))):   # not in runs of older versions
             h_rms = float(np.std(heights)) if heights is not None else g.get("rms_height")
-            draw("mean_gap.png", mean_gap, curve, e_star, h_rms, title=f"{name}: mean gap against load")
+            draw("mean_gap.png", mean_gap, curve, e_star, h_rms, window=window,
+                 title=f"{name}: mean gap against load")
     if fields is not None:
         row = chosen - 1
         what = (f"{name}, step {int(curve['step'][row])}: δ = {curve['approach_m'][row]:.4g} m, "

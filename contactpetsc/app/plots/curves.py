@@ -135,11 +135,21 @@ def _overlay(ax, overlays, sx: float, sy: float) -> None:
         ax.plot(np.asarray(d) / sx, np.asarray(f) / sy, lw=1.0, label=label, zorder=1, **style)
 
 
+def load_axis_label(window: bool) -> str:
+    """The label of the load axis p / E*: on an isolated window (``window``) p is the force
+    over the window's nominal area nx dx ny dy, which ``curve.csv``'s mean_pressure_Pa is."""
+    return ("p / E*,  p = F / (nx dx ny dy): force over the window's area" if window
+            else "p / E*  (mean pressure over the effective modulus)")
+
+
 def contact_area(curve: dict, e_star: float, rms_slope: float | None = None, path: str | None = None,
-                 title: str = ""):
+                 title: str = "", window: bool = False):
     """A/A0 (``contact_fraction``) against p / E* (``mean_pressure_Pa``), log-log, with the
     small-load laws A/A0 = kappa p / (E* h'_rms) of Persson and of Bush, Gibson & Thomas
-    (``closed_forms.KAPPA_*``) for the surface's rms slope h'_rms; returns the Figure."""
+    (``closed_forms.KAPPA_*``) for the surface's rms slope h'_rms; returns the Figure.
+    ``window``: an isolated window, whose nominal area A0 is nx dx ny dy (the axes say so).
+    The laws hold there too (they count the area each asperity's load makes, whatever the
+    nominal area), as long as the window holds many contact spots away from its edge."""
     fig, ax = figure()
     x, y = curve["mean_pressure_Pa"] / e_star, curve["contact_fraction"]
     keep = (x > 0) & (y > 0) & (curve.get("converged", np.ones_like(x)) == 1)
@@ -153,17 +163,18 @@ def contact_area(curve: dict, e_star: float, rms_slope: float | None = None, pat
         for name, kappa, style in (("Persson", cf.KAPPA_PERSSON, "--"), ("Bush-Gibson-Thomas", cf.KAPPA_BGT, ":")):
             ax.loglog(xs, cf.area_fraction_small_load(xs * e_star, e_star, rms_slope, kappa), style, color="0.3",
                       label=f"{name}: κ p / (E* h'rms), κ = {kappa:.3f}")
-    ax.set_xlabel("p / E*  (mean pressure over the effective modulus)")
-    ax.set_ylabel("A / A0  (contact area fraction)")
+    ax.set_xlabel(load_axis_label(window))
+    ax.set_ylabel("A / A0,  A0 = nx dx ny dy: the window's area" if window else "A / A0  (contact area fraction)")
     ax.set_title(title or "contact area against load")
     ax.legend(fontsize=8, title=f"h'rms = {rms_slope:.4g}" if rms_slope else None, title_fontsize=8)
     return save(fig, path)
 
 
 def mean_gap(curve: dict, e_star: float, rms_height: float | None = None, path: str | None = None,
-             title: str = ""):
+             title: str = "", window: bool = False):
     """The mean gap (``mean_gap_m``, error bars ``mean_gap_error_m``) against p / E* on a log
-    axis (Persson's regime: p ~ exp(-u / u0), a straight line); returns the Figure."""
+    axis (Persson's regime: p ~ exp(-u / u0), a straight line); returns the Figure.
+    ``window``: an isolated window, p and the mean over its nodes (the axes say so)."""
     fig, ax = figure()
     x, u = curve["mean_pressure_Pa"] / e_star, curve["mean_gap_m"]
     err = curve.get("mean_gap_error_m", np.zeros_like(u))
@@ -175,8 +186,8 @@ def mean_gap(curve: dict, e_star: float, rms_height: float | None = None, path: 
     if rms_height:
         f = su / rms_height
         ax.secondary_yaxis("right", functions=(lambda v: v * f, lambda v: v / f)).set_ylabel("ū / h_rms")
-    ax.set_xlabel("p / E*  (mean pressure over the effective modulus)")
-    ax.set_ylabel(f"mean gap ū [{uu}]")
+    ax.set_xlabel(load_axis_label(window))
+    ax.set_ylabel(f"mean gap ū [{uu}]" + (", over the window's nodes" if window else ""))
     ax.set_title(title or "mean gap against load")
     ax.legend(fontsize=8)
     return save(fig, path)
