@@ -54,10 +54,10 @@ CLI_FAULT = textwrap.dedent("""
     from contactpetsc.app import builder, cli
 
     build = builder.build_heights
-    def build_heights(scene, grid):   # a fault on rank 1 only, while the others go on to solve
+    def build_heights(scene, grid, *rest):   # a fault on rank 1 only, while the others go on to solve
         if MPI.COMM_WORLD.Get_rank() == 1:
             raise OSError("injected fault on rank 1")
-        return build(scene, grid)
+        return build(scene, grid, *rest)
 
     builder.build_heights = build_heights
     sys.exit(cli.main(sys.argv[1:]))
