@@ -128,6 +128,7 @@ class ContactProblem(NestedIteration, Backtracking, JointLoadNewton, ContactLoad
         self._joint = False       # load control by the joint Newton step (contact_load.py)
         self._last_gap_error = self._prev_gap_error = None   # the forcing's error history
         self._tangent = None      # M 1 of the last joint Newton step (full rows): the path's predictor
+        self._warned_joint = False   # the warning of a Krylov type that turns the joint step off
         self._h_min = None
 
     # -- set-up ------------------------------------------------------------------
@@ -182,6 +183,7 @@ class ContactProblem(NestedIteration, Backtracking, JointLoadNewton, ContactLoad
         self._nested_options(opts)
         self.forcing = opts.getBool("newton_ksp_forcing", code_default("contact", "newton_ksp_forcing"))
         self.load_joint = opts.getBool("load_joint", code_default("contact", "load_joint"))
+        self.load_joint_given = opts.hasName("load_joint")
         self.slope_warm = opts.getBool("slope_warm_start", code_default("contact", "slope_warm_start"))
         snes.setFromOptions()
         if opts.getString("snes_linesearch_type", NEWTON_LINESEARCH) == "basic":
@@ -407,7 +409,7 @@ class ContactProblem(NestedIteration, Backtracking, JointLoadNewton, ContactLoad
             # with a hardness W(delta) is a staircase: the outer iteration on delta handles it;
             # it also takes over where the joint iteration fails (from the last converged state)
             converged, reason = False, None
-            if self.load_joint and not np.isfinite(self.hardness):
+            if self._load_by_joint():
                 start = self._pressure.copy()
                 converged, reason = self._solve_load_joint(mean_pressure)
                 if not converged:
