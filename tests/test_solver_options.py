@@ -204,3 +204,21 @@ def test_another_ksp_type_under_load_control_warns_once_with_its_cost(coll):
     assert coll.all(not rank0 or ("-popt_kmin_ksp_type minres" in said[0] and "4x the FFT pairs" in said[0]))
     kept = _rough_load("popt_kjoint_", {"ksp_type": "minres", "load_joint": True}, loads=(0.004, 0.006))
     assert coll.all(kept[:2] == default[:2] and not kept[2]), (kept, default)
+
+
+@pytest.mark.parametrize("law, key, kind", [(None, "snes_type", "vinewtonssls"), (None, "snes_type", "newtonls"),
+                                            (LJ, "snes_type", "newtonls"), (HARD, "ptc_snes_type", "vinewtonssls")],
+                         ids=["contact-ssls", "contact-newtonls", "lj", "hardwall-ptc"])
+def test_snes_types_other_than_vinewtonrsls_are_refused_before_anything_is_built(coll, law, key, kind):
+    """The problems are variational inequalities on the reduced space (base.VI_SNES_WHY): another
+    SNES type is refused with the option, its value and the accepted type, before the problem has
+    a SNES, and by describe_solver (the CLI's --dry-run)."""
+    grid = SurfaceGrid(16, 16, 0.25, periodic=False)
+    h = sphere(grid, 20.0)
+    prefix = f"popt_type_{key}_{kind}_"
+    words = [f"-{prefix}{key} {kind}", "accepted: vinewtonrsls", "variational inequality"]
+    pb = make_problem(grid, h, 1.0, law, prefix=prefix, petsc_options={key: kind})
+    coll.raises(ValueError, words, pb.solve, approach=0.1)
+    assert pb._snes is None and _left(prefix) == []
+    coll.raises(ValueError, words, describe_solver, law, prefix=prefix, petsc_options={key: kind})
+    assert _left(prefix) == []

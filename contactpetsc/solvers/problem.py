@@ -140,6 +140,7 @@ class ContactProblem(NestedIteration, Backtracking, JointLoadNewton, ContactLoad
         grid = self.grid
         print_help("contact", self.prefix, self.grid.comm)
         # checked before any PETSc object exists: a refusal leaves nothing half-built
+        self.check_snes_options(self.prefix)
         opts = PETSc.Options(self.prefix)
         self.tol = check_tolerance(opts.getReal("tol", self._default("tol")),
                                    f"tol (-{self.prefix}tol)")
