@@ -25,9 +25,10 @@ iteration on delta around displacement-controlled solves (docs/formulation.md,
 delta is the approach to the mean plane of the deformed surface and full
 contact is singular under displacement control: load control handles it.
 
-Options (prefix ``contact_`` by default; every PETSc option of the SNES, KSP
-and PC works) are read after the code defaults; the package's own are
-registered in ``options.py`` (docs/formulation.md, "Options").
+Options (prefix ``contact_`` by default; every PETSc option of the SNES, KSP and PC
+works, but a SNES type other than ``vinewtonrsls``: ``base.check_snes_options``) are read
+after the code defaults; the package's own are registered in ``options.py``
+(docs/formulation.md, "Options").
 """
 from __future__ import annotations
 
