@@ -93,3 +93,17 @@ def test_help_lists_the_package_options_of_the_scene_before_anything_is_solved(s
     assert run.returncode == 0, run.stderr
     table = "adhesion" if scene else "contact"
     assert f"contactpetsc {table} options" in run.stdout and f"  {option} <" in run.stdout, run.stdout[-2000:]
+
+
+@pytest.mark.serial
+@pytest.mark.parametrize("scene, option", [(None, "-contact_snes_type vinewtonssls"),
+                                           ("examples/scenes/adhesive_sphere.toml", "-adhesion_ptc_snes_type newtonls")])
+def test_unsupported_snes_types_are_refused_before_the_run_naming_the_option(tmp_path, scene, option):
+    """The run stops before its first step (no curve.csv) with the option, the value and the
+    accepted type (docs/robustness.md, "Bad input"); the other prefixes and types through the
+    API: test_solver_options.py."""
+    path = os.path.join(ROOT, scene) if scene else str(hertz_scene(tmp_path))
+    run = subprocess.run(CLI + ["run", path, "--output", str(tmp_path / "out")] + option.split(),
+                         env=ENV, capture_output=True, text=True, timeout=120)
+    assert run.returncode != 0 and not (tmp_path / "out" / "curve.csv").exists()
+    assert option in run.stderr and "accepted: vinewtonrsls" in run.stderr, run.stderr[-2000:]

@@ -163,3 +163,62 @@ def test_views_name_the_python_contexts(coll, shared_tmp, choice):
     with open(path) as f:
         text = f.read()
     assert ("AdhesivePC" in text) if choice == "spectral" else ("AdhesiveMLMIPC" in text and "levels" in text)
+
+
+def _rough_load(prefix, options, loads=(0.004,)):
+    """(Newton steps, FFT pairs, warnings of the solver options) of load-controlled solves of a
+    rough periodic 64^2 cell, with ``options`` under ``prefix``."""
+    import warnings
+    from contactpetsc.geometry.surfaces import self_affine
+    from contactpetsc.solvers.contact_load import SolverOptionWarning
+    grid = SurfaceGrid(64, 64, 1.0 / 64)
+    h = self_affine(grid, hurst=0.8, seed=5, rms_slope=0.1, rolloff_wavelength=0.25, short_cutoff_wavelength=4 / 64)
+    with warnings.catch_warnings(record=True) as caught, ContactProblem(grid, h, 1.0, prefix=prefix, tol=1e-9,
+                                                                        petsc_options=options) as pb:
+        warnings.simplefilter("always")
+        states = [pb.solve(mean_pressure=p) for p in loads]
+        newton, pairs = sum(s.newton_iterations for s in states), sum(s.fft_pairs for s in states)
+    assert _left(prefix) == []
+    return newton, pairs, [str(w.message) for w in caught if issubclass(w.category, SolverOptionWarning)]
+
+
+def test_ksp_type_cg_is_the_default_load_control(coll):
+    """-<prefix>ksp_type cg names the default's own method: the same Newton steps and FFT pairs
+    (SNES VI resets its KSP from the database; it put plain CG in place of load control's
+    projected CG, 18x the Newton steps at 128^2), and no warning."""
+    default = _rough_load("popt_kdef_", {}, loads=(0.004, 0.006))
+    cg = _rough_load("popt_kcg_", {"ksp_type": "cg"}, loads=(0.004, 0.006))
+    assert coll.all(cg[:2] == default[:2]), (cg, default)
+    assert coll.all(default[0] < 40 and not cg[2])
+
+
+def test_another_ksp_type_under_load_control_warns_once_with_its_cost(coll):
+    """minres cannot be the joint step's projected CG: the outer iteration runs it, at most
+    4x the default's FFT pairs that the warning states, which rank 0 gives once, naming the
+    option; -<prefix>load_joint true keeps the joint step (the default's counts)."""
+    default = _rough_load("popt_kref_", {}, loads=(0.004, 0.006))
+    newton, pairs, said = _rough_load("popt_kmin_", {"ksp_type": "minres"}, loads=(0.004, 0.006))
+    assert coll.all(pairs <= 4 * default[1]), (pairs, default)
+    rank0 = coll.comm.Get_rank() == 0
+    assert coll.all(len(said) == (1 if rank0 else 0)), said
+    assert coll.all(not rank0 or ("-popt_kmin_ksp_type minres" in said[0] and "4x the FFT pairs" in said[0]))
+    kept = _rough_load("popt_kjoint_", {"ksp_type": "minres", "load_joint": True}, loads=(0.004, 0.006))
+    assert coll.all(kept[:2] == default[:2] and not kept[2]), (kept, default)
+
+
+@pytest.mark.parametrize("law, key, kind", [(None, "snes_type", "vinewtonssls"), (None, "snes_type", "newtonls"),
+                                            (LJ, "snes_type", "newtonls"), (HARD, "ptc_snes_type", "vinewtonssls")],
+                         ids=["contact-ssls", "contact-newtonls", "lj", "hardwall-ptc"])
+def test_snes_types_other_than_vinewtonrsls_are_refused_before_anything_is_built(coll, law, key, kind):
+    """The problems are variational inequalities on the reduced space (base.VI_SNES_WHY): another
+    SNES type is refused with the option, its value and the accepted type, before the problem has
+    a SNES, and by describe_solver (the CLI's --dry-run)."""
+    grid = SurfaceGrid(16, 16, 0.25, periodic=False)
+    h = sphere(grid, 20.0)
+    prefix = f"popt_type_{key}_{kind}_"
+    words = [f"-{prefix}{key} {kind}", "accepted: vinewtonrsls", "variational inequality"]
+    pb = make_problem(grid, h, 1.0, law, prefix=prefix, petsc_options={key: kind})
+    coll.raises(ValueError, words, pb.solve, approach=0.1)
+    assert pb._snes is None and _left(prefix) == []
+    coll.raises(ValueError, words, describe_solver, law, prefix=prefix, petsc_options={key: kind})
+    assert _left(prefix) == []

@@ -212,6 +212,8 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         if self._snes is not None:
             return self._snes
         print_help("adhesion", self.prefix, self.grid.comm)
+        # checked before any PETSc object exists: a refusal leaves nothing half-built
+        self.check_snes_options(self.prefix, self.prefix + "ptc_")
         opts = PETSc.Options(self.prefix)
         self.tol = check_tolerance(opts.getReal("tol", self._default("tol")),
                                    f"tol (-{self.prefix}tol)")

@@ -28,6 +28,15 @@ MAX_TOL = 1e-2
 VI_ZERO_TOLERANCE = 0.0
 
 
+#: the SNES type of every problem, and why no other: ``check_snes_options``
+VI_SNES = "vinewtonrsls"
+VI_SNES_WHY = (
+    "contact is a variational inequality, p >= 0: the unbounded types (newtonls, ...) refuse the "
+    "bounds; vinewtonssls scales and shifts the Jacobian in place, which the matrix-free FFT "
+    "operator cannot, its Fischer-Burmeister function mixes p [Pa] with the gap [m], and its "
+    "full-space steps bypass the preconditioners and load control, built on the reduced space")
+
+
 class ContactSolveError(RuntimeError):
     """A solve that did not converge; raised on every rank with the same message."""
 
@@ -163,24 +172,31 @@ class VIProblem:
         if self._inserted is not None:
             self._inserted.append(name)
 
-    def refuse_snes_norm_tolerances(self, prefix: str) -> None:
-        """Our convergence test measures gap and pressure errors, not residual norms:
-        ``-<prefix>snes_rtol`` / ``snes_atol`` would be ignored, so they are refused."""
-        opts = PETSc.Options(prefix)
-        given = [f"-{prefix}{k}" for k in ("snes_rtol", "snes_atol") if opts.hasName(k)]
-        if given:
-            raise ValueError(f"{', '.join(given)}: not used (the convergence test measures gap and "
-                             f"pressure errors, docs/formulation.md); set -{self.prefix}tol instead")
+    def check_snes_options(self, *prefixes: str) -> None:
+        """Refuse SNES options under ``prefixes`` that the problems cannot honour, before anything
+        is built: ``-<prefix>snes_rtol`` / ``snes_atol`` (our convergence test measures gap and
+        pressure errors, not residual norms: they would be ignored) and a ``-<prefix>snes_type``
+        other than ``VI_SNES`` (``VI_SNES_WHY``)."""
+        for prefix in prefixes:
+            opts = PETSc.Options(prefix)
+            given = [f"-{prefix}{k}" for k in ("snes_rtol", "snes_atol") if opts.hasName(k)]
+            if given:
+                raise ValueError(f"{', '.join(given)}: not used (the convergence test measures gap and "
+                                 f"pressure errors, docs/formulation.md); set -{self.prefix}tol instead")
+            kind = opts.getString("snes_type", VI_SNES) if opts.hasName("snes_type") else VI_SNES
+            if kind != VI_SNES:
+                raise ValueError(f"-{prefix}snes_type {kind}: not supported; accepted: {VI_SNES} "
+                                 f"({VI_SNES_WHY})")
 
     # -- the VI -------------------------------------------------------------------------
     def make_vi_snes(self, prefix: str, bounds, max_it: int) -> PETSc.SNES:
         """A ``vinewtonrsls`` SNES on the problem's residual, Jacobian and bounds, with our
-        convergence test; ``setFromOptions`` is left to the caller (code defaults first)."""
+        convergence test; ``setFromOptions`` is left to the caller (code defaults first), which
+        has called ``check_snes_options`` before building anything."""
         from ..lifetime import destroy_at_exit
-        self.refuse_snes_norm_tolerances(prefix)
         snes = destroy_at_exit(PETSc.SNES().create(comm=self.grid.comm))
         snes.setOptionsPrefix(prefix)
-        snes.setType("vinewtonrsls")
+        snes.setType(VI_SNES)
         snes.setFunction(self._residual, self._f)
         snes.setVariableBounds(*bounds)
         snes.setJacobian(self._jacobian, self._J, self._J)

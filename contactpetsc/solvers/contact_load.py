@@ -5,6 +5,8 @@ displacement-controlled solves, its slope dW/d delta from one reduced solve K_II
 converged contact set (``ContactLoadControl``)."""
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -13,6 +15,10 @@ from .base import MAX_TOL
 
 #: the smallest mean pressure of load control, in units of E*
 MIN_LOAD = 1e-12
+
+
+class SolverOptionWarning(UserWarning):
+    """A solver option that changes the method, and what it costs (docs/robustness.md)."""
 
 
 class ContactLoadControl:
@@ -196,6 +202,33 @@ class JointLoadNewton:
 
     #: the last step's Krylov tolerance aims at this fraction of the tolerance
     FORCING_SAFETY = 0.2
+    #: Krylov types of the Newton steps that the joint step's projected CG is (CG on the load's
+    #: plane): with any other ``-<prefix>ksp_type`` load control runs the outer iteration, where
+    #: that type solves every Newton step
+    JOINT_KSP = ("cg",)
+
+    def _load_by_joint(self) -> bool:
+        """Whether load control runs the joint iteration: ``-<prefix>load_joint`` (default true),
+        no hardness, and Newton steps by CG, unless ``-<prefix>load_joint true`` was given
+        explicitly (then the joint step keeps its projected CG whatever ``ksp_type``).  Another
+        Krylov type switches to the outer iteration with one ``SolverOptionWarning``."""
+        if not self.load_joint or np.isfinite(self.hardness):
+            return False
+        kind = self._snes.getKSP().getType()
+        if kind in self.JOINT_KSP or self.load_joint_given:
+            return True
+        root = self._root   # one warning for the problem and the coarse grids of its nested iteration
+        if not root._warned_joint and self.grid.mpi_comm.Get_rank() == 0:
+            warnings.warn(
+                f"-{self.prefix}ksp_type {kind}: load control's joint Newton step in (p, delta) is CG on "
+                f"the load's plane (projected CG), which {kind} cannot replace; load control runs the "
+                f"outer iteration on the approach instead, where {kind} solves every Newton step: expect "
+                f"1.5-4x the FFT pairs (2-7x the Newton steps) of -{self.prefix}ksp_type cg, measured on rough "
+                f"cells of 64^2 to 256^2 "
+                f"(-{self.prefix}load_joint true keeps the joint step, its projected CG and {kind} for "
+                f"displacement control)", SolverOptionWarning, stacklevel=2)
+        root._warned_joint = True
+        return False
 
     def _joint_gap(self, p: np.ndarray, out: np.ndarray) -> np.ndarray:
         """g = h + K p - delta(p) [m], delta(p) the mean of h + K p over the loaded nodes
@@ -246,6 +279,13 @@ class JointLoadNewton:
         kind = ksp.getType()
         ksp.setType("python")
         ksp.setPythonContext(ProjectedCG(self._step_sum, self._forcing, self._keep_tangent))
+        # SNES VI resets its KSP from the options database whenever the inactive set changes
+        # (SNESVIResetPCandKSP): a -<prefix>ksp_type there would put plain CG back in place of
+        # the projected one, which ignores the load (every joint solve ran to max_it, then the
+        # outer iteration: 18x the Newton steps at 128^2), so the database names ours meanwhile
+        opts, name = PETSc.Options(), self.prefix + "ksp_type"
+        given = opts.getString(name) if opts.hasName(name) else None
+        opts.setValue(name, "python")
         self._prev_gap_error = None
         p = self._pressure
         n = self.grid.nx * self.grid.ny
@@ -270,6 +310,10 @@ class JointLoadNewton:
             ok, reason = self._solve_at(self._approach if self._approach is not None else 0.0, p)
         finally:
             self._joint = False
+            if given is None:
+                opts.delValue(name)
+            else:
+                opts.setValue(name, given)
             ksp.setType(kind)
         if ok:
             self._x.copy(self._pressure)

@@ -8,7 +8,7 @@ from ..operators.elastic import half_space
 from ..operators.layer import Layer
 from ..physics.interactions import relaxation_laws
 from .adhesive import PTC_LINESEARCH, AdhesiveProblem, newton_ksp_type, newton_linesearch
-from .base import VIProblem
+from .base import VI_SNES, VIProblem
 from .options import code_default
 from .pc_registry import ADHESIVE_PRECONDITIONERS, AUTO_MLMI_SNAP, PRECONDITIONERS, auto_adhesive_preconditioner
 from .problem import NEWTON_KSP, NEWTON_LINESEARCH, ContactProblem
@@ -79,7 +79,7 @@ def _describe_snes(opts: _Options, prefix: str, linesearch: str, ksp_type: str, 
     snes = PETSc.SNES().create(comm=PETSc.COMM_SELF)
     try:
         snes.setOptionsPrefix(prefix)
-        snes.setType("vinewtonrsls")
+        snes.setType(VI_SNES)
         opts.set_default("snes_linesearch_type", linesearch, prefix)
         ksp = snes.getKSP()
         ksp.setType(ksp_type)
@@ -110,6 +110,7 @@ def describe_solver(law=None, method: str = "newton", prefix: str | None = None,
     prefix = prefix or ("adhesion_" if adhesive else "contact_")
     opts = _Options(prefix, petsc_options)
     with opts.inserted_options():
+        opts.check_snes_options(*([prefix, prefix + "ptc_"] if adhesive else [prefix]))
         db = PETSc.Options(prefix)
         if not adhesive:
             choice = db.getString("preconditioner", "spectral").lower()

@@ -46,7 +46,8 @@ CONTACT = (
     Option(("newton_ksp_forcing",), (True,),
            "under load control, the Krylov tolerance follows the Newton convergence (Eisenstat-Walker)"),
     Option(("load_joint",), (True,),
-           "load control as one Newton iteration in (p, delta); false: the outer iteration on delta (as with a hardness)"),
+           "load control as one Newton iteration in (p, delta), its step CG on the load's plane; false (and the default "
+           "with a `ksp_type` other than cg, with a warning): the outer iteration on delta (as with a hardness)"),
     Option(("load_max_it",), (50,), "approach updates under load control (the outer iteration)"),
     Option(("load_inner_tol", "load_inner_eta"), (1e-3, 0.1), "inexact intermediate solves (load control with a hardness)"),
     Option(("slope_warm_start",), (True,), "slope solves start from the previous z (with a hardness)"),

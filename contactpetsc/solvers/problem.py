@@ -25,9 +25,10 @@ iteration on delta around displacement-controlled solves (docs/formulation.md,
 delta is the approach to the mean plane of the deformed surface and full
 contact is singular under displacement control: load control handles it.
 
-Options (prefix ``contact_`` by default; every PETSc option of the SNES, KSP
-and PC works) are read after the code defaults; the package's own are
-registered in ``options.py`` (docs/formulation.md, "Options").
+Options (prefix ``contact_`` by default; every PETSc option of the SNES, KSP and PC
+works, but a SNES type other than ``vinewtonrsls``: ``base.check_snes_options``) are read
+after the code defaults; the package's own are registered in ``options.py``
+(docs/formulation.md, "Options").
 """
 from __future__ import annotations
 
@@ -128,6 +129,7 @@ class ContactProblem(NestedIteration, Backtracking, JointLoadNewton, ContactLoad
         self._joint = False       # load control by the joint Newton step (contact_load.py)
         self._last_gap_error = self._prev_gap_error = None   # the forcing's error history
         self._tangent = None      # M 1 of the last joint Newton step (full rows): the path's predictor
+        self._warned_joint = False   # the warning of a Krylov type that turns the joint step off
         self._h_min = None
 
     # -- set-up ------------------------------------------------------------------
@@ -139,6 +141,7 @@ class ContactProblem(NestedIteration, Backtracking, JointLoadNewton, ContactLoad
         grid = self.grid
         print_help("contact", self.prefix, self.grid.comm)
         # checked before any PETSc object exists: a refusal leaves nothing half-built
+        self.check_snes_options(self.prefix)
         opts = PETSc.Options(self.prefix)
         self.tol = check_tolerance(opts.getReal("tol", self._default("tol")),
                                    f"tol (-{self.prefix}tol)")
@@ -182,6 +185,7 @@ class ContactProblem(NestedIteration, Backtracking, JointLoadNewton, ContactLoad
         self._nested_options(opts)
         self.forcing = opts.getBool("newton_ksp_forcing", code_default("contact", "newton_ksp_forcing"))
         self.load_joint = opts.getBool("load_joint", code_default("contact", "load_joint"))
+        self.load_joint_given = opts.hasName("load_joint")
         self.slope_warm = opts.getBool("slope_warm_start", code_default("contact", "slope_warm_start"))
         snes.setFromOptions()
         if opts.getString("snes_linesearch_type", NEWTON_LINESEARCH) == "basic":
@@ -407,7 +411,7 @@ class ContactProblem(NestedIteration, Backtracking, JointLoadNewton, ContactLoad
             # with a hardness W(delta) is a staircase: the outer iteration on delta handles it;
             # it also takes over where the joint iteration fails (from the last converged state)
             converged, reason = False, None
-            if self.load_joint and not np.isfinite(self.hardness):
+            if self._load_by_joint():
                 start = self._pressure.copy()
                 converged, reason = self._solve_load_joint(mean_pressure)
                 if not converged:
