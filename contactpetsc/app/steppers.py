@@ -3,7 +3,8 @@
 A stepper drives the problem the builder made (``builder.build_problem``), one prescribed value at
 a time (``step``: the state and the jumps found on the way), fills the
 columns of a step's row that are its own (``row``), prints its progress
-columns, takes up a restarted path (``resume``) and gives the path's
+columns, keeps with each step file what the path's next step decides by
+(``path_state``), takes up a restarted path (``resume``) and gives the path's
 results (``results``: the pull-off force, refined at the end by ``finish``).
 
 ``ContactSteps``: no adhesion, displacement or load control with warm
@@ -85,6 +86,9 @@ class ContactSteps:
     def results(self) -> dict:
         return {}
 
+    def path_state(self) -> None:
+        return None               # each step is solved on its own: nothing to carry
+
     def finish(self) -> dict:
         return {}
 
@@ -127,8 +131,22 @@ class AdhesiveSteps:
             self._restore_best(recorder)
         (q, a), approach = recorder.read_step(len(rows), self.fields)
         self.problem.warm_start(q, a, approach)
-        last = rows[-1]
-        self.prev = (float(last["approach_m"]), float(last["force_N"]), NAN)
+        last, saved = rows[-1], recorder.path_state(len(rows))
+        self.prev = (float(last["approach_m"]), float(last["force_N"]), NAN if saved.get("stiffness") is None
+                     else float(saved["stiffness"]))
+        if self.path is not None and saved.get("fold_watch") and getattr(self.problem, "stability_auto", False):
+            # where the uninterrupted run would leave the check out (fold_watch.py)
+            from ..fold_watch import FoldWatch
+            self.path._watch = FoldWatch.restored(saved["fold_watch"])
+
+    def path_state(self) -> dict | None:
+        """What the next step of a sweep decides by and the step files keep for a restart: the
+        last state's stiffness (jump test, fold watch) and the fold watch's record."""
+        if not self.sweeping or self.prev is None:
+            return None
+        watch = self.path._watch
+        return {"stiffness": self.prev[2] if np.isfinite(self.prev[2]) else None,
+                "fold_watch": None if watch is None else watch.state()}
 
     def _restore_best(self, recorder) -> None:
         pts = self.path.points
