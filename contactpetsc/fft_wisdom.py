@@ -21,6 +21,8 @@ from __future__ import annotations
 import os
 import platform
 import re
+import stat
+import warnings
 from contextlib import contextmanager
 
 import pyfftw
@@ -29,6 +31,7 @@ from mpi4py import MPI
 ENV = "CONTACTPETSC_FFTW_WISDOM"
 
 _known: tuple | None = None    # the wisdom this process last read or wrote
+_warned: set = set()           # wisdom paths already warned about (no regular file)
 
 
 def cpu_model() -> str:
@@ -53,25 +56,57 @@ def wisdom_path() -> str | None:
     return os.path.join(base, "contactpetsc", f"fftw-wisdom-{cpu}.dat")
 
 
+def _special(path: str, mode: int) -> bool:
+    """Whether ``path`` is no regular file (a FIFO would block a read or a write forever, a
+    directory cannot be replaced); warns once per path, naming it."""
+    if stat.S_ISREG(mode):
+        return False
+    if path not in _warned:
+        _warned.add(path)
+        kind = "a FIFO" if stat.S_ISFIFO(mode) else "a directory" if stat.S_ISDIR(mode) else "no regular file"
+        warnings.warn(f"FFTW wisdom file {path!r} ({ENV}) is {kind}: not read or written "
+                      f"(plans are measured anew); point {ENV} at a regular file, or set it to 'off'", RuntimeWarning, stacklevel=4)
+    return True
+
+
 def _read(path: str) -> tuple | None:
+    """The wisdom in ``path``, if it is a readable regular file (opened without blocking, so
+    that a FIFO is seen for what it is before any read)."""
     try:
-        with open(path, "rb") as f:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    except OSError:
+        return None
+    try:
+        if _special(path, os.fstat(fd).st_mode):
+            return None
+        with open(fd, "rb", closefd=False) as f:
             parts = f.read().split(b"\0\0\0")
     except OSError:
         return None
+    finally:
+        os.close(fd)
     return tuple(parts) if len(parts) == 3 else None
 
 
 def _write(path: str, wisdom: tuple) -> None:
-    """Atomically (a run that reads meanwhile sees the old file or the new one)."""
+    """Atomically (a run that reads meanwhile sees the old file or the new one); only over a
+    regular file or none, and never leaving the temporary behind."""
+    try:
+        if _special(path, os.stat(path).st_mode):
+            return
+    except OSError:
+        pass                                  # no file yet
+    tmp = f"{path}.{os.getpid()}.tmp"
     try:
         os.makedirs(os.path.dirname(path), exist_ok=True)
-        tmp = f"{path}.{os.getpid()}.tmp"
         with open(tmp, "wb") as f:
             f.write(b"\0\0\0".join(wisdom))
         os.replace(tmp, path)
     except OSError:
-        pass   # a read-only home: plans are measured in every run, as without the file
+        try:                                  # a read-only home: plans are measured in every run
+            os.remove(tmp)
+        except OSError:
+            pass
 
 
 def load(comm: MPI.Comm) -> None:

@@ -95,3 +95,19 @@ class FoldWatch:
             self.checked.append((st.approach, st.stability_margin, st.newton_iterations))
         if st.stable is not False:
             self.lowest = min(self.lowest, st.force)
+
+    def state(self) -> dict:
+        """What ``reason`` judges from (JSON-able): a restart that restores it (``restored``) makes
+        the uninterrupted run's decisions, which the path's points alone cannot rebuild (the
+        watch also sees the states of sub-steps, and each state's margin and Newton count)."""
+        return {"checked": [list(c) for c in self.checked[-2:]], "direction": self.direction,
+                "lowest": self.lowest if np.isfinite(self.lowest) else None, "snap_number": self.snap_number}
+
+    @classmethod
+    def restored(cls, state: dict) -> "FoldWatch":
+        """The watch whose ``state()`` was ``state``."""
+        lowest = state["lowest"]
+        watch = cls(np.inf if lowest is None else float(lowest), float(state["snap_number"]))
+        watch.checked = [(float(a), float(m), int(n)) for a, m, n in state["checked"]]
+        watch.direction = float(state["direction"])
+        return watch

@@ -36,6 +36,11 @@ class GridError(ValueError):
     """Invalid grid parameters (raised identically on every rank)."""
 
 
+#: the grid's own objects were destroyed by its user (PETSc would dereference a null handle)
+DESTROYED_DA = ("the grid's DMDA was destroyed (grid.da.destroy()) while the grid is still in use: "
+                "build a new SurfaceGrid (and its fields and problems), or destroy the DMDA after the last solve")
+
+
 def check_index_range(n_unknowns: int, what: str = "grid") -> None:
     """Fail early if ``n_unknowns`` exceeds PETSc's index type (32-bit by default on Debian)."""
     bits = 8 * np.dtype(PETSc.IntType).itemsize
@@ -210,6 +215,8 @@ class SurfaceGrid:
         A plan or a dry run that only needs the sizes and the decomposition never
         allocates PETSc's index maps (about 5 PETSc integers per node).
         """
+        if self._da is not None and self._da.handle == 0:
+            raise GridError(DESTROYED_DA)
         if self._da is None:
             self.check_memory()
             bt = PETSc.DM.BoundaryType.PERIODIC if self.periodic else PETSc.DM.BoundaryType.NONE
@@ -302,13 +309,22 @@ class SurfaceGrid:
         if not isinstance(vec, PETSc.Vec):
             raise GridError(f"{name} must be a PETSc Vec (PETSc.Vec) of the {self.nx} x {self.ny} grid "
                             f"(grid.create_vec or grid.vec_from_array), got {type(vec).__name__}")
-        shape = None
-        dm = vec.query("__PETSc_dm")
-        if isinstance(dm, PETSc.DMDA) and dm.getDim() == 2 and dm.getDof() == 1:
-            shape = tuple(int(n) for n in dm.getSizes())  # PETSc lists x first: (nx, ny)
-        fits = (vec.getSize() == self.nx * self.ny and vec.getLocalSize() == self.n_local
-                and (shape is None or shape == self.shape))
-        if not self.mpi_comm.allreduce(fits, op=MPI.LAND):
+        # a destroyed object has a null handle, and PETSc dereferences it (SEGV): refused first
+        verdict, shape = (1 if self._da is not None and self._da.handle == 0 else 2 if vec.handle == 0 else 0), None
+        if not verdict:
+            dm = vec.query("__PETSc_dm")
+            if isinstance(dm, PETSc.DMDA) and dm.getDim() == 2 and dm.getDof() == 1:
+                shape = tuple(int(n) for n in dm.getSizes())  # PETSc lists x first: (nx, ny)
+            fits = (vec.getSize() == self.nx * self.ny and vec.getLocalSize() == self.n_local
+                    and (shape is None or shape == self.shape))
+            verdict = 0 if fits else 3
+        verdict = self.mpi_comm.allreduce(verdict, op=MPI.MAX)
+        if verdict == 1:
+            raise GridError(DESTROYED_DA)
+        if verdict == 2:
+            raise GridError(f"{name} was destroyed ({name}.destroy()) while it is still in use: destroy PETSc "
+                            f"objects only after their last use, or make {name} again on this grid")
+        if verdict == 3:
             got = (f"a field of a {shape[0]} x {shape[1]} grid" if shape is not None
                    else f"a Vec of {vec.getSize()} entries ({vec.getSize()} values)")
             raise GridError(f"{name} is {got}, this grid is {self.nx} x {self.ny}: (nx, ny) = "

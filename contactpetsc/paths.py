@@ -125,7 +125,7 @@ def good_state(p) -> bool:
     return p.converged and p.stable is not False
 
 
-def _point(step, branch, st) -> PathPoint:
+def path_point(step, branch, st) -> PathPoint:
     return PathPoint(step=step, branch=branch, approach=st.approach, central_gap=st.central_gap,
                      force=st.force, adhesive_force=st.adhesive_force,
                      contact_fraction=st.contact_fraction, stable=st.stable, converged=st.converged,
@@ -157,7 +157,7 @@ def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0
     for k, delta in enumerate(approaches):
         here = branch or ("loading" if prev is None or delta >= prev[0] else "unloading")
         st, prev = _advance(problem, delta, prev, path, jump_tol, refine, substeps)
-        pt = _point(k, here, st)
+        pt = path_point(k, here, st)
         path.points.append(pt)
         i = len(path.points) - 1
         good = good_state(pt)
@@ -317,7 +317,7 @@ def central_gap_path(problem, central_gaps, *, on_state=None, path: Path | None 
     path = Path() if path is None else path
     for k, gc in enumerate(central_gaps):
         st = problem.solve(central_gap=float(gc), raise_on_failure=False)
-        pt = _point(k, "central-gap", st)
+        pt = path_point(k, "central-gap", st)
         path.points.append(pt)
         if not st.converged and on_failure is not None:
             on_failure(k, st, pt)
@@ -354,7 +354,7 @@ def edge_gap_path(problem, step: float, min_gap: float, *, direction: tuple[int,
         problem.set_control_node((i, j))
         for gap in np.arange(problem.control_gap() - step, min_gap - 1e-12 * step, -step):
             st = problem.solve(central_gap=float(gap), raise_on_failure=False)
-            pt = _point(k, "edge-gap", st)
+            pt = path_point(k, "edge-gap", st)
             path.points.append(pt)
             if not st.converged:
                 return path

@@ -76,3 +76,19 @@ def test_estimated_plans_ignore_measured_wisdom(coll):
     before = estimated()
     SlabRFFT(comm, n, n, rows, planner="measure")
     assert coll.all(np.array_equal(estimated(), before))
+
+
+@pytest.mark.serial
+@pytest.mark.parametrize("kind", ["fifo", "directory"])
+def test_a_wisdom_path_that_is_no_regular_file_is_left_alone_with_a_warning(tmp_path, kind):
+    """A FIFO would block the read after the plan forever, a directory cannot be replaced (the
+    temporary was left behind): both are warned about, named, and neither read nor written."""
+    path = tmp_path / "wisdom.dat"
+    os.mkfifo(path) if kind == "fifo" else path.mkdir()
+    env = dict(os.environ, CONTACTPETSC_FFTW_WISDOM=str(path))
+    out = subprocess.run([sys.executable, "-c", CHILD, "plan"], env=env, capture_output=True, text=True,
+                         timeout=60)      # the former hang is a timeout here
+    assert out.returncode == 0, out.stderr
+    assert f"FFTW wisdom file {str(path)!r}" in out.stderr and f"is a {kind.replace('fifo', 'FIFO')}" in out.stderr
+    assert sorted(os.listdir(tmp_path)) == ["wisdom.dat"]
+    assert (path.is_fifo() if kind == "fifo" else os.listdir(path) == [])

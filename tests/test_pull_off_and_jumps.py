@@ -92,3 +92,28 @@ def test_flat_cell_path_that_turns_before_the_peak_has_no_pull_off(coll):
     assert all(p.converged and p.stable for p in path.points) and not path.jumps
     assert np.isnan(path.pull_off_force)
     assert np.isnan(refine_pull_off(problem, path, xtol=1e-4))
+
+
+@pytest.mark.filterwarnings("ignore::contactpetsc.physics.resolution.UnderResolvedWarning")
+def test_a_relaxation_sweep_reports_the_newton_sweeps_sampled_pull_off(coll, shared_tmp):
+    """solver.method = relaxation: summary.json has the pull-off of the Newton sweep over the same
+    steps (the most tensile stable state; within the relaxation's tolerance, 1e-4 z0 in the
+    gaps), marked not refined with the reason, which the plan names too."""
+    import json
+    from contactpetsc.app import builder, runner, scenes
+    scene = dict(name="relax-pull-off", geometry=dict(kind="sphere", radius=30e-9, nx=32, dx=0.6e-9),
+                 material=dict(e_star=10e9), interaction=dict(law="hardwall-lj", work_of_adhesion=0.3, z0=0.3e-9),
+                 protocol=dict(control="approach", refine_pull_off=False,
+                               values=[v * 1e-9 for v in (-0.3, 0.0, 0.3, 0.0, -0.3, -0.6)]),
+                 output=dict(fields=False))
+    pulls = {}
+    for method in ("newton", "relaxation"):
+        out = shared_tmp / method
+        runner.run(scenes.validate(dict(scene, solver=dict(method=method))), output=str(out))
+        pulls[method] = json.loads((out / "summary.json").read_text())
+    newton, relax = pulls["newton"]["pull_off_force_N"], pulls["relaxation"]["pull_off_force_N"]
+    assert newton is not None and newton < 0
+    assert coll.max(abs(relax / newton - 1)) <= 2e-3
+    assert pulls["relaxation"]["pull_off_refined"] is False and "relaxation" in pulls["relaxation"]["pull_off_not_refined"]
+    plan = builder.leave_out(scenes.validate(dict(scene, solver=dict(method="relaxation"))))
+    assert "pull-off refinement" in " ".join(plan)

@@ -8,11 +8,14 @@ True or False exactly where ``stability_checked`` is True.
 """
 import csv
 import os
+import shutil
 import subprocess
 import sys
+import tempfile
 
 import numpy as np
 import pytest
+from petsc4py import PETSc
 
 from contactpetsc.app import builder, runner, scenes
 from contactpetsc.fold_watch import FoldWatch
@@ -87,21 +90,33 @@ SPHERE = dict(name="auto-sphere", geometry=dict(kind="sphere", radius=30e-9, nx=
               protocol=dict(control="approach", values=[v * 1e-9 for v in (-0.6, -0.45, -0.3, -0.15, 0.0, 0.15,
                                                                             0.3, 0.15, 0.0, -0.15, -0.3, -0.45)],
                             refine_pull_off=False),
-              output=dict(fields=False))
+              output=dict(field_precision="float64"))
 
 
-def _rows(scene, out):
-    runner.run(scenes.validate(scene), output=str(out), overwrite=True)
+def _rows(scene, out, restart=False):
+    runner.run(scenes.validate(scene), output=str(out), overwrite=not restart, restart=restart)
     with open(os.path.join(out, "curve.csv")) as f:
         return list(csv.DictReader(f))
 
 
-def test_curve_says_per_state_whether_the_check_ran(shared_tmp):
+@pytest.fixture(scope="module")
+def auto_run():
+    """The SPHERE sweep under auto, uninterrupted: (its directory, its curve.csv rows); shared by
+    the ranks and the tests of this module."""
+    comm = PETSc.COMM_WORLD.tompi4py()
+    out = comm.bcast(tempfile.mkdtemp(prefix="contactpetsc-auto-") if comm.rank == 0 else None)
+    yield out, _rows(SPHERE, out)
+    comm.Barrier()
+    if comm.rank == 0:
+        shutil.rmtree(out, ignore_errors=True)
+
+
+def test_curve_says_per_state_whether_the_check_ran(shared_tmp, auto_run):
     """curve.csv: stable is True/False exactly where stability_checked is True, nan elsewhere;
     the states auto leaves out are stable in the always-on run, and the checked ones agree
     with it; the jumps are the same.  A non-adhesive scene runs no check."""
     out = str(shared_tmp)
-    auto = _rows(SPHERE, os.path.join(out, "auto"))
+    auto = auto_run[1]
     forced = dict(SPHERE, solver=dict(options=dict(stability_check="true")))
     on = _rows(forced, os.path.join(out, "on"))
     assert all(r["stability_checked"] == "True" and r["stable"] in ("True", "False") for r in on)
@@ -112,7 +127,7 @@ def test_curve_says_per_state_whether_the_check_ran(shared_tmp):
         else:
             assert a["stable"] == "nan" and b["stable"] == "True"
     assert any(r["stability_checked"] == "False" for r in auto)
-    with open(os.path.join(out, "auto", "jumps.csv")) as f, open(os.path.join(out, "on", "jumps.csv")) as g:
+    with open(os.path.join(auto_run[0], "jumps.csv")) as f, open(os.path.join(out, "on", "jumps.csv")) as g:
         ja, jb = list(csv.DictReader(f)), list(csv.DictReader(g))
     assert [(j["kind"], j["approach_before_m"]) for j in ja] == [(j["kind"], j["approach_before_m"]) for j in jb]
     hertz = dict(name="hertz", geometry=dict(kind="sphere", radius=1e-6, nx=32, dx=4e-9), material=dict(e_star=1e9),
@@ -159,3 +174,20 @@ def test_cli_dry_run_names_a_forced_check():
     bad = subprocess.run([sys.executable, "-m", "contactpetsc", "run", scene, "--dry-run",
                           "-adhesion_stability_check", "sometimes"], capture_output=True, text=True, timeout=120)
     assert bad.returncode != 0 and "accepted values are true, false, auto" in bad.stdout + bad.stderr
+
+
+
+def test_a_stopped_sweep_restarts_to_the_uninterrupted_decisions(coll, shared_tmp, auto_run):
+    """The sweep stopped after 3, 6 and 9 of its 12 steps and restarted each time (a run of the
+    first k values, then --restart with more): curve.csv has the uninterrupted run's ``stable``
+    and ``stability_checked`` at every step (the fold watch's record and the last stiffness are
+    kept with each step file and taken up, not rebuilt from the rows), and its jumps."""
+    full, ref = auto_run
+    values = SPHERE["protocol"]["values"]
+    for n, k in enumerate((3, 6, 9, len(values))):
+        got = _rows(dict(SPHERE, protocol=dict(SPHERE["protocol"], values=values[:k])), str(shared_tmp), n > 0)
+    columns = ("stable", "stability_checked")
+    assert [[r[c] for c in columns] for r in got] == [[r[c] for c in columns] for r in ref]
+    assert any(r["stability_checked"] == "False" for r in ref[3:])
+    with open(os.path.join(full, "jumps.csv")) as f, open(shared_tmp / "jumps.csv") as g:
+        assert [j["approach_before_m"] for j in csv.DictReader(f)] == [j["approach_before_m"] for j in csv.DictReader(g)]

@@ -177,5 +177,7 @@ def leave_out(scene: dict) -> list[str]:
                "with its stiffness)" if _sweeps(scene) else
                "  left out: the tangent (" + ("central-gap control steps without a predictor or jump test)"
                                              if scene["protocol"]["control"] == "central_gap" else
-                                             "the relaxation uses none)"))
+                                             "the relaxation uses none), and with it the jump location "
+                                             "and the pull-off refinement: the pull-off is the most tensile "
+                                             "stable step's force (summary.json pull_off_refined false)"))
     return [what, tangent]

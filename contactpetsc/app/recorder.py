@@ -205,6 +205,19 @@ class StepRecorder:
             vecs.append(v)
         return vecs, approach
 
+    def path_state(self, step: int) -> dict:
+        """The ``path_state`` stored with step ``step`` (``record``), {} in files of older versions."""
+        import h5py
+        path = self.path(f"step_{step:04d}.h5")
+
+        def read():
+            with h5py.File(path, "r") as f:
+                return json.loads(f.attrs.get("path_state", "{}"))
+
+        got = collective_call(self.grid.mpi_comm, RuntimeError, f"cannot restart from {path}: {{error}}",
+                              lambda: read() if self.rank0 else None)
+        return self.grid.mpi_comm.bcast(got, root=0)
+
     # -- a step ------------------------------------------------------------------------------
     def start(self) -> None:
         """Headers of new files; the clock of the progress line starts here."""
@@ -218,16 +231,20 @@ class StepRecorder:
         self.unconverged = sum(not is_true(r["converged"]) for r in self.rows)
         self.t_start = MPI.Wtime()
 
-    def record(self, st, row: dict, problem, new_jumps=(), results: dict | None = None) -> None:
+    def record(self, st, row: dict, problem, new_jumps=(), results: dict | None = None,
+               path_state: dict | None = None) -> None:
         """Write step ``row['step']`` (state ``st``; ``row`` keyed by CURVE_COLUMNS; the jumps found
-        reaching it; the path's ``results`` so far, for summary.json) and print it."""
+        reaching it; the path's ``results`` so far, for summary.json; ``path_state``: what the
+        path's next step decides by, stored in the step file for a restart, ``path_state``)
+        and print it."""
         step = row["step"]
         share = 0.0
         if not self.grid.periodic:
             from ..metrics import window_reach
             row["window_reach"], share = window_reach(self.grid, st.pressure, self.zone_threshold)
         if self.types and self.writes_fields(row, new_jumps):
-            write_state(self.out_dir, step, self.grid, self.heights, st, self.provenance, types=self.types,
+            attrs = self.provenance if path_state is None else dict(self.provenance, path_state=path_state)
+            write_state(self.out_dir, step, self.grid, self.heights, st, attrs, types=self.types,
                         length_unit=self.length_unit)
             self.written.append((step, st.approach, self.types))
             collective_call(self.grid.mpi_comm, OSError, f"cannot write {self.path(COLLECTION)}: {{error}}",

@@ -21,10 +21,13 @@ taken over with a note; a live one, or one of another host, is refused.
 """
 from __future__ import annotations
 
+import errno
+import fcntl
 import json
 import os
 import re
 import socket
+from contextlib import contextmanager
 
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -156,32 +159,90 @@ def _alive(pid: int) -> bool:
 
 
 def _lock(out_dir: str) -> list[str]:
-    """Take the lock (rank 0); returns notes (a stale lock taken over)."""
+    """Take the lock (rank 0); returns notes (a stale lock taken over).
+
+    The lock file appears complete (written under a name of this process, then hard-linked to
+    ``LOCK``, which fails if it exists), so that a reader never takes a lock being written for
+    an empty one.  A stale lock is removed only under an exclusive ``flock`` of the directory,
+    after reading it again there: of several processes that found the same stale lock, the
+    first removes it and takes the lock, the others then find that one's (live) lock and are
+    refused naming it.  A lock that vanishes between the attempt and the read is attempted again.
+    """
     path = os.path.join(out_dir, LOCK)
     notes = []
-    for _ in range(2):
-        try:
-            fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
-        except FileExistsError:
-            try:
-                with open(path) as f:
-                    holder = json.load(f)
-            except (OSError, ValueError):
-                holder = {}
+    for _ in range(10):
+        if _create_lock(path):
+            return notes
+        holder = _holder(path)
+        if holder is None:
+            continue                          # released (or taken over) meanwhile: try again
+        if not _stale(holder):
             here = holder.get("host") == socket.gethostname()
-            if here and isinstance(holder.get("pid"), int) and not _alive(holder["pid"]):
-                os.remove(path)
-                notes.append(f"took over the lock {path} of process {holder['pid']}, which no longer runs "
-                             "(an interrupted run)")
-                continue
             raise RunDirectoryError(
                 f"output directory {out_dir!r} is in use by another run (lock {path}: host "
                 f"{holder.get('host', '?')}, process {holder.get('pid', '?')}); wait for it to end or choose "
                 f"another --output" + ("" if here else "; if no run is left there, remove the lock file"))
+        with _directory_locked(out_dir):
+            if _holder(path) == holder:       # still that stale lock: nobody took it over before us
+                os.remove(path)
+                notes.append(f"took over the lock {path} of process {holder['pid']}, which no longer runs "
+                             "(an interrupted run)")
+                if _create_lock(path):
+                    return notes
+    raise RunDirectoryError(f"cannot lock {out_dir!r}: {path} keeps changing")
+
+
+def _create_lock(path: str) -> bool:
+    """Create the lock naming this process, complete; False if a lock exists."""
+    tmp = f"{path}.{os.getpid()}.tmp"
+    with open(tmp, "w") as f:
+        json.dump(_owner(), f)
+    try:
+        os.link(tmp, path)
+        return True
+    except FileExistsError:
+        return False
+    except OSError as exc:                    # a file system without hard links: create in place
+        if exc.errno not in (errno.EPERM, errno.EOPNOTSUPP, errno.ENOSYS):
+            raise
+        try:
+            fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+        except FileExistsError:
+            return False
         with os.fdopen(fd, "w") as f:
             json.dump(_owner(), f)
-        return notes
-    raise RunDirectoryError(f"cannot lock {out_dir!r}: {path} keeps reappearing")
+        return True
+    finally:
+        os.remove(tmp)
+
+
+def _holder(path: str) -> dict | None:
+    """The lock's contents (``{}`` when unreadable), None when there is no lock."""
+    try:
+        with open(path) as f:
+            holder = json.load(f)
+    except FileNotFoundError:
+        return None
+    except (OSError, ValueError):
+        return {}
+    return holder if isinstance(holder, dict) else {}
+
+
+def _stale(holder: dict) -> bool:
+    """A lock of a process of this host that no longer runs."""
+    return (holder.get("host") == socket.gethostname() and isinstance(holder.get("pid"), int)
+            and not _alive(holder["pid"]))
+
+
+@contextmanager
+def _directory_locked(out_dir: str):
+    """An exclusive ``flock`` of the directory itself (no file of its own to leave behind)."""
+    fd = os.open(out_dir, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)                          # releases the flock
 
 
 def _stored_scene(out_dir: str) -> dict | None:

@@ -3,7 +3,8 @@
 A stepper drives the problem the builder made (``builder.build_problem``), one prescribed value at
 a time (``step``: the state and the jumps found on the way), fills the
 columns of a step's row that are its own (``row``), prints its progress
-columns, takes up a restarted path (``resume``) and gives the path's
+columns, keeps with each step file what the path's next step decides by
+(``path_state``), takes up a restarted path (``resume``) and gives the path's
 results (``results``: the pull-off force, refined at the end by ``finish``).
 
 ``ContactSteps``: no adhesion, displacement or load control with warm
@@ -20,6 +21,10 @@ from petsc4py import PETSc
 from .output import RESTART_FIELDS
 
 NAN = float("nan")
+#: why a relaxation sweep's pull-off is the sampled one (summary.json ``pull_off_not_refined``)
+NOT_REFINED = ("solver.method = relaxation: the pull-off is the most tensile stable state of the path's "
+               "steps; the refinement searches by Newton continuation with the tangent, which the "
+               "relaxation solver has not (solver.method = newton refines it)")
 
 
 def mean_gap(grid, st, error_scale: float) -> dict:
@@ -85,6 +90,9 @@ class ContactSteps:
     def results(self) -> dict:
         return {}
 
+    def path_state(self) -> None:
+        return None               # each step is solved on its own: nothing to carry
+
     def finish(self) -> dict:
         return {}
 
@@ -103,9 +111,11 @@ class AdhesiveSteps:
         self.grid, self.z0, self.radius = grid, law.length_scale(), g["radius"]
         self.sphere = g["kind"] in ("sphere", "tip") and not g["periodic"]   # Greenwood's scaling with R
         self.zone_threshold = CUTOFF * law.peak_attraction   # the paper's adhesive-zone cut-off
-        # the relaxation solver relaxes wherever it goes: no jump location, no path
-        self.path = Path() if self.relax is None else None
+        # the relaxation solver relaxes wherever it goes: no jump location; its path's points
+        # give the pull-off (the most tensile stable state), not refined (``NOT_REFINED``)
+        self.path = Path()
         self.sweeping = self.relax is None and self.proto["control"] == "approach"
+        self.pulls = self.proto["control"] == "approach"    #: a pull-off force (sampled at least)
         self.prev = None          #: (approach, force, dF/d delta) of the last state, for sweep
         self.header = (f"  {'step':>4} {'approach [m]':>12} {'force [N]':>11} {'contact':>8} {'adh. force':>11} "
                        f"{'error':>9} {'stable':>6} {'time [s]':>8}" + (f" {'alpha*':>8} {'W*':>9}"
@@ -127,8 +137,22 @@ class AdhesiveSteps:
             self._restore_best(recorder)
         (q, a), approach = recorder.read_step(len(rows), self.fields)
         self.problem.warm_start(q, a, approach)
-        last = rows[-1]
-        self.prev = (float(last["approach_m"]), float(last["force_N"]), NAN)
+        last, saved = rows[-1], recorder.path_state(len(rows))
+        self.prev = (float(last["approach_m"]), float(last["force_N"]), NAN if saved.get("stiffness") is None
+                     else float(saved["stiffness"]))
+        if self.path is not None and saved.get("fold_watch") and getattr(self.problem, "stability_auto", False):
+            # where the uninterrupted run would leave the check out (fold_watch.py)
+            from ..fold_watch import FoldWatch
+            self.path._watch = FoldWatch.restored(saved["fold_watch"])
+
+    def path_state(self) -> dict | None:
+        """What the next step of a sweep decides by and the step files keep for a restart: the
+        last state's stiffness (jump test, fold watch) and the fold watch's record."""
+        if not self.sweeping or self.prev is None:
+            return None
+        watch = self.path._watch
+        return {"stiffness": self.prev[2] if np.isfinite(self.prev[2]) else None,
+                "fold_watch": None if watch is None else watch.state()}
 
     def _restore_best(self, recorder) -> None:
         pts = self.path.points
@@ -152,7 +176,12 @@ class AdhesiveSteps:
     def step(self, value: float):
         from ..paths import central_gap_path, sweep
         if self.relax is not None:
-            return self.relax.solve(approach=value, raise_on_failure=False), []
+            from ..paths import path_point
+            st = self.relax.solve(approach=value, raise_on_failure=False)
+            pts = self.path.points
+            branch = "loading" if not pts or value >= pts[-1].approach else "unloading"
+            pts.append(path_point(len(pts), branch, st))
+            return st, []
         got, n = [], len(self.path.jumps)
 
         def keep(k, st, pt):
@@ -193,10 +222,12 @@ class AdhesiveSteps:
 
     def results(self, pull: float | None = None, refined: bool = False) -> dict:
         """The pull-off force of a sweep so far (the most tensile stable state on disk)."""
-        if not self.sweeping:
+        if not self.pulls:
             return {}
         pull = self.path.pull_off_force if pull is None else pull
         out = {"pull_off_force_N": pull, "pull_off_refined": refined}
+        if not self.sweeping:
+            out["pull_off_not_refined"] = NOT_REFINED
         if self.sphere:
             out["pull_off_W_star"] = pull / (2 * np.pi * self.radius * self.law.work_of_adhesion)
         return out
@@ -204,16 +235,18 @@ class AdhesiveSteps:
     def finish(self) -> dict:
         """The pull-off force refined by golden section (``protocol.refine_pull_off``)."""
         from ..pull_off import refine_pull_off
-        if not self.sweeping:
+        if not self.pulls:
             return {}
         pull, refined = self.path.pull_off_force, False
-        if self.proto["refine_pull_off"] and self.path._best is not None:
+        if self.sweeping and self.proto["refine_pull_off"] and self.path._best is not None:
             values = self.proto["values"]
             step = min(np.abs(np.diff(values))) if len(values) > 1 else self.z0
             pull, refined = refine_pull_off(self.problem, self.path, xtol=0.01 * step), True
         out = self.results(pull, refined)
         PETSc.Sys.Print(f"  pull-off force {pull:.6e} N"
-                        + (f" (W* = {out['pull_off_W_star']:.4f})" if self.sphere else ""))
+                        + (f" (W* = {out['pull_off_W_star']:.4f})" if self.sphere else "")
+                        + ("" if self.sweeping else " (the most tensile stable step: the relaxation solver does "
+                           "not refine it)"))
         return out
 
 

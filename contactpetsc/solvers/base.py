@@ -84,9 +84,13 @@ def weighted_pairs(ops, fine: SurfaceGrid) -> float:
 
 
 def with_options(method):
-    """Run a public method with the problem's options inserted (``VIProblem.inserted_options``)."""
+    """Run a public method with the problem's options inserted (``VIProblem.inserted_options``),
+    its grid and heights checked first (collective) when it is called from outside: a user who
+    destroyed them gets an error naming them instead of PETSc's segmentation fault."""
     @functools.wraps(method)
     def wrapped(self, *args, **kwargs):
+        if self._options_depth == 0:
+            check_heights(self.grid, self.heights)
         with self.inserted_options():
             return method(self, *args, **kwargs)
     return wrapped

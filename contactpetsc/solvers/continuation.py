@@ -149,6 +149,11 @@ class Continuation:
         xb[-1] = grid.rows(adhesive_pressure, readonly=True)
         self._approach = float(approach)
         self._started = True
+        self._drop_tangent()
+        if self.compute_tangent:
+            # the next step's predictor from this state's tangent, as after the solve that
+            # reached it: a restarted path takes the uninterrupted one's steps
+            self._tangent_due = self._approach
     def _load_from_rest(self, approach, raise_on_failure, check_stability) -> AdhesiveState:
         """The first solve: the state reached by loading from separation (min h - z0) to
         ``approach`` in steps of at most ``-<prefix>initial_step`` z0, each warm-started.

@@ -50,7 +50,7 @@ from petsc4py import PETSc
 
 from ..physics.interactions import relaxation_laws
 from .adhesive_jacobian import _SetView
-from .base import AdhesiveSolveError, check_tolerance
+from .base import AdhesiveSolveError, check_heights, check_tolerance
 from .mlmi import MLMIPC
 from .options import code_default
 
@@ -222,6 +222,7 @@ class RelaxationSolver:
     def solve(self, *, approach: float, raise_on_failure: bool = True, check_stability: bool | None = None):
         """Relax to the state at approach delta [m] from the problem's current state;
         returns an ``AdhesiveState`` (solver ``relaxation-mlmi``)."""
+        check_heights(self.pb.grid, self.pb.heights)     # as the problem's own entries (``with_options``)
         with self.pb.inserted_options():
             return self._solve(approach, raise_on_failure, check_stability)
 
