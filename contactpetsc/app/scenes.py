@@ -85,7 +85,8 @@ _SCHEMA = {
         "hardness": _k(float, None, "Pa", "hardness H: no node carries more pressure (perfectly plastic "
                        "asperities; default none; without adhesion; docs/formulation.md)", POS),
         "layer_thickness": _k(float, None, "m", "the elastic body is a layer of this thickness on a rigid base "
-                              "(periodic cells; default: a half-space)", POS),
+                              "(periodic cells; default: a half-space); thinner than f(2 pi t / L) = 1e-100 "
+                              "(about 1e-107 L, incompressible bonded 1e-41 L) refused with the cell's range", POS),
         "layer_interface": _k(str, None, "", "the layer's contact with its base: bonded (no slip; the default "
                               "with a layer; needs poisson_ratio) or frictionless", choices=INTERFACES),
     },
