@@ -20,6 +20,7 @@ import tomllib
 from ..operators.layer import INTERFACES
 from ..physics.interactions import LAWS, WORK_OF_ADHESION, adhesive_laws, relaxation_laws
 from ..topography import DETREND, FILLS, FORMATS, HEIGHT_UNITS, HEIGHTS_ARE
+from ..topography.detrend import check_size
 from .scene_files import read_height_file
 from .scene_material import check_hardness, check_material, e_star, layer  # noqa: F401 (e_star, layer: API)
 from .scene_values import (LOAD_RESOLUTION, NONNEG, POISSON, POS, TOL, SceneError,  # noqa: F401 (API)
@@ -224,6 +225,11 @@ def validate(scene: dict) -> dict:
     if g["periodic"] is None:
         g["periodic"] = g["kind"] == "self-affine"
     _check_geometry(g, _given(scene, "geometry"))
+    if g["kind"] == "file":
+        try:
+            check_size(g["nx"], g["ny"], g["detrend"], "geometry.detrend")
+        except ValueError as e:
+            raise SceneError(str(e)) from None
     check_material(out, _given(scene, "material"))
     if out["output"]["atom_forces"] and g["kind"] != "tip":
         raise SceneError("output.atom_forces needs geometry.kind = tip (forces per atom of a tip)")
