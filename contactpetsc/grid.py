@@ -293,7 +293,8 @@ class SurfaceGrid:
         return v
 
     def check_vec(self, vec: PETSc.Vec, name: str = "vec") -> PETSc.Vec:
-        """``vec`` if it is a field of this grid, else GridError naming both shapes (collective).
+        """``vec`` if it is a field of this grid, else GridError naming both shapes, or both
+        communicators' sizes where they differ (collective).
 
         Checks the global size, this rank's rows and, when ``vec`` belongs to a DMDA,
         the DMDA's sizes: a 16 x 12 grid's field has the size of a 12 x 16 grid's,
@@ -302,6 +303,12 @@ class SurfaceGrid:
         if not isinstance(vec, PETSc.Vec):
             raise GridError(f"{name} must be a PETSc Vec (PETSc.Vec) of the {self.nx} x {self.ny} grid "
                             f"(grid.create_vec or grid.vec_from_array), got {type(vec).__name__}")
+        ranks, here = vec.getComm().getSize(), self.mpi_comm.Get_size()
+        if not self.mpi_comm.allreduce(ranks == here, op=MPI.LAND):
+            raise GridError(f"{name} lives on a communicator of {ranks} rank(s), this {self.nx} x {self.ny} grid on "
+                            f"one of {here}: the communicators differ (a field of a COMM_WORLD grid given to a "
+                            f"COMM_SELF one, or the reverse); make it on the grid's (grid.create_vec or "
+                            f"grid.vec_from_array)")
         shape = None
         dm = vec.query("__PETSc_dm")
         if isinstance(dm, PETSc.DMDA) and dm.getDim() == 2 and dm.getDof() == 1:
