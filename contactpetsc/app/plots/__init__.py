@@ -50,6 +50,8 @@ PLOTS = ("load_approach.png", "contact_area.png", "mean_gap.png", "pressure_map.
          "psd.png", "error_vs_time.png")
 ROUGH = ("self-affine", "file")   #: the geometry kinds whose heights are a rough surface
 LOAD_CURVES = ("contact_area.png", "mean_gap.png")
+#: what a run's scene.json holds (the validated scene)
+SCENE_SECTIONS = ("name", "geometry", "material", "interaction", "protocol", "solver", "output")
 
 
 def planned(scene: dict | None) -> tuple:
@@ -131,7 +133,7 @@ def plot_run(directory: str, fields: dict | None = None, step: int | None = None
         raise ValueError(f"{path('curve.csv')} has no steps: the run wrote none (it failed or was stopped at "
                          "its first step; its log says why): nothing to plot")
     scene = read_json(path("scene.json")) if os.path.exists(path("scene.json")) else None
-    missing = [k for k in ("name", "geometry", "protocol") if scene is not None and k not in scene]
+    missing = [k for k in SCENE_SECTIONS if scene is not None and k not in scene]
     if missing:
         raise ValueError(f"cannot read {path('scene.json')}: no {', '.join(missing)}: the file is damaged or "
                          "not a contactpetsc scene")
@@ -152,6 +154,17 @@ def plot_run(directory: str, fields: dict | None = None, step: int | None = None
         written.append(path(file))
         plot(*args, path=written[-1], **kw)
 
+    try:
+        _draw_all(draw, directory, curve, scene, jumps, pull_off, fields, chosen, name)
+    except KeyError as exc:
+        raise ValueError(f"cannot plot {directory}: no {exc} in scene.json or curve.csv (damaged, or written "
+                         "by another version)") from None
+    return written
+
+
+def _draw_all(draw, directory, curve, scene, jumps, pull_off, fields, chosen, name) -> None:
+    """``plot_run``'s drawing, each plot through ``draw``."""
+    path = lambda name: os.path.join(directory, name)  # noqa: E731
     wanted = planned(scene)
     draw("load_approach.png", load_approach, curve, jumps, pull_off, title=f"{name}: load against approach",
          overlays=sphere_overlays(scene, curve["approach_m"]) if scene else [])
@@ -184,7 +197,6 @@ def plot_run(directory: str, fields: dict | None = None, step: int | None = None
     if os.path.exists(path("history.csv")):
         draw("error_vs_time.png", error_vs_time, read_csv(path("history.csv")),
              title=f"{name}: error against run time")
-    return written
 
 
 def _band(g: dict) -> tuple[float, float]:

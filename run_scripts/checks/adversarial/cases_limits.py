@@ -93,8 +93,9 @@ def plot_cases() -> list[Case]:
     return [
         plot_files_case("plot-failed-at-step-1-no-row", {"curve.csv": GOOD_CURVE_HEAD, "scene.json": SCENE_JSON},
                         ["nothing to plot", "curve.csv"]),
-        plot_files_case("plot-failed-at-step-1-row", {"curve.csv": failed_row, "scene.json": SCENE_JSON},
-                        [], plots=True),
+        plot_files_case("plot-failed-at-step-1-row", {"curve.csv": failed_row}, [], plots=True),
+        plot_files_case("plot-scene-without-sections", {"curve.csv": failed_row, "scene.json": SCENE_JSON},
+                        ["scene.json"]),
         plot_files_case("plot-binary-curve", {"curve.csv": bytes(range(256)) * 8}, ["curve.csv"]),
         plot_files_case("plot-nul-curve", {"curve.csv": GOOD_CURVE_HEAD + "1,loading,1e-9,2e-8,1e5\x00\x00\n"},
                         ["curve.csv"]),
