@@ -300,7 +300,8 @@ class SurfaceGrid:
         return v
 
     def check_vec(self, vec: PETSc.Vec, name: str = "vec") -> PETSc.Vec:
-        """``vec`` if it is a field of this grid, else GridError naming both shapes (collective).
+        """``vec`` if it is a field of this grid, else GridError naming both shapes, or both
+        communicators' sizes where they differ (collective).
 
         Checks the global size, this rank's rows and, when ``vec`` belongs to a DMDA,
         the DMDA's sizes: a 16 x 12 grid's field has the size of a 12 x 16 grid's,
@@ -311,6 +312,9 @@ class SurfaceGrid:
                             f"(grid.create_vec or grid.vec_from_array), got {type(vec).__name__}")
         # a destroyed object has a null handle, and PETSc dereferences it (SEGV): refused first
         verdict, shape = (1 if self._da is not None and self._da.handle == 0 else 2 if vec.handle == 0 else 0), None
+        ranks, here = (vec.getComm().getSize() if not verdict else 0), self.mpi_comm.Get_size()
+        if not verdict and ranks != here:
+            verdict = 4
         if not verdict:
             dm = vec.query("__PETSc_dm")
             if isinstance(dm, PETSc.DMDA) and dm.getDim() == 2 and dm.getDof() == 1:
@@ -324,6 +328,12 @@ class SurfaceGrid:
         if verdict == 2:
             raise GridError(f"{name} was destroyed ({name}.destroy()) while it is still in use: destroy PETSc "
                             f"objects only after their last use, or make {name} again on this grid")
+        if verdict == 4:
+            ranks = self.mpi_comm.allreduce(ranks, op=MPI.MAX)
+            raise GridError(f"{name} lives on a communicator of {ranks} rank(s), this {self.nx} x {self.ny} grid on "
+                            f"one of {here}: the communicators differ (a field of a COMM_WORLD grid given to a "
+                            f"COMM_SELF one, or the reverse); make it on the grid's (grid.create_vec or "
+                            f"grid.vec_from_array)")
         if verdict == 3:
             got = (f"a field of a {shape[0]} x {shape[1]} grid" if shape is not None
                    else f"a Vec of {vec.getSize()} entries ({vec.getSize()} values)")

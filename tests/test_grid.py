@@ -138,6 +138,21 @@ def test_check_vec_refuses_a_field_of_another_grid(coll):
     coll.raises(GridError, ["PETSc Vec", "ndarray"], g.check_vec, np.zeros((12, 16)), "roughness")
 
 
+def test_check_vec_names_the_communicators_of_a_field_of_another_one(coll):
+    """A COMM_WORLD field given to a COMM_SELF grid of the same size (and the reverse): on
+    several ranks the message says the communicators differ and gives both sizes; on one rank
+    they are the same group and the field is accepted."""
+    world, alone = SurfaceGrid(16, 16, 1.0), SurfaceGrid(16, 16, 1.0, comm=PETSc.COMM_SELF)
+    pairs = ((alone, world.create_vec(1.0), coll.size, 1), (world, alone.create_vec(1.0), 1, coll.size))
+    for grid, vec, ranks, here in pairs:
+        if coll.size == 1:
+            assert grid.check_vec(vec, "heights") is vec
+        else:
+            coll.raises(GridError, [f"heights lives on a communicator of {ranks} rank(s)",
+                                    f"16 x 16 grid on one of {here}", "communicators differ"],
+                        grid.check_vec, vec, "heights")
+
+
 def test_a_grid_too_big_for_memory_is_refused_in_its_terms(coll, monkeypatch):
     """Before PETSc allocates (its error would be a bare code): the grid size, the memory
     needed and available per rank, the scene keys."""

@@ -85,6 +85,37 @@ def test_bad_layers_are_refused(coll):
                 layer=Layer(1.0, "frictionless"), planner=PLANNER)
 
 
+def test_a_layer_of_any_thickness_is_computed_or_refused_with_its_range(coll):
+    """A layer far thicker than the cell is the half-space to the last bit (no overflow on the
+    way: warnings are errors); a thin one the Winkler foundation u = p t / M (M = E* for a
+    frictionless base, E* (kappa + 1)^2 / (16 (1 - 2 nu)) bonded) down to the thinnest the
+    cell computes, f(2 pi t / L) = 1e-100 (here f = c x: t = 1e-100 L / (2 pi c)); thinner is
+    refused with that range."""
+    import warnings
+    g = SurfaceGrid(16, 12, 1e-6, 1.5e-6)
+    p = random_pressure(g)
+    half = PeriodicHalfSpace(g, E_STAR, planner=PLANNER)
+    u_half = half.apply(p, np.empty_like(p))
+    x, y = g.coordinates()
+    lx, ly = g.lengths
+    smooth = np.cos(2 * np.pi * y / ly).T.copy()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for t in (1e3 * lx, 1e300):
+            for interface in ("bonded", "frictionless"):
+                thick = PeriodicLayer(g, E_STAR, Layer(t, interface, 0.3), planner=PLANNER)
+                assert coll.max(np.abs(thick.apply(p, np.empty_like(p)) - u_half).max()) == 0.0
+        for interface, nu in (("frictionless", None), ("bonded", 0.3)):
+            c = 0.5 if nu is None else 8 * (1 - 2 * nu) / (4 - 4 * nu) ** 2       # f = c x
+            t_min = 1e-100 * ly / (2 * np.pi * c)
+            for t in (1e-3 * g.dx, 1e-30 * g.dx, 1.001 * t_min):
+                thin = PeriodicLayer(g, E_STAR, Layer(t, interface, nu), planner=PLANNER)
+                u = thin.apply(smooth, np.empty_like(smooth))
+                assert coll.max(np.abs(u / (2 * c * t / E_STAR) - smooth).max()) <= 1e-5
+            coll.raises(ValueError, ["layer thickness = ", f"accepted range [{t_min:.3g}, inf) m"],
+                        PeriodicLayer, g, E_STAR, Layer(0.99 * t_min, interface, nu), planner=PLANNER)
+
+
 @pytest.mark.parametrize("interface, nu", [("bonded", 0.3), ("frictionless", None), ("bonded", 0.5)])
 @pytest.mark.parametrize("mx, my", [(1, 0), (0, 1), (3, -2), (7, 5)])
 def test_sinusoidal_pressure_is_exact(coll, interface, nu, mx, my):

@@ -54,6 +54,8 @@ def test_youngs_modulus_and_poisson_ratio_give_e_star():
     (dict(layer_thickness=1e-7, layer_interface="glued"), ["material.layer_interface = 'glued'", "bonded"]),
     (dict(layer_thickness=1e-7, youngs_modulus=None, poisson_ratio=None, e_star=5e10),
      ["material.layer_interface = 'bonded' needs Poisson's ratio", "frictionless"]),
+    (dict(layer_thickness=1e-300), ["material.layer_thickness = 1e-300 m: accepted range [", ", inf) m",
+                                    "floating-point range"]),
 ])
 def test_bad_material_names_the_keys(material, words):
     refused(rough(**material), *words)

@@ -181,6 +181,36 @@ def test_plot_of_a_damaged_curve_names_the_file_and_row(tmp_path):
     assert proc.returncode == 1 and "row 1: force_N = '1.2e' is not a number" in proc.stderr
 
 
+@pytest.mark.serial
+def test_plot_names_each_damaged_file_and_its_cause(tmp_path, capsys):
+    """summary.json, scene.json, a step file and curve.csv damaged each in its own way: the
+    message names the file and what is wrong with it, never a traceback; a run with no step
+    (failed at its first) has nothing to plot and says so."""
+    from mpi4py import MPI
+    from contactpetsc.app import cli
+    out = tmp_path / "out"
+    scene = hertz(out, 16, 1e-9)
+    scene["output"]["fields"] = True
+    runner.run(scene, comm=PETSc.COMM_SELF)
+    step = sorted(n for n in os.listdir(out) if n.startswith("step_") and n.endswith(".h5"))[-1]
+    damage = {"summary.json": (b'{"pull_off', "not valid JSON"), "scene.json": (b"[1, 2]", "a JSON list"),
+              step: (None, "truncated"), "curve.csv": (bytes(range(256)) * 4, "not a text file")}
+    for name, (content, cause) in damage.items():
+        case = tmp_path / name
+        shutil.copytree(out, case)
+        data = (case / name).read_bytes()
+        (case / name).write_bytes(content if content is not None else data[:len(data) // 3])
+        assert cli._plot(str(case), MPI.COMM_SELF) == 1
+        err = capsys.readouterr().err
+        assert f"cannot read {case / name}: " in err and cause in err and "Traceback" not in err
+    none = tmp_path / "none"
+    shutil.copytree(out, none)
+    (none / "curve.csv").write_text((out / "curve.csv").read_text().splitlines(keepends=True)[0])
+    assert cli._plot(str(none), MPI.COMM_SELF) == 1
+    err = capsys.readouterr().err
+    assert f"{none / 'curve.csv'} has no steps" in err and "nothing to plot" in err
+
+
 def test_petsc_failure_building_the_grid_is_told_in_the_users_terms(coll, monkeypatch):
     def fails(*args, **kwargs):
         raise PETSc.Error(55)

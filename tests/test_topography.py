@@ -22,6 +22,8 @@ import pytest
 from contactpetsc import topography
 from contactpetsc.app import builder, scenes
 from contactpetsc.topography import FormatError, convert, read_topography
+from contactpetsc.geometry import surfaces
+from contactpetsc.grid import SurfaceGrid
 
 NX, NY = 7, 5
 DX, DY = 2.0, 3.0      # in the file's lateral unit
@@ -319,6 +321,20 @@ def test_a_text_matrix_scene_takes_its_grid_from_the_file(coll, shared_tmp):
     coll.raises(scenes.SceneError, ["geometry.dx is required", "bare.txt"], scenes.validate, file_scene(bare))
     g = scenes.validate(file_scene(bare, dx=1e-9, height_unit="A"))["geometry"]
     assert (g["dy"], g["height_unit"]) == (1e-9, "A")
+
+
+def test_a_map_too_small_for_its_fit_is_refused_naming_the_size_and_the_minimum(coll, shared_tmp):
+    """A quadric has 6 coefficients and u^2, v^2 need 3 distinct values each: a 3 x 2 map
+    cannot be fitted (its normal equations are singular); a mean plane can."""
+    path = shared_tmp / "small.txt"
+    on_root(coll, lambda: path.write_text("# Width: 3 um\n# Height: 2 um\n# Value units: nm\n1 2 3\n4 5 7\n"))
+    words = ["geometry.detrend = 'curvature'", "at least 3 nodes along each axis", "this map is 3 x 2",
+             "accepted for it: none, mean-plane"]
+    coll.raises(scenes.SceneError, words, scenes.validate, file_scene(path, detrend="curvature"))
+    assert scenes.validate(file_scene(path, detrend="mean-plane"))["geometry"]["nx"] == 3
+    grid = SurfaceGrid(3, 2, 1e-6, periodic=False)
+    h = surfaces.from_array(grid, np.array([[1.0, 4.0], [2.0, 5.0], [3.0, 7.0]]))
+    coll.raises(ValueError, words[1:], surfaces.detrended, grid, h, "curvature")
 
 
 @pytest.mark.parametrize("detrend", ["none", "mean-plane", "curvature"])

@@ -47,6 +47,12 @@ def check_material(out: dict, given: set) -> None:
         raise SceneError("material.layer_interface = 'bonded' needs Poisson's ratio: give material.youngs_modulus "
                          "and material.poisson_ratio instead of material.e_star (or layer_interface = "
                          "'frictionless', which does not depend on it)")
+    from ..operators.layer import check_thickness
+    g = out["geometry"]
+    try:
+        check_thickness(layer(out), (g["nx"] * g["dx"], g["ny"] * g["dy"]), "material.layer_thickness")
+    except ValueError as e:
+        raise SceneError(str(e)) from None
 
 
 def check_hardness(out: dict, adhesive: bool) -> None:

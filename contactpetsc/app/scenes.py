@@ -20,6 +20,7 @@ import tomllib
 from ..operators.layer import INTERFACES
 from ..physics.interactions import LAWS, WORK_OF_ADHESION, adhesive_laws, relaxation_laws
 from ..topography import DETREND, FILLS, FORMATS, HEIGHT_UNITS, HEIGHTS_ARE
+from ..topography.detrend import check_size
 from .scene_files import read_height_file
 from .scene_material import check_hardness, check_material, e_star, layer  # noqa: F401 (e_star, layer: API)
 from .scene_values import (LOAD_RESOLUTION, NONNEG, POISSON, POS, TOL, SceneError,  # noqa: F401 (API)
@@ -85,7 +86,8 @@ _SCHEMA = {
         "hardness": _k(float, None, "Pa", "hardness H: no node carries more pressure (perfectly plastic "
                        "asperities; default none; without adhesion; docs/formulation.md)", POS),
         "layer_thickness": _k(float, None, "m", "the elastic body is a layer of this thickness on a rigid base "
-                              "(periodic cells; default: a half-space)", POS),
+                              "(periodic cells; default: a half-space); thinner than f(2 pi t / L) = 1e-100 "
+                              "(about 1e-107 L, incompressible bonded 1e-41 L) refused with the cell's range", POS),
         "layer_interface": _k(str, None, "", "the layer's contact with its base: bonded (no slip; the default "
                               "with a layer; needs poisson_ratio) or frictionless", choices=INTERFACES),
     },
@@ -223,6 +225,11 @@ def validate(scene: dict) -> dict:
     if g["periodic"] is None:
         g["periodic"] = g["kind"] == "self-affine"
     _check_geometry(g, _given(scene, "geometry"))
+    if g["kind"] == "file":
+        try:
+            check_size(g["nx"], g["ny"], g["detrend"], "geometry.detrend")
+        except ValueError as e:
+            raise SceneError(str(e)) from None
     check_material(out, _given(scene, "material"))
     if out["output"]["atom_forces"] and g["kind"] != "tip":
         raise SceneError("output.atom_forces needs geometry.kind = tip (forces per atom of a tip)")

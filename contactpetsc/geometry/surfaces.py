@@ -21,6 +21,7 @@ from ..collective import collective_call
 from ..pencil_fft import grid_rfft
 from ..grid import GridError, SurfaceGrid
 from ..topography import HEIGHTS_ARE, centred_coordinates, grid_mismatch, read_topography, trend
+from ..topography.detrend import check_size
 
 
 class HeightDtypeWarning(UserWarning):
@@ -112,6 +113,7 @@ def detrended(grid: SurfaceGrid, h: PETSc.Vec, mode: str = "none") -> PETSc.Vec:
     is first touch).  The fit is made from every rank's rows (an all-reduce)."""
     grid.check_vec(h, "heights")
     grid.require_slabs("detrending")
+    check_size(grid.nx, grid.ny, mode)
     local = grid.local_array(h, readonly=True)
     u, v = centred_coordinates(grid.nx, grid.ny, slice(grid.ys, grid.ye))
     fit = collective_call(grid.mpi_comm, GridError, "detrend: {error}", trend, local, u, v, mode,

@@ -42,7 +42,7 @@ from ..log_events import log_event
 from ..collective import collective_guard
 from ..grid import SurfaceGrid
 from ..lifetime import destroy_at_exit
-from .layer import Layer
+from .layer import Layer, check_thickness
 from .love import love_displacement
 
 
@@ -206,6 +206,7 @@ class PeriodicLayer(PeriodicHalfSpace):
     def __init__(self, grid: SurfaceGrid, e_star: float, layer: Layer, **kw):
         if not isinstance(layer, Layer):
             raise ValueError(f"layer must be a contactpetsc.operators.Layer, got {layer!r}")
+        check_thickness(layer, grid.lengths)
         self.layer = layer
         super().__init__(grid, e_star, **kw)
 

@@ -16,7 +16,13 @@ like x / 2 (u = p t / E*, a laterally free strip in plane strain), the bonded on
 8 (1 - 2 nu) x / (kappa + 1)^2 (u = p t (1 + nu)(1 - 2 nu) / (E (1 - nu)), a laterally
 confined layer), and the incompressible bonded layer like 2 x^3 / 3 (u = t^3 q^2 p / (3 mu)).
 tests/test_layer.py checks both against the boundary-value problem solved numerically.
-The formulas are evaluated in e = exp(-2x), free of overflow and of cancellation at small x.
+The formulas are evaluated in e = exp(-2x), free of overflow and of cancellation at small x;
+beyond x = ``HALF_SPACE_X`` (40: 1 - f ~ x^2 e^{-2x} < 1e-31) f is 1, the half-space, so a
+layer of any finite thickness is computable.  Thin layers are computable while the
+relative compliance of the cell's longest mode, f(2 pi t / L), is at least ``MIN_FACTOR``
+(1e-100): the layer's pressures are those of the half-space over f, and with f below that
+they, their squares in the solvers' norms, or the stiffness E* |q| / (2 f) leave the
+floating-point range (``thinnest``, checked by ``PeriodicLayer`` and the scene).
 """
 from __future__ import annotations
 
@@ -26,6 +32,10 @@ from dataclasses import dataclass
 import numpy as np
 
 INTERFACES = ("bonded", "frictionless")
+#: f(x) = 1 to round-off beyond this x = |q| t (the half-space)
+HALF_SPACE_X = 40.0
+#: the smallest relative compliance f of a mode that the solvers compute in floating point
+MIN_FACTOR = 1e-100
 
 
 @dataclass(frozen=True)
@@ -69,7 +79,8 @@ def _sinh_minus_identity(y: np.ndarray) -> np.ndarray:
 
 def layer_factor(x: np.ndarray, interface: str, poisson_ratio: float | None = None) -> np.ndarray:
     """f(x), x = |q| t >= 0, of the layer's kernel (module docstring); f(0) = 0."""
-    x = np.asarray(x, float)
+    x_in = np.asarray(x, float)
+    x = np.minimum(x_in, HALF_SPACE_X)     # beyond it f = 1; x^2 e^{-2x} would be inf * 0
     e = np.exp(-2.0 * x)
     one_minus_e2 = -np.expm1(-4.0 * x)
     if interface == "frictionless":
@@ -88,4 +99,30 @@ def layer_factor(x: np.ndarray, interface: str, poisson_ratio: float | None = No
     else:
         raise ValueError(f"layer interface must be one of {', '.join(INTERFACES)}, got {interface!r}")
     # f(0) = 0 (the frictionless ratio is 0/0 there)
-    return np.where(x > 0, num / np.where(x > 0, den, 1.0), 0.0)
+    f = np.where(x > 0, num / np.where(x > 0, den, 1.0), 0.0)
+    return np.where(x_in >= HALF_SPACE_X, 1.0, f)
+
+
+def thinnest(lengths, interface: str, poisson_ratio: float | None = None) -> float:
+    """The smallest thickness [m] a cell of side ``lengths`` computes: f(2 pi t / max(lengths))
+    = ``MIN_FACTOR`` (f rises with t; bisection in log t)."""
+    q = 2.0 * math.pi / max(lengths)
+    lo, hi = -400.0, math.log(HALF_SPACE_X / q)
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if layer_factor(q * math.exp(mid), interface, poisson_ratio) < MIN_FACTOR:
+            lo = mid
+        else:
+            hi = mid
+    return math.exp(hi)
+
+
+def check_thickness(layer: "Layer", lengths, name: str = "layer thickness") -> None:
+    """Refuse a layer too thin for the cell (``thinnest``), naming ``name`` and the range."""
+    t_min = thinnest(lengths, layer.interface, layer.poisson_ratio)
+    if layer.thickness < t_min:
+        raise ValueError(
+            f"{name} = {layer.thickness!r} m: accepted range [{t_min:.3g}, inf) m on a "
+            f"{lengths[0]:.6g} x {lengths[1]:.6g} m cell ({layer.interface} layer); thinner, the layer's "
+            f"compliance relative to a half-space, f(2 pi t / L), is below {MIN_FACTOR:g} and its "
+            f"pressures and stiffness leave the floating-point range")

@@ -60,6 +60,9 @@ from .states import ContactState
 NEWTON_LINESEARCH, NEWTON_KSP = "basic", "cg"
 
 
+#: an rms height below this fraction of the heights or of the cell size is round-off: a plane
+FLAT_RMS = 1e-12
+
 class ContactProblem(NestedIteration, Backtracking, JointLoadNewton, ContactLoadControl, VIProblem):
     """Contact of an elastic half-space with a rigid composite surface h, no adhesion.
 
@@ -74,7 +77,8 @@ class ContactProblem(NestedIteration, Backtracking, JointLoadNewton, ContactLoad
         PETSc options prefix of the SNES, KSP and PC (default ``contact_``).
     length_scale : float, optional
         Length [m] the complementarity error is measured in; defaults to
-        the rms height of h (the benchmark convention), or dx if h is flat.
+        the rms height of h (the benchmark convention), or dx if h is flat
+        (rms below ``FLAT_RMS`` of its heights or of the cell's size: a detrended plane).
     operator : HalfSpaceOperator, optional
         Reuse an operator built on the same grid (its E* must equal ``e_star``).
     tol, load_tol : float, optional
@@ -108,8 +112,10 @@ class ContactProblem(NestedIteration, Backtracking, JointLoadNewton, ContactLoad
         self._coarse = None
         if length_scale is None:
             rms = rms_height(grid, heights)
-            # a flat surface (rms at round-off of its heights) has no length of its own
-            flat = rms <= 1e-12 * max(abs(heights.max()[1]), abs(heights.min()[1]))
+            # a flat surface has no length of its own: rms at round-off of its heights, or of
+            # the cell (a detrended plane keeps round-off of its tilt's span, eps s L: an rms
+            # below FLAT_RMS L is a plane to round-off at any slope s <= 1)
+            flat = rms <= FLAT_RMS * max(abs(heights.max()[1]), abs(heights.min()[1]), *grid.lengths)
             length_scale = grid.dx if flat or rms == 0 else rms
         if not (np.isfinite(length_scale) and length_scale > 0):
             raise ValueError(f"length_scale (m) must be finite and > 0, got {length_scale!r}")

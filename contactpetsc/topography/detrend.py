@@ -17,6 +17,19 @@ from __future__ import annotations
 import numpy as np
 
 DETREND = ("none", "mean-plane", "curvature")
+#: nodes along each axis a fit needs: a plane 2 (3 nodes not on a line), a quadric 3 (u^2, v^2)
+MIN_NODES = {"none": 1, "mean-plane": 2, "curvature": 3}
+
+
+def check_size(nx: int, ny: int, mode: str, name: str = "detrend") -> None:
+    """ValueError naming ``name`` when an nx x ny map has too few nodes for ``mode``'s fit (its
+    normal equations would be singular)."""
+    need = MIN_NODES.get(mode, 1)
+    if min(nx, ny) < need:
+        terms = "a + b u + c v" + (" + d u^2 + e u v + f v^2" if mode == "curvature" else "")
+        raise ValueError(f"{name} = {mode!r} fits {terms}: it needs at least {need} nodes along each axis "
+                         f"({need * need} nodes, not on one line), this map is {nx} x {ny}; accepted for it: "
+                         + ", ".join(m for m in DETREND if min(nx, ny) >= MIN_NODES[m]))
 
 
 def _basis(u: np.ndarray, v: np.ndarray, mode: str) -> list:

@@ -26,12 +26,11 @@ Serial code on the files: ``contactpetsc run`` calls it on rank 0 after a run wh
 """
 from __future__ import annotations
 
-import json
 import os
 
 import numpy as np
 
-from .common import is_number, prefix, read_csv, require
+from .common import is_number, prefix, read_csv, read_json, reading, require
 from .curves import BRANCH_STYLE, contact_area, load_approach, mean_gap, sphere_overlays
 from .fields import histograms, pressure_map, psd
 from .history import ERRORS, error_vs_time
@@ -51,6 +50,8 @@ PLOTS = ("load_approach.png", "contact_area.png", "mean_gap.png", "pressure_map.
          "psd.png", "error_vs_time.png")
 ROUGH = ("self-affine", "file")   #: the geometry kinds whose heights are a rough surface
 LOAD_CURVES = ("contact_area.png", "mean_gap.png")
+#: what a run's scene.json holds (the validated scene)
+SCENE_SECTIONS = ("name", "geometry", "material", "interaction", "protocol", "solver", "output")
 
 
 def planned(scene: dict | None) -> tuple:
@@ -103,7 +104,7 @@ def read_fields(directory: str, step: int) -> dict | None:
     if not os.path.exists(path):
         return None
     import h5py
-    with h5py.File(path, "r") as f:
+    with reading(path), h5py.File(path, "r") as f:
         if "pressure" not in f:
             return None
         attrs = dict(f.attrs)
@@ -128,17 +129,18 @@ def plot_run(directory: str, fields: dict | None = None, step: int | None = None
     if not os.path.exists(path("curve.csv")):
         raise FileNotFoundError(f"no curve.csv in {directory}: not a contactpetsc output directory")
     curve = read_csv(path("curve.csv"), numeric=("step", "approach_m", "force_N"))
-    if not curve:
-        raise ValueError(f"{path('curve.csv')} has no steps yet")
-    scene = None
-    if os.path.exists(path("scene.json")):
-        with open(path("scene.json")) as f:
-            scene = json.load(f)
+    if not curve or not len(curve["step"]):
+        raise ValueError(f"{path('curve.csv')} has no steps: the run wrote none (it failed or was stopped at "
+                         "its first step; its log says why): nothing to plot")
+    scene = read_json(path("scene.json")) if os.path.exists(path("scene.json")) else None
+    missing = [k for k in SCENE_SECTIONS if scene is not None and k not in scene]
+    if missing:
+        raise ValueError(f"cannot read {path('scene.json')}: no {', '.join(missing)}: the file is damaged or "
+                         "not a contactpetsc scene")
     jumps = read_csv(path("jumps.csv"), numeric=JUMP_NUMBERS) if os.path.exists(path("jumps.csv")) else None
     pull_off = None
     if os.path.exists(path("summary.json")):
-        with open(path("summary.json")) as f:
-            pull_off = json.load(f).get("pull_off_force_N")
+        pull_off = read_json(path("summary.json")).get("pull_off_force_N")
     if fields is not None:
         chosen = fields["step"]
     else:
@@ -152,6 +154,17 @@ def plot_run(directory: str, fields: dict | None = None, step: int | None = None
         written.append(path(file))
         plot(*args, path=written[-1], **kw)
 
+    try:
+        _draw_all(draw, directory, curve, scene, jumps, pull_off, fields, chosen, name)
+    except KeyError as exc:
+        raise ValueError(f"cannot plot {directory}: no {exc} in scene.json or curve.csv (damaged, or written "
+                         "by another version)") from None
+    return written
+
+
+def _draw_all(draw, directory, curve, scene, jumps, pull_off, fields, chosen, name) -> None:
+    """``plot_run``'s drawing, each plot through ``draw``."""
+    path = lambda name: os.path.join(directory, name)  # noqa: E731
     wanted = planned(scene)
     draw("load_approach.png", load_approach, curve, jumps, pull_off, title=f"{name}: load against approach",
          overlays=sphere_overlays(scene, curve["approach_m"]) if scene else [])
@@ -184,7 +197,6 @@ def plot_run(directory: str, fields: dict | None = None, step: int | None = None
     if os.path.exists(path("history.csv")):
         draw("error_vs_time.png", error_vs_time, read_csv(path("history.csv")),
              title=f"{name}: error against run time")
-    return written
 
 
 def _band(g: dict) -> tuple[float, float]:

@@ -2,7 +2,9 @@
 only: importing this module imports no matplotlib)."""
 from __future__ import annotations
 
+import contextlib
 import csv
+import json
 
 import numpy as np
 
@@ -41,11 +43,46 @@ def prefix(values, unit: str) -> tuple[float, str]:
     return 1e-15, "f" + unit
 
 
+@contextlib.contextmanager
+def reading(path: str):
+    """Any failure to read ``path`` becomes a ValueError naming the file and its cause (a file
+    that is not text, not JSON, truncated, or without a dataset or column the plot needs); one
+    that already names the file passes unchanged."""
+    try:
+        yield
+    except Exception as exc:  # noqa: BLE001 - every reader's failure, named
+        if str(path) in str(exc):
+            raise
+        if isinstance(exc, UnicodeDecodeError) or isinstance(exc, csv.Error) and "NUL" in str(exc):
+            cause = "not a text file (binary bytes)"
+        elif isinstance(exc, json.JSONDecodeError):
+            cause = f"not valid JSON ({exc})"
+        elif isinstance(exc, KeyError):
+            cause = f"no {exc}: the file is damaged or not a contactpetsc output"
+        else:
+            cause = f"{type(exc).__name__}: {exc}" if str(exc) else type(exc).__name__
+        raise ValueError(f"cannot read {path}: {cause}") from None
+
+
+def read_json(path: str) -> dict:
+    """A run's JSON file (``scene.json``, ``summary.json``); a damaged one is a ValueError naming it."""
+    with reading(path), open(path) as f:
+        out = json.load(f)
+        if not isinstance(out, dict):
+            raise ValueError(f"cannot read {path}: a JSON {type(out).__name__}, not an object")
+        return out
+
+
 def read_csv(path: str, numeric: tuple = ()) -> dict:
     """The columns of a CSV file: float arrays where every entry parses (True/False as 1/0),
     lists of strings otherwise.  A row with missing or extra entries, or a ``numeric`` column
     entry that is not a number, is a ValueError naming the file and the row."""
-    with open(path, newline="") as f:
+    with reading(path):
+        return _read_csv(path, numeric)
+
+
+def _read_csv(path: str, numeric: tuple = ()) -> dict:
+    with open(path, newline="", encoding="utf-8") as f:
         reader = csv.DictReader(f)
         rows = list(reader)
         header = reader.fieldnames or []

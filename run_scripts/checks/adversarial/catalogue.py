@@ -9,6 +9,7 @@ from .cases_input import (
     GOOD_CURVE_HEAD, api_from_step_file_case, api_refusal_case, axes_stamp_case, cli_refusal_case,
     h5, height_file_case, load_case, npy, plot_case, raw_file, refuse_or_match_case,
     round_trip_case, stamped_input_case, warn_ok)
+from .cases_limits import limit_cases
 from .cases_physics import (
     FAR, api_random_vector_case, api_weak_adhesion_case, flat_case, random_vector_case,
     rigid_sphere_case, window_case)
@@ -263,6 +264,9 @@ def all_cases() -> list[Case]:
         def misuse():
             ContactProblem(grid, surfaces.sphere(grid, 1e-6), 1e9).solve(approach=float("nan"))
         """, ["approach"], ranks=2))
+    # limits and messages: the layer at any thickness, plot on damaged runs, round-off heights,
+    # small maps, communicators, measured surfaces
+    cases += limit_cases()
     return cases
 
 

@@ -17,13 +17,15 @@ def main(argv=None) -> int:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--list", action="store_true", help="list the cases and exit")
     ap.add_argument("--only", default=None, help="run the cases whose name contains this")
+    ap.add_argument("--class", dest="klass", default=None, help="run the cases of these classes (comma-separated; the list's column)")
     ap.add_argument("--timeout", type=float, default=harness.TIMEOUT, help="wall-time bound per process [s]")
     ap.add_argument("--jobs", type=int, default=1, help="cases run at once")
     ap.add_argument("--markdown", default=None, help="write the table to this file")
     ap.add_argument("--keep", action="store_true", help="keep each case's directory")
     args = ap.parse_args(argv)
     harness.TIMEOUT = args.timeout
-    cases = [c for c in all_cases() if args.only is None or args.only in c.name]
+    cases = [c for c in all_cases() if (args.only is None or args.only in c.name)
+             and (args.klass is None or c.issue_class in args.klass.split(","))]
     if args.list:
         for c in cases:
             print(f"{c.name:40s} class {c.issue_class:4s} np{c.ranks}  {c.description}")

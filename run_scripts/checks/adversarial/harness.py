@@ -43,7 +43,7 @@ OK, WRONG, LOST, CRASH, HANG, UNCLEAR, LOUD, SLOW = ("OK", "SILENT-WRONG", "LOST
 @dataclasses.dataclass
 class Case:
     name: str
-    issue_class: str              # "1".."13" or "msg": the class of defect the case probes
+    issue_class: str              # "1".."13", "msg" or a limit's name: the class of defect the case probes
     description: str
     expected: str
     run: Callable[[Path], tuple[str, str]]   # work dir -> (classification, detail)
