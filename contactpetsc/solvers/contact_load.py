@@ -281,8 +281,8 @@ class JointLoadNewton:
         ksp.setPythonContext(ProjectedCG(self._step_sum, self._forcing, self._keep_tangent))
         # SNES VI resets its KSP from the options database whenever the inactive set changes
         # (SNESVIResetPCandKSP): a -<prefix>ksp_type there would put plain CG back in place of
-        # the projected one, which ignores the load (every joint solve ran to max_it, then the
-        # outer iteration: 18x the Newton steps at 128^2), so the database names ours meanwhile
+        # the projected one, which ignores the load (every joint solve then runs to max_it and
+        # the outer iteration takes over, silently slow), so the database names ours meanwhile
         opts, name = PETSc.Options(), self.prefix + "ksp_type"
         given = opts.getString(name) if opts.hasName(name) else None
         opts.setValue(name, "python")
