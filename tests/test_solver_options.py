@@ -194,14 +194,15 @@ def test_ksp_type_cg_is_the_default_load_control(coll):
 
 def test_another_ksp_type_under_load_control_warns_once_with_its_cost(coll):
     """minres cannot be the joint step's projected CG: the outer iteration runs it, at most
-    4x the default's FFT pairs that the warning states, which rank 0 gives once, naming the
+    7x the default's FFT pairs that the warning states (2.5x on 1 and 2 ranks, 6.3x on 3, whose
+    uneven rows give other coarse levels), which rank 0 gives once, naming the
     option; -<prefix>load_joint true keeps the joint step (the default's counts)."""
     default = _rough_load("popt_kref_", {}, loads=(0.004, 0.006))
     newton, pairs, said = _rough_load("popt_kmin_", {"ksp_type": "minres"}, loads=(0.004, 0.006))
-    assert coll.all(pairs <= 4 * default[1]), (pairs, default)
+    assert coll.all(pairs <= 7 * default[1]), (pairs, default)
     rank0 = coll.comm.Get_rank() == 0
     assert coll.all(len(said) == (1 if rank0 else 0)), said
-    assert coll.all(not rank0 or ("-popt_kmin_ksp_type minres" in said[0] and "4x the FFT pairs" in said[0]))
+    assert coll.all(not rank0 or ("-popt_kmin_ksp_type minres" in said[0] and "7x the FFT pairs" in said[0]))
     kept = _rough_load("popt_kjoint_", {"ksp_type": "minres", "load_joint": True}, loads=(0.004, 0.006))
     assert coll.all(kept[:2] == default[:2] and not kept[2]), (kept, default)
 

@@ -18,6 +18,7 @@ import zipfile
 
 import numpy as np
 import pytest
+from petsc4py import PETSc
 
 from contactpetsc import topography
 from contactpetsc.app import builder, scenes
@@ -332,7 +333,7 @@ def test_a_map_too_small_for_its_fit_is_refused_naming_the_size_and_the_minimum(
              "accepted for it: none, mean-plane"]
     coll.raises(scenes.SceneError, words, scenes.validate, file_scene(path, detrend="curvature"))
     assert scenes.validate(file_scene(path, detrend="mean-plane"))["geometry"]["nx"] == 3
-    grid = SurfaceGrid(3, 2, 1e-6, periodic=False)
+    grid = SurfaceGrid(3, 2, 1e-6, periodic=False, comm=PETSc.COMM_SELF)   # 2 rows: one rank each
     h = surfaces.from_array(grid, np.array([[1.0, 4.0], [2.0, 5.0], [3.0, 7.0]]))
     coll.raises(ValueError, words[1:], surfaces.detrended, grid, h, "curvature")
 

@@ -223,7 +223,7 @@ class JointLoadNewton:
                 f"-{self.prefix}ksp_type {kind}: load control's joint Newton step in (p, delta) is CG on "
                 f"the load's plane (projected CG), which {kind} cannot replace; load control runs the "
                 f"outer iteration on the approach instead, where {kind} solves every Newton step: expect "
-                f"1.5-4x the FFT pairs (2-7x the Newton steps) of -{self.prefix}ksp_type cg, measured on rough "
+                f"1.5-7x the FFT pairs (2-7x the Newton steps) of -{self.prefix}ksp_type cg, measured on rough "
                 f"cells of 64^2 to 256^2 "
                 f"(-{self.prefix}load_joint true keeps the joint step, its projected CG and {kind} for "
                 f"displacement control)", SolverOptionWarning, stacklevel=2)
