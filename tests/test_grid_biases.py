@@ -20,28 +20,32 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import axisymmetric_lj as axi  # noqa: E402
 
 
-def tail_by_summation(law, radius, approach, edges, h=0.25, reach=400.0):
-    """The law over the rigid sphere's gap outside the window, a midpoint sum on a fine grid to
-    ``reach`` plus Derjaguin's 2 pi R Phi beyond that circle."""
+def tail_by_summation(law, radius, approach, edges, h=0.25, reach=400.0, far=0.0):
+    """The law over the gap r^2 / 2R - delta + far / r outside the window, a midpoint sum on a fine
+    grid to ``reach`` plus Derjaguin's 2 pi R Phi beyond that circle."""
     xm, xp, ym, yp = edges
     x = np.arange(-reach, reach, h) + 0.5 * h
     X, Y = np.meshgrid(x, x, indexing="ij")
     r2 = X * X + Y * Y
     out = ((X < -xm) | (X > xp) | (Y < -ym) | (Y > yp)) & (r2 < reach * reach)
-    return (float(law.pressure(r2[out] / (2 * radius) - approach).sum()) * h * h
-            + 2 * np.pi * radius * float(law.energy(reach * reach / (2 * radius) - approach)))
+    gap = r2[out] / (2 * radius) - approach + far / np.sqrt(r2[out])
+    return (float(law.pressure(gap).sum()) * h * h
+            + 2 * np.pi * radius * float(law.energy(reach * reach / (2 * radius) - approach + far / reach)))
 
 
 @pytest.mark.parametrize("law", ["lj", "exponential"])
 def test_window_tail_is_the_law_outside_the_window(law):
     """closed_forms.window_tail_force (a polar integral of Phi) against a brute-force sum, on the
-    adhesive example's window (96 z0, R = 100 z0, apex a node right of centre) and an oblong one;
+    adhesive example's window (96 z0, R = 100 z0, apex a node right of centre; rigid, and with the
+    far field of its mu = 1 pull-off, -52.5 E* z0^2) and an oblong one;
     the square leaves out 0.69 of the circle's Derjaguin tail (r^-6 tail: 2 (1/4 + 3 pi/32) / (pi/2))."""
     lw = make_law(law, work_of_adhesion=0.1, **({"z0": 1.0} if law == "lj" else {"rho": 2.0}))
-    for edges, approach in ((cf.sphere_window_edges(96, 96, 1.0, 1.0), -1.0),
-                            (cf.sphere_window_edges(40, 56, 1.5, 1.0), 0.5)):
-        ref = tail_by_summation(lw, 100.0, approach, edges)
-        assert cf.window_tail_force(lw, 100.0, approach, edges) == pytest.approx(ref, rel=2e-3)
+    for edges, approach, force in ((cf.sphere_window_edges(96, 96, 1.0, 1.0), -1.0, 0.0),
+                                   (cf.sphere_window_edges(96, 96, 1.0, 1.0), -0.87, -52.5),
+                                   (cf.sphere_window_edges(40, 56, 1.5, 1.0), 0.5, -20.0)):
+        ref = tail_by_summation(lw, 100.0, approach, edges, far=force / np.pi)
+        assert cf.window_tail_force(lw, 100.0, approach, edges, force=force, e_star=1.0) == pytest.approx(
+            ref, rel=2e-3)
     far = make_law("lj", work_of_adhesion=0.1, z0=1e-3)          # gap >> z0 at the edge: r^-6
     a = 50.0
     square = cf.window_tail_force(far, 100.0, 0.0, (a, a, a, a))

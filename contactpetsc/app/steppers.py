@@ -206,8 +206,9 @@ class AdhesiveSteps:
 
     def pull_off_biases(self, pull: float) -> dict:
         """What the grid does to a smooth sphere's pull-off (summary.json, the log): the law's
-        attraction outside the window (``closed_forms.window_tail_force`` on the undeformed sphere
-        at the pull-off's approach; the pull-off is short of it) and, on a grid too coarse for the
+        attraction outside the window (``closed_forms.window_tail_force``: the sphere's gap at the
+        pull-off's approach with the half-space's far field F / (pi E* r); the pull-off is short of
+        it) and, on a grid too coarse for the
         adhesive zone, the sawtooth of the force along the path (``resolution.sawtooth_amplitude``;
         the pull-off is its deepest tooth).  Empty for other surfaces."""
         from ..paths import good_state
@@ -220,7 +221,8 @@ class AdhesiveSteps:
             return {}
         at = min(good, key=lambda p: p.force).approach
         g = self.grid
-        tail = window_tail_force(self.law, self.radius, at, sphere_window_edges(g.nx, g.ny, g.dx, g.dy))
+        tail = window_tail_force(self.law, self.radius, at, sphere_window_edges(g.nx, g.ny, g.dx, g.dy),
+                                 force=pull, e_star=self.e_star)
         out = {"window_tail_N": tail, "window_tail_fraction": tail / pull}
         zone = adhesive_zone_length(self.law, self.e_star, radius=self.radius)["zone"]
         nodes = zone / max(g.dx, g.dy)
@@ -245,7 +247,7 @@ class AdhesiveSteps:
                         + (f" (W* = {out['pull_off_W_star']:.4f})" if self.sphere else ""))
         if "window_tail_N" in out:
             PETSc.Sys.Print(f"  the window leaves out the law's attraction beyond its edge: {out['window_tail_N']:.3e} N "
-                            f"on the undeformed sphere at the pull-off's approach, "
+                            f"at the pull-off (sphere and far field, closed form), "
                             f"{100 * out['window_tail_fraction']:.2f} % of the pull-off (the pull-off is that much "
                             f"short; a wider window removes it; docs/validation.md)")
         if "sawtooth_amplitude" in out:
