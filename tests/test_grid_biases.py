@@ -9,7 +9,7 @@ import warnings
 import numpy as np
 import pytest
 
-from contactpetsc.geometry.surfaces import from_function, sphere
+from contactpetsc.geometry.surfaces import sphere
 from contactpetsc.grid import SurfaceGrid
 from contactpetsc.physics import closed_forms as cf
 from contactpetsc.physics.interactions import make_law
@@ -18,6 +18,7 @@ from contactpetsc.solvers.adhesive import AdhesiveProblem
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import axisymmetric_lj as axi  # noqa: E402
+from adhesive_setup import shifted_sphere_forces  # noqa: E402
 
 
 def tail_by_summation(law, radius, approach, edges, h=0.25, reach=400.0, far=0.0):
@@ -88,21 +89,8 @@ def test_element_integration_does_not_cut_the_contact_edge_scatter(coll):
     +0.27 % and +0.29 %)."""
     R, w, dx, n = 20.0, 0.01, 2.0, 64
     law = make_law("hardwall-lj", work_of_adhesion=w, z0=1.0)
-    forces = {}
-    for element in (False, True):
-        out = []
-        for s in (0.0, 0.5, 1.0):
-            grid = SurfaceGrid(n, n, dx, periodic=False)
-            x0, y0 = (n // 2 + 0.5 * s) * dx, (n // 2 + 0.37 * s) * dx
-            h = from_function(grid, lambda x, y: ((x - x0) ** 2 + (y - y0) ** 2) / (2 * R))
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                pb = AdhesiveProblem(grid, h, 1.0, law, element_integration=element, stability_check=False,
-                                     prefix=f"eic{int(element)}_")
-            for a in (0.0, 2.0, 4.0):
-                st = pb.solve(approach=a)
-            out.append(st.force)
-        forces[element] = np.array(out)
+    forces = {element: shifted_sphere_forces(R, law, dx, n, element, (0.0, 2.0, 4.0), (0.0, 0.5, 1.0),
+                                             f"eic{int(element)}_")[0] for element in (False, True)}
     sph = axi.AxisymmetricSphere(R, 1.0, w, 1.0, axi.default_mesh(R, w, 1.0, 1.0, 4.0), law="hardwall-lj")
     st = None
     for a in np.arange(-3.0, 4.01, 0.25):

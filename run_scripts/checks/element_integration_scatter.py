@@ -20,15 +20,12 @@ import time
 import petsc4py
 petsc4py.init(sys.argv[:1])
 import numpy as np  # noqa: E402
-import warnings  # noqa: E402
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir, os.pardir, "tests"))
 import axisymmetric_lj as axi  # noqa: E402
-from contactpetsc.geometry.surfaces import from_function  # noqa: E402
-from contactpetsc.grid import SurfaceGrid  # noqa: E402
+from adhesive_setup import shifted_sphere_forces  # noqa: E402
 from contactpetsc.physics.interactions import make_law  # noqa: E402
 from contactpetsc.physics.resolution import adhesive_zone_length  # noqa: E402
-from contactpetsc.solvers.adhesive import AdhesiveProblem  # noqa: E402
 
 #: label: (R, w, dx, n, detached approach, contact approach) in z0 = E* = 1
 CASES = {"A": (20.0, 0.01, 2.0, 64, -0.5, 4.0),      # mu = 0.13, DMT-like, zone sqrt(2 R z0) = 3.2 dx
@@ -42,21 +39,8 @@ def tabor(R, w):
 
 def forces(R, w, dx, n, law_name, element, approach, shifts, tag):
     law = make_law(law_name, work_of_adhesion=w, z0=1.0)
-    out, conv = [], True
-    for k, s in enumerate(shifts):
-        grid = SurfaceGrid(n, n, dx, periodic=False)
-        x0, y0 = (n // 2 + 0.5 * s) * dx, (n // 2 + 0.37 * s) * dx
-        h = from_function(grid, lambda x, y: ((x - x0) ** 2 + (y - y0) ** 2) / (2 * R))
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            pb = AdhesiveProblem(grid, h, 1.0, law, element_integration=element, stability_check=False,
-                                 prefix=f"{tag}{k}_")
-        path = [approach] if approach <= 0 else list(np.arange(-1.0, approach + 0.5, 1.0))
-        for a in path:
-            st = pb.solve(approach=a, raise_on_failure=False)
-            conv = conv and st.converged
-        out.append(st.force)
-    return np.array(out), conv
+    path = [approach] if approach <= 0 else list(np.arange(-1.0, approach + 0.5, 1.0))
+    return shifted_sphere_forces(R, law, dx, n, element, path, shifts, tag, raise_on_failure=False)
 
 
 def truth(R, w, n, dx, law_name, approach):
