@@ -6,7 +6,8 @@ unloading path the force follows one state per set of adhered nodes and jumps be
 sawtooth about the smooth curve, and the most tensile sampled state is the deepest tooth.  Units
 E* = z0 = 1, R = 100, lj law, an isolated window; load to ``--top`` in steps of 1 z0, unload in
 steps of ``--step`` over [--from, --to].  Amplitude: the force's deviation from a smooth fit
-(a polynomial of degree 4 in the approach over the unloading states in tension), relative to the
+(a polynomial of degree 8 in the approach over the unloading states in tension; degree 4
+leaves a misfit of 0.05 %), relative to the
 pull-off; with ``--truth`` (the axisymmetric pull-off in the same window, W*) the sampled pull-off's
 error too.
 
@@ -54,7 +55,7 @@ def run(mu, dx, window, top, start, stop, step, element=False):
         pts.append((float(a), st.force / (2 * np.pi * R * w)))
     a, f = np.array(pts).T
     tension = f < 0
-    fit = np.polyval(np.polyfit(a[tension], f[tension], 4), a[tension])
+    fit = np.polyval(np.polyfit(a[tension], f[tension], 8), a[tension])
     dev = (f[tension] - fit) / abs(f.min())
     zone = adhesive_zone_length(law, 1.0, radius=R)["zone"]
     return dict(mu=mu, dx=dx, n=n, zone_nodes=zone / dx, element=element, states=len(pts),
