@@ -208,9 +208,9 @@ class AdhesiveSteps:
         """What the grid does to a smooth sphere's pull-off (summary.json, the log): the law's
         attraction outside the window (``closed_forms.window_tail_force``: the sphere's gap at the
         pull-off's approach with the half-space's far field F / (pi E* r); the pull-off is short of
-        it) and, on a grid too coarse for the
-        adhesive zone, the sawtooth of the force along the path (``resolution.sawtooth_amplitude``;
-        the pull-off is its deepest tooth).  Empty for other surfaces."""
+        it) and, with a Lennard-Jones law on a grid too coarse for the adhesive zone, the sawtooth
+        of the force along the path (``resolution.sawtooth_amplitude``; the pull-off is its deepest
+        tooth).  Empty for other surfaces."""
         from ..paths import good_state
         from ..physics.closed_forms import sphere_window_edges, window_tail_force
         from ..physics.resolution import RESOLUTION_NODES, adhesive_zone_length, sawtooth_amplitude
@@ -226,7 +226,7 @@ class AdhesiveSteps:
         out = {"window_tail_N": tail, "window_tail_fraction": tail / pull}
         zone = adhesive_zone_length(self.law, self.e_star, radius=self.radius)["zone"]
         nodes = zone / max(g.dx, g.dy)
-        if nodes < RESOLUTION_NODES:
+        if nodes < RESOLUTION_NODES and self.law.name in ("lj", "hardwall-lj"):   # measured for LJ
             out["sawtooth_zone_nodes"] = nodes
             out["sawtooth_amplitude"] = sawtooth_amplitude(nodes)
             out["sawtooth_free_dx_m"] = zone / RESOLUTION_NODES

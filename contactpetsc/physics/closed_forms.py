@@ -154,8 +154,8 @@ def maugis_pull_off(radius: float, work_of_adhesion: float, lam: float) -> float
 
 def window_tail_force(law, radius: float, approach: float, edges, force: float = 0.0,
                       e_star: float | None = None) -> float:
-    """The law's force [N] on an undeformed sphere outside a rectangular window: the attraction a
-    finite window leaves out (a tensile bias of a window's force and pull-off).
+    """The law's force [N] outside a rectangular window about a sphere's apex: the attraction a
+    finite window leaves out (a sphere's pull-off on the window is short of it).
 
     The gap outside is the sphere's, g = r^2 / 2R - delta, plus with ``force`` F [N] and ``e_star``
     [Pa] the far field of the half-space, F / (pi E* r) (a point load: a tensile F pulls the

@@ -79,7 +79,7 @@ def check_resolution(law: InteractionLaw, e_star: float, dx: float, *, radius: f
 
 #: the sawtooth of a sphere's force along its unloading path against the nodes per adhesive zone:
 #: (nodes, lowest, highest deviation from the smooth curve, relative to the pull-off), measured by
-#: run_scripts/checks/sawtooth_amplitude.py (docs/validation.md, "The sawtooth of the pull-off")
+#: run_scripts/checks/sawtooth_amplitude.py (docs/validation.md, "The sawtooth of an under-resolved pull-off"; the LJ laws)
 #: (mu = 5 at 1.34, about the axisymmetric curve; mu = 2 at the others: the amplitude depends on the
 #: Tabor parameter too, so the values are an estimate, of about e^(-2 nodes) from 2 nodes on)
 SAWTOOTH_MEASURED = ((1.34, -0.0041, 0.0036),    # mu = 5, 256^2, dx = z0/2
