@@ -80,8 +80,9 @@ def check_resolution(law: InteractionLaw, e_star: float, dx: float, *, radius: f
 #: the sawtooth of a sphere's force along its unloading path against the nodes per adhesive zone:
 #: (nodes, lowest, highest deviation from the smooth curve, relative to the pull-off), measured by
 #: run_scripts/checks/sawtooth_amplitude.py (docs/validation.md, "The sawtooth of an under-resolved pull-off"; the LJ laws)
-#: (mu = 5 at 1.34, about the axisymmetric curve; mu = 2 at the others: the amplitude depends on the
-#: Tabor parameter too, so the values are an estimate, of about e^(-2 nodes) from 2 nodes on)
+#: (mu = 5 at 1.34, about the axisymmetric curve; mu = 2 at the others.  The amplitude depends on the
+#: Tabor parameter too: at mu = 5 and 2 nodes it is +-0.10 %, a quarter of mu = 2's, so the values
+#: are an upper estimate at larger mu; both fall as about e^(-2 nodes))
 SAWTOOTH_MEASURED = ((1.34, -0.0041, 0.0036),    # mu = 5, 256^2, dx = z0/2
                      (1.98, -0.0048, 0.0042),    # mu = 2, dx = 1.33 z0
                      (2.64, -0.0012, 0.0011),    # mu = 2, dx = z0
