@@ -18,3 +18,25 @@ def sphere_problem(mu, law="hardwall-lj", n=64, dx=2.0, comm=None, radius=R, **k
     grid = SurfaceGrid(n, n, dx, periodic=False, comm=comm)
     return AdhesiveProblem(grid, sphere(grid, radius), 1.0,
                            make_law(law, work_of_adhesion=work_for(mu, radius), z0=1.0), **kw)
+
+
+def shifted_sphere_forces(radius, law, dx, n, element, path, shifts, prefix, raise_on_failure=True):
+    """(forces [N], all converged) of an elastic sphere (E* = 1) whose apex sits (0.5 s, 0.37 s) dx
+    off the grid's centre node, for each s in ``shifts``: a fresh problem per position, solved
+    along the approaches ``path`` [m]; the force at the last one."""
+    import warnings
+    from contactpetsc.geometry.surfaces import from_function
+    out, conv = [], True
+    for k, s in enumerate(shifts):
+        grid = SurfaceGrid(n, n, dx, periodic=False)
+        x0, y0 = (n // 2 + 0.5 * s) * dx, (n // 2 + 0.37 * s) * dx
+        h = from_function(grid, lambda x, y: ((x - x0) ** 2 + (y - y0) ** 2) / (2 * radius))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            pb = AdhesiveProblem(grid, h, 1.0, law, element_integration=element, stability_check=False,
+                                 prefix=f"{prefix}{k}_")
+        for a in path:
+            st = pb.solve(approach=a, raise_on_failure=raise_on_failure)
+            conv = conv and st.converged
+        out.append(st.force)
+    return np.array(out), conv

@@ -96,7 +96,11 @@ def _disk_in_square(radius, half):
     rad = np.asarray(radius, dtype=float)
     c = np.clip(half / np.where(rad > 0, rad, 1.0), 0.0, 1.0)
     caps = 4.0 * (rad ** 2 * np.arccos(c) - half * np.sqrt(np.maximum(rad ** 2 - half ** 2, 0.0)))
-    return np.where(rad <= half, np.pi * rad ** 2, np.minimum(np.pi * rad ** 2 - caps, 4 * half ** 2))
+    # the four caps beyond the sides overlap once the disk reaches the corners (rad > sqrt(2) half):
+    # from there the disk holds the whole square (pi rad^2 - caps falls below 4 half^2 there, and
+    # taking the smaller of the two under-counted every ring beyond the corners)
+    return np.where(rad <= half, np.pi * rad ** 2,
+                    np.where(rad >= np.sqrt(2.0) * half, 4 * half ** 2, np.pi * rad ** 2 - caps))
 
 
 # -- the law ------------------------------------------------------------------------------

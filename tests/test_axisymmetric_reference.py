@@ -153,3 +153,21 @@ def test_3d_sphere_matches_the_axisymmetric_solution(coll):
     assert sorted(kinds) == ["jump-off", "jump-on"], path.jumps
     assert coll.max(abs(kinds["jump-on"] - folds[1])) < 0.01, (kinds, folds)
     assert coll.max(abs(kinds["jump-off"] - folds[0])) < 0.01, (kinds, folds)
+
+
+def test_disk_in_square_area_and_the_outside_of_a_square():
+    """The rings' share of a square window (``_disk_in_square``): against a fine count of points
+    inside both, either side of the corners (sqrt(2) half-widths); and the rings' integral of r^-6
+    outside the square against its closed form 2 (1/4 + 3 pi / 32) / a^4 (polar coordinates)."""
+    a, h = 48.0, 0.1
+    x = np.arange(-80.0, 80.0, h) + 0.5 * h
+    X, Y = np.meshgrid(x, x, indexing="ij")
+    inside = (np.abs(X) < a) & (np.abs(Y) < a)
+    for r in (30.0, 50.0, 60.0, 67.0, 68.0, 75.0):
+        count = np.count_nonzero(inside & (X * X + Y * Y < r * r)) * h * h
+        assert float(axi._disk_in_square(np.array([r]), a)[0]) == pytest.approx(count, rel=5e-4)
+    e = np.linspace(40.0, 400.0, 36001)
+    r = 0.5 * (e[1:] + e[:-1])
+    outside = np.diff(np.pi * e ** 2) - np.diff(axi._disk_in_square(e, a))
+    assert outside @ r ** -6.0 + np.pi / (2 * 400.0 ** 4) == pytest.approx(2 * (0.25 + 3 * np.pi / 32) / a ** 4,
+                                                                          rel=1e-5)

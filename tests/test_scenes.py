@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from contactpetsc.app import runner, scenes
+from contactpetsc.app import builder, runner, scenes
 from contactpetsc.app.output import LENGTH_UNITS
 
 
@@ -244,6 +244,7 @@ def test_example_scenes_run_at_reduced_size(coll, shared_tmp, path):
         with open(os.path.join(out, "summary.json")) as f:
             summary = json.load(f)
         assert summary["pull_off_force_N"] <= min(st.force for st in states) + 1e-30
+        check_pull_off_biases(scene, states, summary)
         with h5py.File(os.path.join(out, "step_0001.h5"), "r") as f:
             assert {"contact_pressure", "adhesive_pressure", "adhesive"} <= set(f)
             assert np.allclose(f["pressure"][:], f["contact_pressure"][:] + f["adhesive_pressure"][:])
@@ -286,6 +287,35 @@ def test_example_scenes_run_at_reduced_size(coll, shared_tmp, path):
                     x, y = fa[name][:].astype(float), fb[name][:].astype(float)
                     worst = max(worst, np.abs(x - y).max() / max(np.abs(y).max(), 1e-300))
         assert coll.max(worst) <= 1e-6
+
+
+def check_pull_off_biases(scene, states, summary):
+    """A sphere's pull-off states the window's left-out tail (against a brute-force sum of the law
+    over the gap outside the window, the sphere's at the most tensile state's approach plus the
+    point-load far field F / (pi E* r)) and, on a
+    grid coarser than the criterion, the sawtooth and the spacing that removes it (the LJ cohesive
+    zone (pi/4) E* w / sigma_max^2 = 0.7455 E* z0^2 / w over RESOLUTION_NODES)."""
+    from contactpetsc.physics.closed_forms import sphere_window_edges
+    from contactpetsc.physics.resolution import RESOLUTION_NODES
+    from test_grid_biases import tail_by_summation
+    g, it = scene["geometry"], scene["interaction"]
+    if g["kind"] != "sphere" or it["law"] not in ("lj", "hardwall-lj"):
+        return
+    law = builder.build_law(scene)
+    z0 = it["z0"]
+    at = min((st for st in states if st.stable is not False), key=lambda st: st.force).approach
+    ref = tail_by_summation(law, g["radius"], at, sphere_window_edges(g["nx"], g["ny"], g["dx"], g["dy"]),
+                            h=0.25 * z0, reach=400 * z0,
+                            far=summary["pull_off_force_N"] / (np.pi * scenes.e_star(scene)))
+    assert summary["window_tail_N"] == pytest.approx(ref, rel=2e-3)
+    assert summary["window_tail_fraction"] == pytest.approx(ref / summary["pull_off_force_N"], rel=2e-3)
+    zone = np.pi / 4 * 243 / 256 * scenes.e_star(scene) * z0 ** 2 / it["work_of_adhesion"]   # sigma_max = 16 w / (9 sqrt(3) z0)
+    if zone / max(g["dx"], g["dy"]) < RESOLUTION_NODES:
+        assert summary["sawtooth_free_dx_m"] == pytest.approx(zone / RESOLUTION_NODES, rel=1e-9)
+        lo, hi = summary["sawtooth_amplitude"]
+        assert lo < 0 < hi
+    else:
+        assert "sawtooth_amplitude" not in summary
 
 
 def check_plots(out):

@@ -109,6 +109,8 @@ class AdhesiveSteps:
         self.problem, self.relax, self.law = problem, relax, problem.law
         law = self.law
         self.grid, self.z0, self.radius = grid, law.length_scale(), g["radius"]
+        from .scenes import e_star
+        self.kind, self.e_star = g["kind"], e_star(scene)
         self.sphere = g["kind"] in ("sphere", "tip") and not g["periodic"]   # Greenwood's scaling with R
         self.zone_threshold = CUTOFF * law.peak_attraction   # the paper's adhesive-zone cut-off
         # the relaxation solver relaxes wherever it goes: no jump location; its path's points
@@ -230,6 +232,35 @@ class AdhesiveSteps:
             out["pull_off_not_refined"] = NOT_REFINED
         if self.sphere:
             out["pull_off_W_star"] = pull / (2 * np.pi * self.radius * self.law.work_of_adhesion)
+        out.update(self.pull_off_biases(pull))
+        return out
+
+    def pull_off_biases(self, pull: float) -> dict:
+        """What the grid does to a smooth sphere's pull-off (summary.json, the log): the law's
+        attraction outside the window (``closed_forms.window_tail_force``: the sphere's gap at the
+        pull-off's approach with the half-space's far field F / (pi E* r); the pull-off is short of
+        it) and, with a Lennard-Jones law on a grid too coarse for the adhesive zone, the sawtooth
+        of the force along the path (``resolution.sawtooth_amplitude``; the pull-off is its deepest
+        tooth).  Empty for other surfaces."""
+        from ..paths import good_state
+        from ..physics.closed_forms import sphere_window_edges, window_tail_force
+        from ..physics.resolution import RESOLUTION_NODES, adhesive_zone_length, sawtooth_amplitude
+        if not (self.kind == "sphere" and self.sphere and np.isfinite(pull) and pull < 0):
+            return {}
+        good = [p for p in self.path.points if good_state(p)]
+        if not good:
+            return {}
+        at = min(good, key=lambda p: p.force).approach
+        g = self.grid
+        tail = window_tail_force(self.law, self.radius, at, sphere_window_edges(g.nx, g.ny, g.dx, g.dy),
+                                 force=pull, e_star=self.e_star)
+        out = {"window_tail_N": tail, "window_tail_fraction": tail / pull}
+        zone = adhesive_zone_length(self.law, self.e_star, radius=self.radius)["zone"]
+        nodes = zone / max(g.dx, g.dy)
+        if nodes < RESOLUTION_NODES and self.law.name in ("lj", "hardwall-lj"):   # measured for LJ
+            out["sawtooth_zone_nodes"] = nodes
+            out["sawtooth_amplitude"] = sawtooth_amplitude(nodes)
+            out["sawtooth_free_dx_m"] = zone / RESOLUTION_NODES
         return out
 
     def finish(self) -> dict:
@@ -247,6 +278,18 @@ class AdhesiveSteps:
                         + (f" (W* = {out['pull_off_W_star']:.4f})" if self.sphere else "")
                         + ("" if self.sweeping else " (the most tensile stable step: the relaxation solver does "
                            "not refine it)"))
+        if "window_tail_N" in out:
+            PETSc.Sys.Print(f"  the window leaves out the law's attraction beyond its edge: {out['window_tail_N']:.3e} N "
+                            f"at the pull-off (sphere and far field, closed form), "
+                            f"{100 * out['window_tail_fraction']:.2f} % of the pull-off (the pull-off is that much "
+                            f"short; a wider window removes it; docs/validation.md)")
+        if "sawtooth_amplitude" in out:
+            lo, hi = out["sawtooth_amplitude"]
+            PETSc.Sys.Print(f"  the adhesive zone spans {out['sawtooth_zone_nodes']:.2g} grid spacings: along the path "
+                            f"the force is a sawtooth of about {100 * lo:+.2f} % to {100 * hi:+.2f} % about the "
+                            f"smooth curve (the contact edge moves node by node), and the pull-off is its "
+                            f"deepest tooth; dx <= {out['sawtooth_free_dx_m']:.3g} m removes it "
+                            f"(docs/validation.md)")
         return out
 
 

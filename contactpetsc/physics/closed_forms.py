@@ -150,3 +150,72 @@ def maugis_pull_off_bar(lam: float) -> float:
 def maugis_pull_off(radius: float, work_of_adhesion: float, lam: float) -> float:
     """Maugis-Dugdale pull-off force [N]."""
     return maugis_pull_off_bar(lam) * np.pi * work_of_adhesion * radius
+
+
+def window_tail_force(law, radius: float, approach: float, edges, force: float = 0.0,
+                      e_star: float | None = None) -> float:
+    """The law's force [N] outside a rectangular window about a sphere's apex: the attraction a
+    finite window leaves out (a sphere's pull-off on the window is short of it).
+
+    The gap outside is the sphere's, g = r^2 / 2R - delta, plus with ``force`` F [N] and ``e_star``
+    [Pa] the far field of the half-space, F / (pi E* r) (a point load: a tensile F pulls the
+    surface towards the sphere); ``edges`` = (x-, x+, y-, y+) [m], the window's distances from the
+    apex to its four sides.  In each quadrant, polar coordinates
+    about the apex turn the area integral of p(g) beyond the side at rho(theta) into
+    R Phi(rho(theta)^2 / 2R - delta) (p = -dPhi/dg, Phi(inf) = 0), so that
+
+        F_out = R sum_quadrants int_0^(pi/2) Phi(rho(theta)^2 / 2R - delta) dtheta,
+        rho = min(a / cos(theta), b / sin(theta)),
+
+    one smooth integral either side of the corner angle arctan(b / a), by Gauss-Legendre.  A
+    circle of radius a instead gives Derjaguin's 2 pi R Phi(a^2 / 2R - delta): a square of half-width
+    a leaves out less (for an r^-6 tail 2 (1/4 + 3 pi / 32) / (pi / 2) = 0.69 of it).  With the
+    far field, g = r^2 / 2R - delta + c / r (c = F / (pi E*)), r = R g'(r) + R c / r^2 splits each
+    radial integral into R Phi(g(rho)) and (R c / rho) int_0^1 p(g(rho / s)) ds.
+    """
+    xm, xp, ym, yp = (float(e) for e in edges)
+    t, wq = np.polynomial.legendre.leggauss(64)
+    c = 0.0 if not force else float(force) / (np.pi * float(e_star))
+    total = 0.0
+    for a, b in ((xp, yp), (xm, yp), (xm, ym), (xp, ym)):
+        corner = np.arctan2(b, a)
+        for lo, hi, side in ((0.0, corner, "a"), (corner, 0.5 * np.pi, "b")):
+            th = lo + 0.5 * (hi - lo) * (t + 1.0)
+            rho = a / np.cos(th) if side == "a" else b / np.sin(th)
+            g = rho * rho / (2.0 * radius) - approach + c / rho
+            total += 0.5 * (hi - lo) * radius * float(wq @ law.energy(g))
+            if c:   # int_rho^inf p(g) r dr = R Phi(g(rho)) + int_rho^inf p(g) (r - R g'(r)) dr, r - R g' = R c / r^2
+                total += 0.5 * (hi - lo) * float(wq @ _far_correction(law, radius, approach, c, rho))
+    return total
+
+
+def _far_correction(law, radius, approach, c, rho):
+    """int_rho^inf p(r^2/2R - delta + c/r) R c / r^2 dr for each rho: r = rho / s, Gauss-Legendre in s."""
+    s, ws = np.polynomial.legendre.leggauss(48)
+    s = 0.5 * (s + 1.0)
+    r = rho[:, None] / s[None, :]
+    g = r * r / (2.0 * radius) - approach + c / r
+    # dr = rho / s^2 ds, and R c / r^2 = R c s^2 / rho^2: the integrand is p(g) R c / rho ds
+    return 0.5 * (law.pressure(g) @ ws) * radius * c / rho
+
+
+def sphere_window_edges(nx: int, ny: int, dx: float, dy: float) -> tuple[float, float, float, float]:
+    """(x-, x+, y-, y+) [m]: the distances from a sphere's apex (``geometry.surfaces.centre``, node
+    (nx//2, ny//2)) to the sides of its window, each node's element dx x dy included."""
+    i, j = nx // 2, ny // 2
+    return (i + 0.5) * dx, (nx - i - 0.5) * dx, (j + 0.5) * dy, (ny - j - 0.5) * dy
+
+
+def maugis_force(e_star: float, radius: float, work_of_adhesion: float, lam: float, approach: float) -> float:
+    """Maugis-Dugdale force [N] at approach [m] on the branch stable under displacement control
+    (the larger contact radius, beyond the fold of the approach, Delta's minimum); nan below that
+    fold (no contact state)."""
+    m = 1.0 + np.logspace(-8, 3, 20001)
+    A, D, P = maugis_approach(lam, m)
+    d_unit, p_unit = maugis_units(e_star, radius, work_of_adhesion)
+    order = np.argsort(A)
+    D, P = D[order], P[order]
+    k = int(np.argmin(D))
+    D, P = D[k:], P[k:]
+    x = approach / d_unit
+    return float("nan") if x < D[0] else float(np.interp(x, D, P)) * p_unit
