@@ -126,9 +126,8 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
         PETSc.Sys.Print(f"  heights: {info['filled_points']} points not measured, filled "
                         f"(geometry.fill = {scene['geometry']['fill']})")
     if scene["geometry"]["kind"] == "file":   # ties the steps to these heights (a restart compares it)
-        from .scene_files import DIGEST, heights_digest
-        scene = {**scene, "geometry": {**scene["geometry"], DIGEST: heights_digest(scene["geometry"],
-                                                                                    grid.mpi_comm)}}
+        from .scene_files import DIGEST
+        scene = {**scene, "geometry": {**scene["geometry"], DIGEST: info["heights_sha256"]}}
     out_dir = output or scene["output"]["directory"]
     stored = rundir.open_directory(scene, grid, out_dir, restart=restart, overwrite=overwrite)
     try:

@@ -1,10 +1,5 @@
-"""A ``kind = "file"`` scene's height file: its metadata fills in and checks the grid keys, and
-a digest of its heights ties a run's steps to the heights they were solved on."""
+"""A ``kind = "file"`` scene's height file: its metadata fills in and checks the grid keys."""
 from __future__ import annotations
-
-import hashlib
-
-import numpy as np
 
 from ..topography import HEIGHT_UNITS
 from .scene_values import SceneError
@@ -63,24 +58,6 @@ def read_height_file(g: dict, given: set) -> None:
     g["heights_are"] = g["heights_are"] or topo.heights_are or "surface"
 
 
-#: the scene key under which a run stores its height file's digest (scene.json, step files)
+#: the scene key under which a run stores the digest of its height file's heights (scene.json, step
+#: files; ``geometry.surfaces`` computes it as it reads them)
 DIGEST = "heights_sha256"
-
-
-def heights_digest(g: dict, comm) -> str:
-    """The SHA-256 of a ``kind = file`` scene's heights as read from its file (float64 [m],
-    (nx, ny) C order: the numbers, not the file's bytes, so a file rewritten with the same
-    heights keeps its digest), computed on rank 0 of ``comm`` and broadcast.  A restart
-    compares it with the run's on disk (``rundir.differences``)."""
-    from ..collective import collective_call
-    from ..topography import read_topography
-
-    def digest():
-        topo = read_topography(g["path"], format=g["format"], dataset=g["dataset"],
-                               height_unit=g["height_unit"], fill=g["fill"])
-        data = np.ascontiguousarray(np.asarray(topo.heights, dtype=np.float64))
-        return hashlib.sha256(data.tobytes()).hexdigest()
-
-    value = collective_call(comm, SceneError, f"geometry.path = {g['path']!r}: {{error}}",
-                            lambda: digest() if comm.Get_rank() == 0 else None)
-    return comm.bcast(value, root=0)

@@ -12,6 +12,7 @@ by (seed, kx), so the draw does not depend on which rank owns the column.
 """
 from __future__ import annotations
 
+import hashlib
 import warnings
 
 import numpy as np
@@ -77,7 +78,8 @@ def from_file(grid: SurfaceGrid, path: str, dataset: str = "heights", *, format:
     shaped or stamped files, heights that are not real numbers) are raised on every rank.
     Points not measured (NaN): ``fill`` "none" refuses them, "harmonic" fills them
     (``topography.fill``; every rank reads and fills the whole map, then takes its rows: the
-    same field on any number of ranks); ``info["filled_points"]`` gets the count filled.
+    same field on any number of ranks); ``info["filled_points"]`` gets the count filled and
+    ``info["heights_sha256"]`` the digest of the heights read (``_digest``).
     """
     return _read_file(grid, path, dataset, format, height_unit, fill, info)[0]
 
@@ -104,7 +106,20 @@ def _read_file(grid: SurfaceGrid, path: str, dataset: str, format: str | None, h
     grid.local_array(v)[...] = local
     if info is not None:
         info["filled_points"] = filled
+        info["heights_sha256"] = _digest(grid, local)
     return _check_finite(grid, v, path), stamp
+
+
+def _digest(grid: SurfaceGrid, local: np.ndarray) -> str:
+    """SHA-256 of a file's heights as read (float64 [m]): each rank hashes its whole y-lines,
+    rank 0 hashes the lines' digests in y order, so the digest does not depend on the number of
+    ranks and no rank gathers the map (collective)."""
+    lines = [hashlib.sha256(np.ascontiguousarray(local[:, k], dtype=np.float64).tobytes()).digest()
+             for k in range(local.shape[1])]
+    gathered = grid.mpi_comm.gather(lines, root=0)
+    value = (hashlib.sha256(b"".join(d for part in gathered for d in part)).hexdigest()
+             if grid.mpi_comm.Get_rank() == 0 else None)
+    return grid.mpi_comm.bcast(value, root=0)
 
 
 def detrended(grid: SurfaceGrid, h: PETSc.Vec, mode: str = "none") -> PETSc.Vec:

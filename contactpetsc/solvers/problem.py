@@ -25,10 +25,9 @@ iteration on delta around displacement-controlled solves (docs/formulation.md,
 delta is the approach to the mean plane of the deformed surface and full
 contact is singular under displacement control: load control handles it.
 
-Options (prefix ``contact_`` by default; every PETSc option of the SNES, KSP and PC
-works, but a SNES type other than ``vinewtonrsls``: ``base.check_snes_options``) are read
-after the code defaults; the package's own are registered in ``options.py``
-(docs/formulation.md, "Options").
+Options (prefix ``contact_``; every PETSc option of the SNES, KSP and PC but another SNES
+type: ``base.check_snes_options``) are read after the code defaults; the package's own are
+registered in ``options.py`` (docs/formulation.md, "Options").
 """
 from __future__ import annotations
 
@@ -63,6 +62,7 @@ NEWTON_LINESEARCH, NEWTON_KSP = "basic", "cg"
 #: an rms height below this fraction of the heights or of the cell size is round-off: a plane
 FLAT_RMS = 1e-12
 
+
 class ContactProblem(NestedIteration, Backtracking, JointLoadNewton, ContactLoadControl, VIProblem):
     """Contact of an elastic half-space with a rigid composite surface h, no adhesion.
 
@@ -76,9 +76,8 @@ class ContactProblem(NestedIteration, Backtracking, JointLoadNewton, ContactLoad
     prefix : str
         PETSc options prefix of the SNES, KSP and PC (default ``contact_``).
     length_scale : float, optional
-        Length [m] the complementarity error is measured in; defaults to
-        the rms height of h (the benchmark convention), or dx if h is flat
-        (rms below ``FLAT_RMS`` of its heights or of the cell's size: a detrended plane).
+        Length [m] the complementarity error is measured in; defaults to the rms height of h
+        (the benchmark convention), or dx if h is flat (rms below ``FLAT_RMS`` of its heights or cell).
     operator : HalfSpaceOperator, optional
         Reuse an operator built on the same grid (its E* must equal ``e_star``).
     tol, load_tol : float, optional
@@ -112,9 +111,8 @@ class ContactProblem(NestedIteration, Backtracking, JointLoadNewton, ContactLoad
         self._coarse = None
         if length_scale is None:
             rms = rms_height(grid, heights)
-            # a flat surface has no length of its own: rms at round-off of its heights, or of
-            # the cell (a detrended plane keeps round-off of its tilt's span, eps s L: an rms
-            # below FLAT_RMS L is a plane to round-off at any slope s <= 1)
+            # a flat surface has no length of its own: rms at round-off of its heights, or of the
+            # cell (a detrended plane keeps round-off eps s L of its tilt's span, slope s <= 1)
             flat = rms <= FLAT_RMS * max(abs(heights.max()[1]), abs(heights.min()[1]), *grid.lengths)
             length_scale = grid.dx if flat or rms == 0 else rms
         if not (np.isfinite(length_scale) and length_scale > 0):
