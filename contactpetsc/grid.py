@@ -78,16 +78,23 @@ def available_memory(comm) -> float:
     return comm.allreduce(avail, op=MPI.MIN)
 
 
+#: rows per rank are multiples of this by default: four rank-local halvings
+ROW_ALIGNMENT = 16
+
+
 def aligned_split(n: int, parts: int, alignment: int = 1) -> list[int]:
     """Rows per rank: balanced blocks of ``alignment`` rows (the remainder to the last rank).
 
-    Falls back to a plain balanced split when there are fewer blocks than ranks.
+    Where there are fewer blocks than ranks the blocks are halved until each rank gets one
+    (an alignment of 2^k keeps k halvings of the grid rank-local, so a small grid on an
+    odd rank count still has its coarse levels), down to a plain balanced split.
     """
     if int(alignment) != alignment or alignment < 1:
         raise GridError(f"row_alignment must be an integer >= 1, got {alignment!r}")
+    alignment = int(alignment)
+    while alignment > 1 and n // alignment < parts:
+        alignment = alignment // 2 if alignment % 2 == 0 else 1
     blocks = n // alignment
-    if blocks < parts:
-        alignment, blocks = 1, n
     base, extra = divmod(blocks, parts)
     rows = [alignment * (base + (1 if r < extra else 0)) for r in range(parts)]
     rows[-1] += n - sum(rows)
@@ -125,8 +132,11 @@ class SurfaceGrid:
         Ghost width of the DMDA (1 serves the 4-neighbour stencils).
     row_alignment : int
         Make every rank's first row (and, on a block grid, first column) a multiple
-        of this (a power of two lets the multilevel solver halve the grid with
-        rank-local transfers).
+        of this where the grid has enough rows (a power of two lets the multilevel
+        solver and the nested iteration halve the grid with rank-local transfers, so
+        their levels are the same on any rank count).  Default: the largest power of
+        two dividing the size, at most ``ROW_ALIGNMENT`` (a size it does not divide
+        would leave the remainder to the last rank, and could not be halved anyway).
     y_ownership : sequence of int, optional
         Rows per y-block of ranks, overriding the balanced split (coarse grids use it).
     px : int, optional
@@ -138,7 +148,7 @@ class SurfaceGrid:
 
     def __init__(self, nx: int, ny: int, dx: float, dy: float | None = None, *,
                  periodic: bool = True, comm=None, stencil_width: int = 1,
-                 row_alignment: int = 1, y_ownership=None, px: int | None = None,
+                 row_alignment: int | None = None, y_ownership=None, px: int | None = None,
                  x_ownership=None):
         dy = dx if dy is None else dy
         for name, n in (("nx", nx), ("ny", ny)):
@@ -172,10 +182,14 @@ class SurfaceGrid:
             raise GridError(
                 f"{size} MPI ranks but only ny = {self.ny} grid rows (geometry.ny): the FFT transforms "
                 f"whole rows, so use at most {self.ny} ranks")
+        def split(n, parts):
+            a = min(ROW_ALIGNMENT, n & -n) if row_alignment is None else row_alignment
+            return aligned_split(n, parts, a)
+
         if y_ownership is None:
-            y_ownership = aligned_split(self.ny, self.py, row_alignment)
+            y_ownership = split(self.ny, self.py)
         if x_ownership is None:
-            x_ownership = aligned_split(self.nx, self.px, row_alignment)
+            x_ownership = split(self.nx, self.px)
         self.y_ranges = self._ranges(y_ownership, self.py, self.ny, "y_ownership", "row")
         self.x_ranges = self._ranges(x_ownership, self.px, self.nx, "x_ownership", "column")
         if self.px > 1 and not block_grid_fits(self.nx, self.ny, self.px, self.py,

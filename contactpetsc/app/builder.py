@@ -26,8 +26,7 @@ def build_grid(scene: dict, comm=None) -> SurfaceGrid:
     """The scene's grid; a PETSc failure (memory) is told in the scene's keys."""
     g = scene["geometry"]
     try:
-        grid = SurfaceGrid(g["nx"], g["ny"], g["dx"], g["dy"], periodic=g["periodic"], comm=comm,
-                           row_alignment=16)
+        grid = SurfaceGrid(g["nx"], g["ny"], g["dx"], g["dy"], periodic=g["periodic"], comm=comm)
         grid.require_slabs("a scene run (its outputs and measures)")
         return grid
     except PETSc.Error as exc:
