@@ -13,6 +13,7 @@ import subprocess
 import sys
 import tempfile
 
+import h5py
 import numpy as np
 import pytest
 from petsc4py import PETSc
@@ -176,18 +177,59 @@ def test_cli_dry_run_names_a_forced_check():
     assert bad.returncode != 0 and "accepted values are true, false, auto" in bad.stdout + bad.stderr
 
 
+def _finer(scene, nx):
+    """``scene`` on an nx x nx grid of the same window: 64 nodes keep one coarse level of the
+    nested iteration (32), 128 two."""
+    g = scene["geometry"]
+    return dict(scene, geometry=dict(g, nx=nx, dx=g["dx"] * g["nx"] / nx))
 
-def test_a_stopped_sweep_restarts_to_the_uninterrupted_decisions(coll, shared_tmp, auto_run):
+
+@pytest.mark.parametrize("nx", [64, pytest.param(128, marks=pytest.mark.heavy)])
+def test_a_stopped_sweep_restarts_to_the_uninterrupted_run(coll, shared_tmp, auto_run, nx):
     """The sweep stopped after 3, 6 and 9 of its 12 steps and restarted each time (a run of the
-    first k values, then --restart with more): curve.csv has the uninterrupted run's ``stable``
-    and ``stability_checked`` at every step (the fold watch's record and the last stiffness are
-    kept with each step file and taken up, not rebuilt from the rows), and its jumps."""
-    full, ref = auto_run
-    values = SPHERE["protocol"]["values"]
+    first k values, then --restart with more): curve.csv has the uninterrupted run's Newton
+    iterations, forces, ``stable`` and ``stability_checked`` at every step, and its jumps.  The
+    fold watch's record and the last stiffness are kept with each step file, and so are the
+    nested iteration's coarse levels, stepped along with the path: the first restarted step is
+    predicted from them as in the uninterrupted run (without them its Newton count differs, and
+    the fold watch decides from Newton counts)."""
+    scene = _finer(SPHERE, nx)
+    if nx == SPHERE["geometry"]["nx"]:
+        full, ref = auto_run
+    else:
+        full = str(shared_tmp / "full")
+        ref = _rows(scene, full)
+    out = shared_tmp / "stopped"
+    values = scene["protocol"]["values"]
     for n, k in enumerate((3, 6, 9, len(values))):
-        got = _rows(dict(SPHERE, protocol=dict(SPHERE["protocol"], values=values[:k])), str(shared_tmp), n > 0)
-    columns = ("stable", "stability_checked")
+        got = _rows(dict(scene, protocol=dict(scene["protocol"], values=values[:k])), str(out), n > 0)
+    columns = ("newton_iterations", "stable", "stability_checked")
     assert [[r[c] for c in columns] for r in got] == [[r[c] for c in columns] for r in ref]
+    assert coll.max([abs(float(a["force_N"]) / float(b["force_N"]) - 1) for a, b in zip(got, ref)]) <= 1e-12
     assert any(r["stability_checked"] == "False" for r in ref[3:])
-    with open(os.path.join(full, "jumps.csv")) as f, open(shared_tmp / "jumps.csv") as g:
+    with open(os.path.join(full, "jumps.csv")) as f, open(out / "jumps.csv") as g:
         assert [j["approach_before_m"] for j in csv.DictReader(f)] == [j["approach_before_m"] for j in csv.DictReader(g)]
+    with h5py.File(out / "step_0009.h5", "r") as f:
+        levels = f["coarse_levels"]
+        assert [levels[k]["adhesive_pressure"].shape for k in sorted(levels)] == \
+            [(nx >> k, nx >> k) for k in range(1, len(levels) + 1)]
+        assert f.attrs["coarse_levels"] == len(levels) == {64: 1, 128: 2}[nx]
+        assert float(levels["1"].attrs["approach"]) == float(ref[8]["approach_m"])
+
+
+def test_a_step_file_without_coarse_levels_still_restarts(coll, shared_tmp, capfd):
+    """A step file of an older version, without the coarse levels: the sweep restarts from it
+    (the next steps predicted without the coarse grids, as before) and the log says so."""
+    values = SPHERE["protocol"]["values"]
+    out = shared_tmp / "older"
+    _rows(dict(SPHERE, protocol=dict(SPHERE["protocol"], values=values[:3])), str(out))
+    if coll.rank == 0:
+        with h5py.File(out / "step_0003.h5", "a") as f:
+            del f.attrs["coarse_levels"], f["coarse_levels"]
+    coll.comm.Barrier()
+    capfd.readouterr()
+    got = _rows(dict(SPHERE, protocol=dict(SPHERE["protocol"], values=values[:5])), str(out), True)
+    log = capfd.readouterr().out
+    assert [r["converged"] for r in got] == ["True"] * 5
+    if coll.rank == 0:
+        assert "note: step 3's file has no coarse levels (an older version wrote it)" in log

@@ -8,7 +8,8 @@ first) shows x horizontally.  Files are written to a temporary name and
 renamed when complete: a reader never sees half a step, and an interrupted
 run keeps every finished step.  Masks are uint8, the other fields float64 or
 (``output.field_precision``) float32, except what a restart or a height
-reader needs (``RESTART_FIELDS``, heights), always float64.  ``fields.xdmf``
+reader needs (``RESTART_FIELDS``, heights), always float64; an adhesive sweep's file
+also holds the nested iteration's coarse levels (``COARSE_LEVELS``).  ``fields.xdmf``
 collects the written steps in one temporal collection.
 """
 from __future__ import annotations
@@ -38,6 +39,9 @@ FULL_PRECISION = ("heights",)
 #: geometry, the approach as time, and the length fields); the HDF5 data stay in metres
 LENGTH_UNITS = {"m": 1.0, "um": 1e6, "nm": 1e9}
 COLLECTION = "fields.xdmf"   #: the temporal collection of every written step
+#: an adhesive sweep's step file: the attribute (their number) and the group of the nested
+#: iteration's coarse levels (``write_state``), which predict the next step: a restart takes them up
+COARSE_LEVELS = "coarse_levels"
 _XDMF_TYPES = {"f8": ("Float", 8), "f4": ("Float", 4), "u1": ("UChar", 1)}
 
 
@@ -145,13 +149,16 @@ def _check_room(directory: str, final: str, comm, need: float) -> None:
 
 
 def write_state(directory: str, step: int, grid, heights, state, attrs: dict, *, types: dict | None = None,
-                length_unit: str = "m") -> str:
+                length_unit: str = "m", levels: list | None = None) -> str:
     """Write step ``step`` of ``state`` (a ContactState) to ``directory/step_NNNN.h5`` (+ ``.xdmf``).
 
     ``types``: {field: HDF5 type code} (``field_types``; default: every field of the state,
-    masks uint8, the rest float64).  Collective over the grid's communicator.  Returns the HDF5
-    path.  A failed write (a full disk) raises OSError naming the file on every rank and leaves
-    no temporary file.
+    masks uint8, the rest float64).  ``levels``: the coarse levels a restarted sweep takes up,
+    finest first, (grid, {restart field: the rank's rows}, approach [m]) each, written float64
+    to the groups ``COARSE_LEVELS``/k (k = 1, 2, ...), their number to the file attribute
+    ``COARSE_LEVELS`` (0 too: a file without it is of an older version).  Collective over the
+    grid's communicator.  Returns the HDF5 path.  A failed write (a full disk) raises OSError
+    naming the file on every rank and leaves no temporary file.
     """
     comm = grid.mpi_comm
     if types is None:
@@ -177,21 +184,20 @@ def write_state(directory: str, step: int, grid, heights, state, attrs: dict, *,
         f.attrs["dx"], f.attrs["dy"] = grid.dx, grid.dy
         f.attrs["axes"] = AXES
         for field, code in types.items():
-            dset = f.create_dataset(field, (grid.ny, grid.nx), dtype=code)
-            dset.attrs["unit"] = UNITS[field]
-            dset.attrs["axes"] = AXES
+            dset = _write_rows(f, field, grid, rows[field], code)
             if field in ("heights", "gap"):   # gaps (h, and g = h + v - delta): so read back as a height file
                 dset.attrs["heights_are"] = "gap"
-            # float32 by rounding to nearest (numpy's cast); masks 0/1; float64 as it is
-            data = np.asarray(rows[field], dtype=code)
-            if comm.Get_size() > 1:
-                with dset.collective:  # one MPI-IO write for all ranks
-                    dset[grid.ys:grid.ye, :] = data
-            else:
-                dset[grid.ys:grid.ye, :] = data
+        if levels is not None:
+            f.attrs[COARSE_LEVELS] = len(levels)
+            for k, (level, fields, approach) in enumerate(levels, 1):
+                sub = f.create_group(f"{COARSE_LEVELS}/{k}")
+                sub.attrs["approach"], sub.attrs["dx"], sub.attrs["dy"] = approach, level.dx, level.dy
+                for field, data in fields.items():
+                    _write_rows(sub, field, level, data, "f8")
 
-    _check_room(directory, final, comm, step_file_bytes(types, grid.nx * grid.ny,
-                                                        sum(len(str(v)) for v in attrs.values())))
+    need = step_file_bytes(types, grid.nx * grid.ny, sum(len(str(v)) for v in attrs.values()))
+    need += sum(8 * len(fields) * level.nx * level.ny for level, fields, _ in levels or ())
+    _check_room(directory, final, comm, need)
     try:
         _write_h5(tmp, comm, fill)
         error = None
@@ -212,6 +218,21 @@ def write_state(directory: str, step: int, grid, heights, state, attrs: dict, *,
 
     collective_call(comm, OSError, f"cannot write {final}: {{error}}", publish)
     return final
+
+
+def _write_rows(group, field: str, grid, data, code: str):
+    """A (ny, nx) dataset ``field`` of type ``code`` in ``group``, each rank writing its rows
+    ``data`` (float32 by rounding to nearest, numpy's cast; masks 0/1; float64 as it is)."""
+    dset = group.create_dataset(field, (grid.ny, grid.nx), dtype=code)
+    dset.attrs["unit"] = UNITS[field]
+    dset.attrs["axes"] = AXES
+    data = np.asarray(data, dtype=code)
+    if grid.mpi_comm.Get_size() > 1:
+        with dset.collective:  # one MPI-IO write for all ranks
+            dset[grid.ys:grid.ye, :] = data
+    else:
+        dset[grid.ys:grid.ye, :] = data
+    return dset
 
 
 def write_collection(directory: str, grid, steps: list, length_unit: str = "m") -> None:
@@ -240,7 +261,8 @@ def write_collection(directory: str, grid, steps: list, length_unit: str = "m") 
 def read_written_step(path: str) -> tuple:
     """(approach [m], {field: type code}) of a step file, for the collection of a restarted run."""
     with h5py.File(path, "r") as f:
-        return float(f.attrs["approach"]), {name: f[name].dtype.str[1:] for name in f}
+        return float(f.attrs["approach"]), {name: f[name].dtype.str[1:] for name in f
+                                            if name != COARSE_LEVELS}
 
 
 def _xdmf(grids: list) -> str:

@@ -28,8 +28,8 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..collective import collective_call
-from .output import (AXES, COLLECTION, read_written_step, scene_field_types, write_collection, write_state,
-                     write_text_atomic)
+from .output import (AXES, COARSE_LEVELS, COLLECTION, read_written_step, scene_field_types, write_collection,
+                     write_state, write_text_atomic)
 from .plots import is_number
 
 CURVE_COLUMNS = ["step", "branch", "approach_m", "force_N", "mean_pressure_Pa", "contact_fraction",
@@ -205,6 +205,38 @@ class StepRecorder:
             vecs.append(v)
         return vecs, approach
 
+    def coarse_levels(self, step: int, fields: tuple) -> list | None:
+        """The coarse levels stored with step ``step`` (``record``), finest first, each (approach
+        [m], read): ``read(grid)`` gives the rank's rows of the level's ``fields`` (those it has, in
+        that order) on the level's ``grid``, stacked; None in files of older versions."""
+        import h5py
+        path = self.path(f"step_{step:04d}.h5")
+
+        def approaches():
+            with h5py.File(path, "r") as f:
+                if COARSE_LEVELS not in f.attrs:
+                    return None
+                return [float(f[f"{COARSE_LEVELS}/{k}"].attrs["approach"])
+                        for k in range(1, int(f.attrs[COARSE_LEVELS]) + 1)]
+
+        def read(k, grid):
+            with h5py.File(path, "r") as f:
+                level = f[f"{COARSE_LEVELS}/{k}"]
+                names = [name for name in fields if name in level]
+                for name in names:
+                    if level[name].shape != (grid.ny, grid.nx):
+                        raise ValueError(f"coarse level {k}'s {name} has shape {level[name].shape}, its grid "
+                                         f"(ny, nx) = ({grid.ny}, {grid.nx})")
+                return np.stack([np.asarray(level[name][grid.ys:grid.ye, :], dtype=float) for name in names])
+
+        message = f"cannot restart from {path}: {{error}}"
+
+        def reader(k):
+            return lambda grid: collective_call(grid.mpi_comm, RuntimeError, message, read, k, grid)
+
+        found = collective_call(self.grid.mpi_comm, RuntimeError, message, approaches)
+        return None if found is None else [(a, reader(k)) for k, a in enumerate(found, 1)]
+
     def path_state(self, step: int) -> dict:
         """The ``path_state`` stored with step ``step`` (``record``), {} in files of older versions."""
         import h5py
@@ -232,11 +264,11 @@ class StepRecorder:
         self.t_start = MPI.Wtime()
 
     def record(self, st, row: dict, problem, new_jumps=(), results: dict | None = None,
-               path_state: dict | None = None) -> None:
+               path_state: dict | None = None, levels: list | None = None) -> None:
         """Write step ``row['step']`` (state ``st``; ``row`` keyed by CURVE_COLUMNS; the jumps found
         reaching it; the path's ``results`` so far, for summary.json; ``path_state``: what the
-        path's next step decides by, stored in the step file for a restart, ``path_state``)
-        and print it."""
+        path's next step decides by, stored in the step file for a restart, ``path_state``, with
+        the coarse ``levels`` that predict it, ``coarse_levels``) and print it."""
         step = row["step"]
         share = 0.0
         if not self.grid.periodic:
@@ -245,7 +277,7 @@ class StepRecorder:
         if self.types and self.writes_fields(row, new_jumps):
             attrs = self.provenance if path_state is None else dict(self.provenance, path_state=path_state)
             write_state(self.out_dir, step, self.grid, self.heights, st, attrs, types=self.types,
-                        length_unit=self.length_unit)
+                        length_unit=self.length_unit, levels=levels)
             self.written.append((step, st.approach, self.types))
             collective_call(self.grid.mpi_comm, OSError, f"cannot write {self.path(COLLECTION)}: {{error}}",
                             lambda: write_collection(self.out_dir, self.grid, self.written, self.length_unit)
@@ -367,13 +399,17 @@ def check_step_file(path: str, grid, fields: tuple) -> None:
         for name in fields:
             if name not in f:
                 raise ValueError(f"{path} has no dataset {name!r}")
-        for name in f:
+        datasets = [name for name in f if name != COARSE_LEVELS]   # the coarse grids: ``coarse_levels``
+        for name in datasets:
             if f[name].shape != (grid.ny, grid.nx):
                 raise ValueError(f"{path}: {name} has shape {f[name].shape}: it does not fit the scene's grid "
                                  f"(ny, nx) = ({grid.ny}, {grid.nx})")
             if f[name].attrs.get("axes", AXES) != AXES:
                 raise ValueError(f"{path}: {name} has axes {f[name].attrs['axes']!r}; expected {AXES!r}")
-        need = sum(f[name].size * f[name].dtype.itemsize for name in f)
+        sizes = []   # every dataset's, the coarse levels' too
+        f.visititems(lambda _, obj: sizes.append(obj.size * obj.dtype.itemsize)
+                     if isinstance(obj, h5py.Dataset) else None)
+        need = sum(sizes)
     if os.path.getsize(path) < need:
         raise ValueError(f"{path} is truncated ({os.path.getsize(path)} bytes, its datasets need {need})")
 

@@ -41,11 +41,9 @@ class Continuation:
         if self._coarse is not None:
             return self._coarse or None
         self._coarse = False
-        grid = self.grid
-        # levels coarser than the adhesive range are kept: without them the first level
-        # that resolves it needs continuation too (docs/formulation.md, "Adhesive contact: unknowns and Newton")
-        if not self.fmg or not can_halve(grid) or min(grid.nx, grid.ny) // 2 < self.fmg_min_size:
+        if not self.has_coarse_level():
             return None
+        grid = self.grid
         gc = halved(grid)
         hc = gc.create_vec()
         gc.rows(hc)[...] = restrict(grid.rows(self.heights, readonly=True))
@@ -67,6 +65,41 @@ class Continuation:
         coarse.compute_tangent = False   # a level of the nested iteration needs no predictor or stiffness
         self._coarse = coarse
         return coarse
+
+    def has_coarse_level(self) -> bool:
+        """Whether the nested iteration has a level below this grid (``-<prefix>fmg``)."""
+        grid = self.grid
+        # levels coarser than the adhesive range are kept: without them the first level
+        # that resolves it needs continuation too (docs/formulation.md, "Adhesive contact: unknowns and Newton")
+        return bool(self.fmg and can_halve(grid) and min(grid.nx, grid.ny) // 2 >= self.fmg_min_size)
+
+    def coarse_state(self) -> list:
+        """The coarse levels that the next steps are predicted from (``_coarse_step``), as they
+        are now, finest first: (grid, the rank's rows of its unknowns (n_blocks, ny_local, nx):
+        [q,] a, approach [m]) each; [] where no level is stepped (``-<prefix>fmg_steps`` off,
+        levels dropped).  What a restarted path takes up (``warm_start_coarse``) to predict its
+        next step as the uninterrupted one does."""
+        out, level = [], self._coarse if self.fmg_steps else None
+        while level and level._started:
+            out.append((level.grid, level.blocks(level._x, readonly=True), level._approach))
+            level = level._coarse
+        return out
+
+    def warm_start_coarse(self, levels: list) -> None:
+        """Take up the coarse levels of ``coarse_state`` after ``warm_start`` (a restart):
+        ``levels`` finest first, each (approach [m], read), ``read(grid)`` giving the rank's rows
+        of the level's unknowns on ``grid``.  The level below the last is off, as it was
+        (dropped, or none); levels this run's options do not make are left out."""
+        level = self
+        for approach, read in levels:
+            coarse = level._coarse_problem()
+            if coarse is None:
+                return
+            coarse.blocks(coarse._x)[...] = read(coarse.grid)
+            coarse._approach, coarse._started = float(approach), True
+            level = coarse
+        if level._coarse is None:
+            level._coarse = False
 
     def _nested_guess(self, approach: float) -> bool:
         """Unknowns from the coarse problem's solution at ``approach``, prolonged piecewise

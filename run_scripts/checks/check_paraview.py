@@ -108,8 +108,9 @@ def step_data(h5: str) -> tuple:
     with h5py.File(h5, "r") as f:
         unit = json.loads(f.attrs["scene"]).get("output", {}).get("length_unit", "m")
         scale = SCALE[unit]
-        lengths = {name for name in f if f[name].attrs["unit"] == "m" and scale != 1.0}
-        data = {name: f[name][:] * (scale if name in lengths else 1) for name in f}
+        names = [name for name in f if isinstance(f[name], h5py.Dataset)]   # not the coarse_levels group
+        lengths = {name for name in names if f[name].attrs["unit"] == "m" and scale != 1.0}
+        data = {name: f[name][:] * (scale if name in lengths else 1) for name in names}
         return data, float(f.attrs["dx"]), float(f.attrs["dy"]), scale, lengths
 
 
