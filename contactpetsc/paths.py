@@ -100,6 +100,15 @@ class Path:
             return "edge"
         return "turn" if turned else "stable"
 
+    def _slope(self, k: int, step: int) -> float:
+        """dF/d delta [N/m] of point k by the secant to its neighbour at k + ``step`` where the
+        path joins them on one branch (``_side`` "stable" or "turn"), NaN otherwise: for states
+        without a stiffness (the relaxation's; the points of a restarted path)."""
+        if self._side(k, step) not in ("stable", "turn"):
+            return float("nan")
+        a, b = self.points[k], self.points[k + step]
+        return (b.force - a.force) / (b.approach - a.approach) if b.approach != a.approach else float("nan")
+
     def _bracketed(self, k: int) -> bool:
         """Whether point k's force is a pull-off: the path reaches beyond it in approach on
         both sides (a smaller force would lie between), or a loss of stability or a jump
@@ -159,38 +168,47 @@ def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0
         st, prev = _advance(problem, delta, prev, path, jump_tol, refine, substeps)
         pt = path_point(k, here, st)
         path.points.append(pt)
-        i = len(path.points) - 1
-        good = good_state(pt)
-        if last is not None:
-            if path._side(last[0], 1) == "edge":
-                # the stable segment of the last point ends before this one (at a jump the
-                # bisection has found its end already: the jump's force_before)
-                path._edges.append((last[0], pt.approach, last[1]))
-            else:
-                last[1].destroy()
-            last = None
-        if good:
-            last = (i, problem.snapshot())
-            if path._side(i, -1) == "edge":
-                # a stable segment begins here after an unstable or failed point (after a
-                # jump the new branch's extension backwards was never traversed)
-                path._edges.append((i, path.points[i - 1].approach, problem.snapshot()))
+        last = keep_for_search(path, problem, last)
         if not st.converged and on_failure is not None:
             on_failure(k, st, pt)
         if not st.converged and stop_on_failure:
             break
-        if st.converged:
-            if good:
-                best = path._best
-                if best is None or st.force < path.points[best[0]].force:
-                    if best is not None:
-                        best[1].destroy()
-                    path._best = (i, problem.snapshot())
-            if on_state is not None:
-                on_state(k, st, pt)
+        if st.converged and on_state is not None:
+            on_state(k, st, pt)
     if last is not None:
         last[1].destroy()
     return path
+
+
+def keep_for_search(path: Path, problem, last: tuple | None) -> tuple | None:
+    """What the pull-off search (``pull_off.refine_pull_off``) starts from, kept as the path's
+    last point is appended (the problem at its state): the most tensile stable state
+    (``path._best``) and the stable states where a stable segment ends (``path._edges``).
+    ``last``: (index, snapshot) of the point before, if it was stable, or None; returns this
+    point's (the caller destroys its snapshot when no point follows)."""
+    i = len(path.points) - 1
+    pt = path.points[i]
+    good = good_state(pt)
+    if last is not None:
+        if path._side(last[0], 1) == "edge":
+            # the stable segment of the last point ends before this one (at a jump the
+            # bisection has found its end already: the jump's force_before)
+            path._edges.append((last[0], pt.approach, last[1]))
+        else:
+            last[1].destroy()
+        last = None
+    if good:
+        last = (i, problem.snapshot())
+        if path._side(i, -1) == "edge":
+            # a stable segment begins here after an unstable or failed point (after a
+            # jump the new branch's extension backwards was never traversed)
+            path._edges.append((i, path.points[i - 1].approach, problem.snapshot()))
+        best = path._best
+        if best is None or pt.force < path.points[best[0]].force:
+            if best is not None:
+                best[1].destroy()
+            path._best = (i, problem.snapshot())
+    return last
 
 
 def _advance(problem, target, prev, path, jump_tol, refine, substeps):

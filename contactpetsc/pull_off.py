@@ -3,7 +3,9 @@ continuation to the end of each stable segment and by golden section between hig
 (docs/formulation.md, "Loading paths").
 
 The problem is duck-typed as in ``paths``: ``solve(approach=...)``, ``snapshot()`` and
-``restore(snapshot)``, plus ``snes()`` for its Newton iteration limit.
+``restore(snapshot)``, plus ``snes()`` for its Newton iteration limit where it has one;
+``RelaxedSearch`` makes the paper's relaxation solver such a problem (a relaxation sweep's
+pull-off, refined by relaxation solves).
 """
 from __future__ import annotations
 
@@ -14,6 +16,10 @@ from .paths import Path, good_state
 
 #: Newton iterations of a solve of the pull-off search (``refine_pull_off``)
 SEARCH_NEWTON_STEPS = 30
+#: a relaxation solve of the pull-off search has stalled when its adhesive relaxation
+#: coefficient falls below this share of its first value (``RelaxedSearch``): a converging
+#: solve keeps it within a few halvings of it, a stalled one halves it at nearly every cycle
+SEARCH_STALL = 1e-6
 
 
 def refine_pull_off(problem, path: Path, xtol: float, max_solves: int = 40,
@@ -27,7 +33,10 @@ def refine_pull_off(problem, path: Path, xtol: float, max_solves: int = 40,
     golden-section search where the smallest force lies between two higher ones.  The
     states on either side of a jump (located by bisection in ``sweep``) are candidates.
     NaN when the most tensile state found is not bracketed by the path (``Path._bracketed``:
-    no pull-off reached).  Sets ``path.refined_pull_off``; the problem's state is restored."""
+    no pull-off reached).  Sets ``path.refined_pull_off``; the problem's state is restored.
+    A state without a stiffness (NaN: the relaxation's, a restarted path's earlier steps,
+    ``-<prefix>stiffness false``)
+    predicts with the secant of the branch instead (``_continue``)."""
     if path._best is None:
         path.refined_pull_off = float("nan")
         return path.refined_pull_off
@@ -36,12 +45,13 @@ def refine_pull_off(problem, path: Path, xtol: float, max_solves: int = 40,
     found = []   # (force, reached): reached = bounded by higher forces or at a segment's end
     k, snap = path._best
     sides = [path._side(k, s) for s in (-1, 1)]
-    snes = problem.snes()
-    rtol, atol, stol, max_it = snes.getTolerances()
-    # Newton from a state at most a quarter step away needs a few iterations; one that has
-    # not converged in SEARCH_NEWTON_STEPS has left the branch (near its end, such solves ran
-    # to the iteration limit and cost most of the search)
-    snes.setTolerances(max_it=min(max_it, SEARCH_NEWTON_STEPS))
+    snes = problem.snes() if hasattr(problem, "snes") else None
+    if snes is not None:
+        rtol, atol, stol, max_it = snes.getTolerances()
+        # Newton from a state at most a quarter step away needs a few iterations; one that has
+        # not converged in SEARCH_NEWTON_STEPS has left the branch (near its end, such solves ran
+        # to the iteration limit and cost most of the search)
+        snes.setTolerances(max_it=min(max_it, SEARCH_NEWTON_STEPS))
     auto = getattr(problem, "stability_auto", False)
 
     def check(*ends):
@@ -61,7 +71,7 @@ def refine_pull_off(problem, path: Path, xtol: float, max_solves: int = 40,
                 # towards an unstable or failed state the check finds where the segment ends
                 joined = check(k, k + step) if side != "edge" else None
                 force, reached, nearest = _continue(problem, snap, pts[k], towards, xtol, max_solves, jump_tol,
-                                                    joined)
+                                                    joined, path._slope(k, -step))
                 found.append((force, reached))
                 bracket[n] = nearest
                 smooth += [k + step] if side != "edge" else [None]
@@ -73,9 +83,12 @@ def refine_pull_off(problem, path: Path, xtol: float, max_solves: int = 40,
             found.append((_golden(problem, snap, bracket[0], bracket[1], xtol, max_solves, ends), True))
         for i, towards, edge_snap in path._edges:
             if (i, towards) not in searched:
-                found.append(_continue(problem, edge_snap, pts[i], towards, xtol, max_solves, jump_tol)[:2])
+                behind = -1 if i + 1 < len(pts) and pts[i + 1].approach == towards else 1
+                found.append(_continue(problem, edge_snap, pts[i], towards, xtol, max_solves, jump_tol,
+                                       slope=path._slope(i, behind))[:2])
     finally:
-        snes.setTolerances(max_it=max_it)
+        if snes is not None:
+            snes.setTolerances(max_it=max_it)
     # the sampled minimum itself: reached when the path brackets it (``Path._bracketed``);
     # the states on either side of each jump (the end of the old branch, bisected)
     found.append((pts[k].force, path._bracketed(k)))
@@ -87,17 +100,20 @@ def refine_pull_off(problem, path: Path, xtol: float, max_solves: int = 40,
     return path.refined_pull_off
 
 
-def _continue(problem, snap, start, towards, xtol, max_solves, jump_tol, check=None):
+def _continue(problem, snap, start, towards, xtol, max_solves, jump_tol, check=None, slope=float("nan")):
     """(smallest force [N], reached, nearest) of the stable states connected to ``snap``
     (the state of point ``start``) by continuation towards the approach ``towards`` [m]:
     steps of a quarter of the way, halved where a solve fails, is unstable or jumps (its
-    force misses the tangent prediction by more than ``jump_tol`` of the force), down to
-    ``xtol`` -- there the stable segment ends (reached).  A smallest force between two
-    higher ones is refined by golden-section search (reached); one at ``start`` is not
-    reached here (inf).  ``nearest``: the approach [m] of the first state beyond ``start``
-    (``start``'s own without one).  ``check``: the solves' ``check_stability``."""
+    force misses the tangent prediction by more than ``jump_tol`` of the force and by more
+    than the predicted change), down to ``xtol`` -- there the stable segment ends (reached).
+    Each solve starts from the last state kept, the nearest on the branch.  A state without
+    a stiffness (NaN) predicts with the secant from the state kept before it [N/m], the
+    first with ``slope`` (``Path._slope``; NaN: no change predicted).  A smallest force
+    between two higher ones is refined by golden-section search (reached); one at ``start``
+    is not reached here (inf).  ``nearest``: the approach [m] of the first state beyond
+    ``start`` (``start``'s own without one).  ``check``: the solves' ``check_stability``."""
     problem.restore(snap)
-    cur = (start.approach, start.force, start.stiffness)
+    cur = (start.approach, start.force, start.stiffness if np.isfinite(start.stiffness) else slope)
     states = [(cur[0], cur[1], None)]          # (approach, force, snapshot or None)
     h, solves, ended = (towards - start.approach) / 4.0, 0, False
     while solves < max_solves and abs(towards - cur[0]) > 1e-12 * max(abs(towards), xtol):
@@ -108,7 +124,7 @@ def _continue(problem, snap, start, towards, xtol, max_solves, jump_tol, check=N
         predicted = cur[1] + (cur[2] if np.isfinite(cur[2]) else 0.0) * (d - cur[0])
         scale = max(abs(cur[1]), abs(st.force), np.finfo(float).tiny)
         if good_state(st) and abs(st.force - predicted) <= max(jump_tol * scale, abs(predicted - cur[1])):
-            cur = (d, st.force, st.stiffness)
+            cur = (d, st.force, st.stiffness if np.isfinite(st.stiffness) else (st.force - cur[1]) / (d - cur[0]))
             states.append((d, st.force, problem.snapshot()))
             here.destroy()
         else:
@@ -161,3 +177,51 @@ def _golden(problem, snap, lo, hi, xtol, max_solves, check=None) -> float:
             d = lo + gr * (hi - lo)
             fd = force(d)
     return best
+
+
+class RelaxedSearch:
+    """The paper's relaxation solver (``solvers.relaxation.RelaxationSolver``) as the problem of
+    ``refine_pull_off``: a relaxation sweep's pull-off refined by relaxation solves, not Newton.
+
+    Each solve relaxes from the problem's present state: the attached state the search
+    restored, the nearest one on the branch (``_continue``); snapshots are the problem's.  The
+    relaxation has no tangent: its states' stiffness is NaN and the jump test predicts with
+    the secant of the branch.  From an attached state beyond the end of its branch (a fold)
+    the relaxation does not jump: it stalls, its adhesive relaxation coefficient halving at
+    nearly every cycle; a solve whose coefficient falls below ``stall`` (SEARCH_STALL) of
+    its first value stops and counts as off the branch, as a Newton solve of the search not
+    converged in SEARCH_NEWTON_STEPS (``stalled`` counts them).  Any other failure (the cycle
+    limit, the time budget, NaN) is kept in ``failure`` ((approach [m], reason)) and ends the
+    search: the later solves return that state without solving, and the caller keeps the
+    sampled pull-off (``app.steppers.AdhesiveSteps.finish``).
+    """
+    stability_auto = False        #: the relaxation checks every state it is asked to
+
+    def __init__(self, relax, stall: float = SEARCH_STALL):
+        self.relax, self.problem, self.stall = relax, relax.problem, stall
+        self.failure, self.stalled = None, 0
+        self._failed = None       #: the state of the solve that failed
+
+    def solve(self, *, approach: float, raise_on_failure: bool = True, fallback=None, check_stability=None):
+        """The state at ``approach`` [m] relaxed from the present one (``fallback`` has no
+        meaning here: the relaxation is the solver)."""
+        if self._failed is not None:
+            return self._failed
+        relax, before = self.relax, self.relax.stall
+        relax.stall = self.stall
+        try:
+            st = relax.solve(approach=approach, raise_on_failure=raise_on_failure, check_stability=check_stability)
+        finally:
+            relax.stall = before
+        if not st.converged:
+            if st.reason.startswith("DIVERGED_STALLED"):
+                self.stalled += 1
+            else:
+                self._failed, self.failure = st, (float(approach), st.reason)
+        return st
+
+    def snapshot(self):
+        return self.problem.snapshot()
+
+    def restore(self, snap) -> None:
+        self.problem.restore(snap)

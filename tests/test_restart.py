@@ -308,3 +308,28 @@ def test_restart_after_the_height_file_was_rewritten_is_refused_naming_it(coll, 
     write(np.asfortranarray(bump))   # other bytes on disk, the same heights
     states = runner.run(scene([1e-10, 2e-10, 3e-10]), comm=PETSc.COMM_WORLD, restart=True)
     assert len(states) == 1 and coll.all(states[0].converged)
+
+
+@pytest.mark.filterwarnings("ignore::contactpetsc.physics.resolution.UnderResolvedWarning")
+@pytest.mark.filterwarnings("ignore::contactpetsc.topography.units.TopographyUnitWarning")
+def test_a_restarted_relaxation_sweep_refines_the_uninterrupted_runs_pull_off(coll, shared_tmp):
+    """solver.method = relaxation on the flat cell (test_pull_off_and_jumps), stopped after its most
+    tensile step (3, written for the pull-off search although field_every = 4) and restarted: the
+    pull-off refined by relaxation solves from that step's file is the uninterrupted run's."""
+    from test_pull_off_and_jumps import flat_scene
+    values = [-1.5, -0.6, -0.1, -0.6, -1.5]
+
+    def scene(out, values):
+        s = flat_scene(shared_tmp, 0.5, values)
+        s["output"].update(fields=True, field_every=4, directory=str(out))
+        return s
+
+    full, cut = shared_tmp / "full", shared_tmp / "cut"
+    runner.run(scene(full, values), comm=PETSc.COMM_WORLD)
+    runner.run(scene(cut, values[:4]), comm=PETSc.COMM_WORLD)
+    assert os.path.exists(cut / "step_0003.h5")
+    states = runner.run(scene(cut, values), comm=PETSc.COMM_WORLD, restart=True)
+    assert len(states) == 1
+    ref, got = summary(full), summary(cut)
+    assert ref["pull_off_refined"] and got["pull_off_refined"]
+    assert coll.max(abs(got["pull_off_force_N"] / ref["pull_off_force_N"] - 1)) <= 1e-12

@@ -143,7 +143,8 @@ def leave_out(scene: dict) -> list[str]:
     where a fold may be near (``-adhesion_stability_check auto``, ``fold_watch.py``) and needs every
     state's tangent (the predictor, the jump test and the pull-off search step with its
     stiffness); central-gap control reports every state's stability and steps without a tangent;
-    the paper's relaxation labels every state and uses no tangent."""
+    the paper's relaxation labels every state and uses no tangent (its pull-off search predicts
+    with the secant of the branch)."""
     from ..solvers.tangent import stability_mode
     if not adhesive(scene):
         return ["  left out: the stability check and the tangent (no adhesion: a convex problem, one "
@@ -176,7 +177,8 @@ def leave_out(scene: dict) -> list[str]:
                "with its stiffness)" if _sweeps(scene) else
                "  left out: the tangent (" + ("central-gap control steps without a predictor or jump test)"
                                              if scene["protocol"]["control"] == "central_gap" else
-                                             "the relaxation uses none), and with it the jump location "
-                                             "and the pull-off refinement: the pull-off is the most tensile "
-                                             "stable step's force (summary.json pull_off_refined false)"))
+                                             "the relaxation uses none), and with it the jump location; the "
+                                             "pull-off refinement continues from the most tensile stable step "
+                                             "by relaxation solves, its jump test with the secant of the "
+                                             "branch (summary.json pull_off_refined)"))
     return [what, tangent]

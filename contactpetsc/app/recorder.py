@@ -80,11 +80,13 @@ class StepRecorder:
     before the elapsed time and time left; ``header`` heads them.  On a non-periodic
     window the zone carrying |p| > ``zone_threshold`` [Pa] is measured at every step
     (``metrics.window_reach``, column ``window_reach``) and a warning printed when it
-    reaches the window's edge.
+    reaches the window's edge.  ``jumps``: the path locates jumps (``jumps.csv``);
+    ``pull_off``: it refines its pull-off, so each new most tensile stable state writes its
+    file (``writes_fields``; default: a sweep locating jumps that refines).
     """
 
     def __init__(self, scene: dict, grid, heights, out_dir: str, header: str, progress, *, tip=None,
-                 zone_threshold: float = 0.0, jumps: bool = False):
+                 zone_threshold: float = 0.0, jumps: bool = False, pull_off: bool | None = None):
         self.scene, self.grid, self.heights, self.out_dir = scene, grid, heights, out_dir
         self.progress, self.tip, self.zone_threshold = progress, tip, zone_threshold
         self.keeps_jumps = jumps
@@ -97,8 +99,9 @@ class StepRecorder:
         out = scene["output"]
         self.types = scene_field_types(scene)   #: {field: type code} of the step files; {}: none
         self.every, self.length_unit = out["field_every"], out["length_unit"]
-        # a sweep that refines the pull-off restarts the refinement from its most tensile state's file
-        self.pull_off_files = jumps and scene["protocol"]["refine_pull_off"]
+        # a sweep that refines the pull-off restarts the refinement from its most tensile state's
+        # file (``pull_off``: the stepper's ``refines``; by default a sweep locating jumps that does)
+        self.pull_off_files = jumps and scene["protocol"]["refine_pull_off"] if pull_off is None else pull_off
         self.written = []   #: (step, approach, types) of the step files of the path, for fields.xdmf
         if self.types:
             from ..stack import CITATION, describe

@@ -136,7 +136,7 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
         recorder = StepRecorder(scene, grid, h, out_dir, stepper.header, stepper.progress,
                                 tip=tip if scene["output"]["atom_forces"] else None,
                                 zone_threshold=stepper.zone_threshold,
-                                jumps=stepper.sweeping)
+                                jumps=stepper.sweeping, pull_off=stepper.refines)
         if restart:
             recorder.resume(stepper.fields, stored)
             if recorder.rows:

@@ -107,7 +107,8 @@ _SCHEMA = {
         "values": _k(list, None, "m, Pa or N", "the sequence of approaches, gaps or loads, solved in order "
                      "with warm starts (required)"),
         "refine_pull_off": _k(bool, True, "", "adhesive sweeps: refine the most tensile force by golden "
-                              "section (Newton solves on its branch)"),
+                              "section (solves on its branch: Newton, or relaxation with solver.method = "
+                              "relaxation)"),
         "jump_refinement": _k(int, 6, "", "adhesive sweeps: bisections locating each jump", (0, 40, True, True)),
         "substeps": _k(int, 3, "", "adhesive sweeps: halvings of a step that fails, tried from the last "
                        "converged state (0: none)", (0, 20, True, True)),

@@ -11,7 +11,8 @@ results (``results``: the pull-off force, refined at the end by ``finish``).
 starts; a smooth sphere on an isolated half-space is compared with Hertz at
 each step.  ``AdhesiveSteps``: adhesion, through ``paths.sweep`` (jumps
 located, pull-off), ``paths.central_gap_path``, or the reference paper's
-relaxation solver; spheres are reported in Greenwood's alpha* and W*.
+relaxation solver (pull-off refined by relaxation solves); spheres are
+reported in Greenwood's alpha* and W*.
 """
 from __future__ import annotations
 
@@ -21,10 +22,6 @@ from petsc4py import PETSc
 from .output import RESTART_FIELDS
 
 NAN = float("nan")
-#: why a relaxation sweep's pull-off is the sampled one (summary.json ``pull_off_not_refined``)
-NOT_REFINED = ("solver.method = relaxation: the pull-off is the most tensile stable state of the path's "
-               "steps; the refinement searches by Newton continuation with the tangent, which the "
-               "relaxation solver has not (solver.method = newton refines it)")
 
 
 def mean_gap(grid, st, error_scale: float) -> dict:
@@ -43,6 +40,7 @@ class ContactSteps:
     """Signorini contact (no adhesion); a failed step is written and the path goes on."""
     stop_on_failure = False
     sweeping = False              #: no jumps, no pull-off
+    refines = False
     zone_threshold = 0.0          #: the contact zone: p > 0
     fields = RESTART_FIELDS[False]
 
@@ -117,10 +115,11 @@ class AdhesiveSteps:
         self.sphere = g["kind"] in ("sphere", "tip") and not g["periodic"]   # Greenwood's scaling with R
         self.zone_threshold = CUTOFF * law.peak_attraction   # the paper's adhesive-zone cut-off
         # the relaxation solver relaxes wherever it goes: no jump location; its path's points
-        # give the pull-off (the most tensile stable state), not refined (``NOT_REFINED``)
+        # give the pull-off (the most tensile stable state), refined by relaxation solves
         self.path = Path()
         self.sweeping = self.relax is None and self.proto["control"] == "approach"
-        self.pulls = self.proto["control"] == "approach"    #: a pull-off force (sampled at least)
+        self.pulls = self.proto["control"] == "approach"    #: a pull-off force
+        self.refines = self.pulls and self.proto["refine_pull_off"]   #: refined at the end (``finish``)
         self.prev = None          #: (approach, force, dF/d delta) of the last state, for sweep
         self.header = (f"  {'step':>4} {'approach [m]':>12} {'force [N]':>11} {'contact':>8} {'adh. force':>11} "
                        f"{'error':>9} {'stable':>6} {'time [s]':>8}" + (f" {'alpha*':>8} {'W*':>9}"
@@ -138,7 +137,7 @@ class AdhesiveSteps:
                                     approach_after=float(j["approach_after_m"]),
                                     force_before=float(j["force_before_N"]),
                                     force_after=float(j["force_after_N"])) for j in recorder.jumps]
-        if self.sweeping and self.proto["refine_pull_off"]:
+        if self.refines:
             self._restore_best(recorder)
         (q, a), approach = recorder.read_step(len(rows), self.fields)
         self.problem.warm_start(q, a, approach)
@@ -183,6 +182,9 @@ class AdhesiveSteps:
                             "from an uninterrupted run's")
 
     def _restore_best(self, recorder) -> None:
+        """The pull-off search's start (``paths.keep_for_search``) on a restarted path: the most
+        tensile stable state on disk, solved again from its file by the run's solver (the
+        relaxation's converged state passes its test unchanged: the uninterrupted run's)."""
         pts = self.path.points
         stable = [i for i, p in enumerate(pts) if p.converged and p.stable is not False]
         if not stable:
@@ -194,7 +196,10 @@ class AdhesiveSteps:
             return
         (q, a), approach = recorder.read_step(best + 1, self.fields)
         self.problem.warm_start(q, a, approach)
-        st = self.problem.solve(approach=approach, raise_on_failure=False, fallback=False)
+        if self.relax is not None:
+            st = self.relax.solve(approach=approach, raise_on_failure=False)
+        else:
+            st = self.problem.solve(approach=approach, raise_on_failure=False, fallback=False)
         if st.converged and st.stable is not False:
             self.path._best = (best, self.problem.snapshot())
         else:
@@ -204,11 +209,16 @@ class AdhesiveSteps:
     def step(self, value: float):
         from ..paths import central_gap_path, sweep
         if self.relax is not None:
-            from ..paths import path_point
+            from ..paths import keep_for_search, path_point
             st = self.relax.solve(approach=value, raise_on_failure=False)
             pts = self.path.points
             branch = "loading" if not pts or value >= pts[-1].approach else "unloading"
             pts.append(path_point(len(pts), branch, st))
+            if self.pulls:
+                # as a Newton sweep keeps it, one step at a time (a restart keeps the same)
+                last = keep_for_search(self.path, self.problem, None)
+                if last is not None:
+                    last[1].destroy()
             return st, []
         got, n = [], len(self.path.jumps)
 
@@ -248,14 +258,15 @@ class AdhesiveSteps:
                 f"{st.wall_time:8.2f}"
                 + (f" {row['alpha_star']:8.3f} {row['W_star']:9.4f}" if self.sphere else ""))
 
-    def results(self, pull: float | None = None, refined: bool = False) -> dict:
-        """The pull-off force of a sweep so far (the most tensile stable state on disk)."""
+    def results(self, pull: float | None = None, refined: bool = False, why: str | None = None) -> dict:
+        """The pull-off force of a sweep so far (the most tensile stable state on disk), or the
+        refined one; ``why``: why a refinement asked for was not done."""
         if not self.pulls:
             return {}
         pull = self.path.pull_off_force if pull is None else pull
         out = {"pull_off_force_N": pull, "pull_off_refined": refined}
-        if not self.sweeping:
-            out["pull_off_not_refined"] = NOT_REFINED
+        if why:
+            out["pull_off_not_refined"] = why
         if self.sphere:
             out["pull_off_W_star"] = pull / (2 * np.pi * self.radius * self.law.work_of_adhesion)
         out.update(self.pull_off_biases(pull))
@@ -290,20 +301,35 @@ class AdhesiveSteps:
         return out
 
     def finish(self) -> dict:
-        """The pull-off force refined by golden section (``protocol.refine_pull_off``)."""
-        from ..pull_off import refine_pull_off
+        """The pull-off force refined (``protocol.refine_pull_off``; ``pull_off.refine_pull_off``):
+        by Newton, or on a relaxation sweep by relaxation solves (``pull_off.RelaxedSearch``),
+        to 1 % of the smallest step in approach.  A relaxation solve of the search that fails
+        otherwise than by stalling beyond the end of the branch leaves the sampled pull-off (the
+        most tensile stable step), with the reason."""
+        from ..pull_off import RelaxedSearch, refine_pull_off
         if not self.pulls:
             return {}
-        pull, refined = self.path.pull_off_force, False
-        if self.sweeping and self.proto["refine_pull_off"] and self.path._best is not None:
+        pull, refined, why, search = self.path.pull_off_force, False, None, None
+        if self.refines and self.path._best is not None:
             values = self.proto["values"]
             step = min(np.abs(np.diff(values))) if len(values) > 1 else self.z0
-            pull, refined = refine_pull_off(self.problem, self.path, xtol=0.01 * step), True
-        out = self.results(pull, refined)
+            search = self.problem if self.relax is None else RelaxedSearch(self.relax)
+            refine_pull_off(search, self.path, xtol=0.01 * step)
+            failure = getattr(search, "failure", None)
+            if failure is None:
+                pull, refined = self.path.refined_pull_off, True
+            else:
+                self.path.refined_pull_off = None
+                why = (f"a relaxation solve of the pull-off search (approach {failure[0]:.6e} m) did not converge: "
+                       f"{failure[1]}; the pull-off is the most tensile stable step's")
+        out = self.results(pull, refined, why)
         PETSc.Sys.Print(f"  pull-off force {pull:.6e} N"
                         + (f" (W* = {out['pull_off_W_star']:.4f})" if self.sphere else "")
-                        + ("" if self.sweeping else " (the most tensile stable step: the relaxation solver does "
-                           "not refine it)"))
+                        + (" (refined by relaxation solves)" if refined and self.relax is not None else "")
+                        + (f", not refined: {why}" if why else ""))
+        if getattr(search, "stalled", 0) and not why:
+            PETSc.Sys.Print(f"  pull-off search: {search.stalled} relaxation solve(s) stalled beyond the end of the "
+                            "attached branch (counted off the branch, as a Newton solve that does not converge)")
         if "window_tail_N" in out:
             PETSc.Sys.Print(f"  the window leaves out the law's attraction beyond its edge: {out['window_tail_N']:.3e} N "
                             f"at the pull-off (sphere and far field, closed form), "

@@ -62,6 +62,10 @@ class RelaxationSolver:
     ``max_cycles`` (adhesive cycles, 20000), ``max_inner`` (contact relaxations per
     cycle, 200), ``omega_max`` (1).  ``monitor``: None or a callable (cycle, gap rows [m])
     called after every cycle's measures (benchmarks evaluate their own error there).
+    ``stall``: None, or a solve stops (``DIVERGED_STALLED``) once the adhesive relaxation
+    coefficient has fallen below ``stall`` times its first value: E_Total grew at nearly
+    every cycle, the pressures no longer move (from an attached state beyond the end of
+    its branch; the pull-off search, ``pull_off.RelaxedSearch``, sets it).
     """
 
     def __init__(self, problem, *, tol: float | None = None, contact_tol: float | None = None,
@@ -79,6 +83,7 @@ class RelaxationSolver:
             self._read_options(tol, contact_tol, max_cycles)
         self.solver_name = "relaxation-mlmi"
         self.monitor = None
+        self.stall = None
         self._mlmi = None
 
     def _read_options(self, tol, contact_tol, max_cycles) -> None:
@@ -164,7 +169,7 @@ class RelaxationSolver:
         g = np.empty_like(q)
         n = pb.grid.nx * pb.grid.ny
         d = pb.traction
-        omega_a = None
+        omega_a = omega_0 = None
         e_prev = e_total = rms_c = err_p = np.inf
         inner_total = cycle = 0
         converged, reason = False, f"DIVERGED_MAX_CYCLES ({self.max_cycles})"
@@ -204,9 +209,13 @@ class RelaxationSolver:
             if omega_a is None:
                 d.linearise(g if pb.hard_wall else np.maximum(g, 0.0))
                 stiff = comm.allreduce(float(np.abs(d.diagonal).max()), op=MPI.MAX) * pb.kappa
-                omega_a = min(self.omega_max, 1.0 / (1.0 + stiff))
+                omega_a = omega_0 = min(self.omega_max, 1.0 / (1.0 + stiff))
             elif e_total > e_prev:
                 omega_a *= 0.5
+                if self.stall is not None and omega_a < self.stall * omega_0:
+                    reason = (f"DIVERGED_STALLED (the adhesive relaxation coefficient fell to {omega_a:.2e}, "
+                              f"below {self.stall:g} of its first value: no state near the start)")
+                    break
             else:
                 omega_a = min(self.omega_max, 1.05 * omega_a)
             e_prev = e_total
