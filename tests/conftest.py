@@ -44,7 +44,7 @@ def pytest_configure(config):
     config.addinivalue_line(
         "markers", "serial: only meaningful on one MPI rank (skipped when COMM_WORLD has > 1 rank)")
     config.addinivalue_line(
-        "markers", "heavy: long study runs, checked on 1 and 2 ranks (skipped on more, to keep the "
+        "markers", "heavy: long adhesive paths and study runs, checked on 1 and 2 ranks (skipped on more, to keep the "
         "suite short; the 3-rank pass is for uneven splits, covered by the lighter tests)")
     if WORLD.Get_rank() != 0:
         # ranks != 0 run the same tests and reach the same collective verdicts: keep them quiet

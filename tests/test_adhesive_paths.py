@@ -4,6 +4,7 @@ Independent truths: the force slope (finite differences of the path), the loadin
 branches meeting, the stability margin's bound.  Units: z0 = 1, E* = 1 (Greenwood's).
 """
 import numpy as np
+import pytest
 from petsc4py import PETSc
 
 from contactpetsc.paths import central_gap_path, edge_gap_path, sweep
@@ -33,6 +34,7 @@ def test_stiffness_is_the_force_slope_and_can_be_left_out(coll):
         PETSc.Options().delValue("lazy_stiffness")
 
 
+@pytest.mark.heavy   # an adhesive path: 1 and 2 ranks (3 oversubscribed ranks spend minutes)
 def test_loading_unloading_hysteresis_and_jumps(coll):
     """mu = 1, full LJ: jump-on while loading, jump-off while unloading at a smaller
     approach (hysteresis), pull-off between the JKR and DMT limits."""
@@ -66,6 +68,7 @@ def test_central_gap_traces_the_unstable_branch(coll):
     assert approach[k - 1] > approach[0] and np.max(approach) > approach[-1]
 
 
+@pytest.mark.heavy   # an adhesive path: 1 and 2 ranks (3 oversubscribed ranks spend minutes)
 def test_edge_gap_path_closes_the_s_curve_on_the_adhered_branch(coll):
     """Past the apex touching, prescribed gaps at nodes further out carry the S-curve
     through the rest of the unstable branch and its fold (the jump-off) onto the adhered
@@ -124,6 +127,7 @@ def test_load_control_where_stable(coll):
     assert "LOAD_CONTROL_UNSTABLE" in beyond.reason
 
 
+@pytest.mark.heavy   # an adhesive path: 1 and 2 ranks (3 oversubscribed ranks spend minutes)
 def test_a_budget_spent_while_a_jump_is_located_keeps_neither_step_nor_jump(coll, monkeypatch):
     """The time budget runs out inside the jump's bisection: its solves were cut short, so the
     step is not kept (not converged, the budget's reason), no jump is recorded, and the

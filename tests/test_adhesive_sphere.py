@@ -2,6 +2,7 @@
 the Maugis-Dugdale limits.  Units: z0 = 1, E* = 1 (Greenwood's).
 """
 import numpy as np
+import pytest
 
 from contactpetsc.paths import sweep
 from contactpetsc.pull_off import refine_pull_off
@@ -11,6 +12,7 @@ from contactpetsc.solvers.problem import ContactProblem
 from adhesive_setup import R, work_for, sphere_problem
 
 
+@pytest.mark.heavy   # an adhesive path: 1 and 2 ranks (3 oversubscribed ranks spend minutes)
 def test_small_tabor_parameter_gives_dmt(coll):
     """mu = 0.02, hard-wall LJ: pull-off -2 pi R w within 2 %; in contact, the adhesive force
     is the DMT one (the law over the Hertz gap outside the contact, Muller et al.) within 2 %,

@@ -187,6 +187,7 @@ def sweep(out, **output):
     return scenes.validate(scene)
 
 
+@pytest.mark.heavy   # an adhesive path: 1 and 2 ranks (3 oversubscribed ranks spend minutes)
 @pytest.mark.filterwarnings("ignore::contactpetsc.physics.resolution.UnderResolvedWarning")
 def test_an_adhesive_sweep_writes_its_jumps_and_pull_off_candidates(coll, shared_tmp):
     """Loading and unloading a sphere with field_every = 4: the written steps are the rule's
@@ -255,6 +256,7 @@ def same_on_one_rank(coll, make, out, shared_tmp):
     assert coll.max(worst) <= 1e-6
 
 
+@pytest.mark.heavy   # an adhesive path: 1 and 2 ranks (3 oversubscribed ranks spend minutes)
 @pytest.mark.filterwarnings("ignore::contactpetsc.physics.resolution.UnderResolvedWarning")
 def test_restart_without_the_pull_off_state_file_goes_on(coll, shared_tmp):
     """A sweep written without pull-off refinement every 4th step, restarted with the refinement

@@ -204,3 +204,23 @@ def test_dry_run_of_a_huge_grid_allocates_nothing_and_a_run_says_why_it_cannot(t
     assert real.returncode == 1, real.stdout + real.stderr
     assert "46000 x 46000 grid (geometry.nx x geometry.ny)" in real.stderr, real.stderr
     assert "GiB per rank" in real.stderr and "error code" not in real.stderr, real.stderr
+
+
+@pytest.mark.parametrize("n", [32, 48, 64, 96])
+def test_default_split_keeps_the_levels_of_one_rank(coll, n):
+    """The default split lets the multilevel solver halve an n x n grid down to 8 rows as often on
+    this rank count as on one rank (truth: the same grid on COMM_SELF); the rows stay balanced
+    to within the alignment."""
+    from contactpetsc.solvers.transfer import can_halve, halved
+
+    def halvings(g):
+        k = 0
+        while can_halve(g) and g.ny // 2 >= 8:
+            g, k = halved(g), k + 1
+        return k
+
+    g = SurfaceGrid(n, n, 1.0)
+    one = SurfaceGrid(n, n, 1.0, comm=PETSc.COMM_SELF)
+    sizes = [e - s for s, e in g.y_ranges]
+    assert coll.all(halvings(g) == halvings(one))
+    assert max(sizes) - min(sizes) <= 16

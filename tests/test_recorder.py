@@ -46,6 +46,7 @@ def adhesive_sphere(out, n=64, values=None):
     return scene
 
 
+@pytest.mark.heavy   # an adhesive path: 1 and 2 ranks (3 oversubscribed ranks spend minutes)
 def test_summary_is_json_and_its_jumps_are_the_rows_of_jumps_csv(coll, shared_tmp):
     out = shared_tmp / "sweep"
     runner.run(adhesive_sphere(out), comm=PETSc.COMM_WORLD)

@@ -36,8 +36,9 @@ def _path(mode, law, prefix):
     return path, refine_pull_off(pb, path, xtol=0.01 * step)
 
 
-# the hard-wall path is the dearest test on 3 oversubscribed ranks: checked on 1 and 2
-@pytest.mark.parametrize("law", ["lj", pytest.param("hardwall-lj", marks=pytest.mark.heavy)])
+# the hard-wall path is the dearest test of the suite: checked serially (the full LJ path
+# checks that auto's decisions do not depend on the rank count)
+@pytest.mark.parametrize("law", ["lj", pytest.param("hardwall-lj", marks=pytest.mark.serial)])
 def test_auto_finds_the_jumps_and_pull_off_of_the_always_on_check(coll, law):
     """Tabor 1 sphere, load and unload: jump-on, jump-off and pull-off identical with auto and
     with the check forced on; auto leaves the check out at some states, each of them one the
@@ -177,15 +178,7 @@ def test_cli_dry_run_names_a_forced_check():
     assert bad.returncode != 0 and "accepted values are true, false, auto" in bad.stdout + bad.stderr
 
 
-def _finer(scene, nx):
-    """``scene`` on an nx x nx grid of the same window: 64 nodes keep one coarse level of the
-    nested iteration (32), 128 two."""
-    g = scene["geometry"]
-    return dict(scene, geometry=dict(g, nx=nx, dx=g["dx"] * g["nx"] / nx))
-
-
-@pytest.mark.parametrize("nx", [64, pytest.param(128, marks=pytest.mark.heavy)])
-def test_a_stopped_sweep_restarts_to_the_uninterrupted_run(coll, shared_tmp, auto_run, nx):
+def test_a_stopped_sweep_restarts_to_the_uninterrupted_run(coll, shared_tmp, auto_run):
     """The sweep stopped after 3, 6 and 9 of its 12 steps and restarted each time (a run of the
     first k values, then --restart with more): curve.csv has the uninterrupted run's Newton
     iterations, forces, ``stable`` and ``stability_checked`` at every step, and its jumps.  The
@@ -193,12 +186,7 @@ def test_a_stopped_sweep_restarts_to_the_uninterrupted_run(coll, shared_tmp, aut
     nested iteration's coarse levels, stepped along with the path: the first restarted step is
     predicted from them as in the uninterrupted run (without them its Newton count differs, and
     the fold watch decides from Newton counts)."""
-    scene = _finer(SPHERE, nx)
-    if nx == SPHERE["geometry"]["nx"]:
-        full, ref = auto_run
-    else:
-        full = str(shared_tmp / "full")
-        ref = _rows(scene, full)
+    scene, (full, ref), nx = SPHERE, auto_run, SPHERE["geometry"]["nx"]
     out = shared_tmp / "stopped"
     values = scene["protocol"]["values"]
     for n, k in enumerate((3, 6, 9, len(values))):
@@ -213,7 +201,7 @@ def test_a_stopped_sweep_restarts_to_the_uninterrupted_run(coll, shared_tmp, aut
         levels = f["coarse_levels"]
         assert [levels[k]["adhesive_pressure"].shape for k in sorted(levels)] == \
             [(nx >> k, nx >> k) for k in range(1, len(levels) + 1)]
-        assert f.attrs["coarse_levels"] == len(levels) == {64: 1, 128: 2}[nx]
+        assert f.attrs["coarse_levels"] == len(levels) == 1          # 64 -> 32, the floor of the nested iteration
         assert float(levels["1"].attrs["approach"]) == float(ref[8]["approach_m"])
 
 
