@@ -53,3 +53,8 @@ class AdhesiveState(ContactState):
     stability_converged: bool | None = None
     solver: str = "newton"
     fallback: bool = False        #: Newton from the previous state failed: a relaxation path was followed
+    #: total potential energy at the prescribed approach [J]: the elastic energy 1/2 sum p v dA plus
+    #: the interaction energy sum Phi(g) dA (Phi the law's energy per area, nodal rule).  At an
+    #: equilibrium d(energy)/d(approach) = force; states reached at one approach compare by it.
+    #: NaN with element integration (its energy is not the nodal sum)
+    energy: float = float("nan")

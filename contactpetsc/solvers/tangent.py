@@ -192,6 +192,8 @@ class TangentAndState:
                 stiffness = self._tangent[2]
                 self.check_time += self.history.elapsed() - t_check
         area = grid.lengths[0] * grid.lengths[1]
+        energy = float("nan") if self.element_integration else grid.element_area * comm.allreduce(
+            0.5 * float(np.sum(xb.sum(axis=0) * self._v)) + float(np.sum(self.traction.energy(gap_rows))))
         return AdhesiveState(
             pressure=p, contact_pressure=q, adhesive_pressure=a, gap=gap, displacement=v,
             approach=self._approach, central_gap=self.centre_value(gap_rows),
@@ -203,7 +205,7 @@ class TangentAndState:
             fft_pairs=self.fft_pairs() - pairs0, wall_time=self.history.elapsed() - t0,
             check_time=self.check_time,
             stability_converged=self.stability_converged if np.isfinite(margin) else None,
-            solver=solver, fallback=solver.endswith(("+ptc", "+relaxation")))
+            solver=solver, fallback=solver.endswith(("+ptc", "+relaxation")), energy=energy)
 
     def total_error(self, a_rows: np.ndarray, gap_rows: np.ndarray) -> float:
         """The paper's E_Total [z0]: rms of K (a(g) - a), the gap change when the trial
