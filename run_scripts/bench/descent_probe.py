@@ -3,8 +3,8 @@
 
 The rough benchmark heights (``rough_surface.py``), E* = 1, w = 0.05 E* dx, z0 = dx (the
 parameters of ``bench_adhesion.py``), the hard-wall LJ law and the full LJ curve, at approaches
-calibrated to about 2 % / 10 % / 25 % contact (``rough_surface.calibrate`` on the heights averaged
-to 128^2, cached in --cache).  Per state:
+calibrated to about 2 % / 10 % / 25 % contact (``rough_surface.calibrate`` per size with that
+size's law, on the heights averaged to 128^2, cached in --cache).  Per state:
 
 * ``ours``: ``AdhesiveProblem`` as a scene gets it (defaults: nested start, stability check,
   tangent), cold on a fresh problem; ``ours-warm``: the same problem's next solve at
@@ -14,10 +14,14 @@ to 128^2, cached in --cache).  Per state:
   u-space (``u``): the unknown is the displacement field u [m], g = h + u - delta,
       E(u) = 1/2 u.K^-1 u + sum Phi(g)       (per element area dA; reported energies x dA)
   hard wall: the bound u >= delta - h (g >= 0), and the mean of u (which K^-1 does not see; the
-  approach fixes it) held by a penalty c/2 N mean(u)^2 (c = --penalty E*/dx): the state is then
-  exactly the equilibrium at approach delta - mean(u), reported as ``offset`` [z0]; full LJ: the
-  mean projected out exactly (g = h + P0 u - delta).  Gradient (Pa) = p - a(g), p = K^-1 u + c mean(u)
-  (hard wall; the multiplier q = p - a(g) >= 0 of the bound) or K^-1 u + mean a(g) (LJ).
+  approach fixes it; a bound method's projection moves it) held by a penalty c/2 N mean(u)^2 +
+  W N mean(u) (c = --penalty times the largest modal stiffness E* q_max / 2), the multiplier W
+  updated to the measured mean pressure between TAO solves (Uzawa, --max-rounds) until
+  |mean(u)| <= tol z0: each round's state is exactly the equilibrium at approach delta - mean(u),
+  reported as ``offset`` [z0]; full LJ: the mean projected out exactly (g = h + P0 u - delta).
+  Gradient (Pa) = p - a(g), p = K^-1 u + c mean(u) + W (hard wall; the multiplier q = p - a(g) >= 0
+  of the bound) or K^-1 u + mean a(g) (LJ).  BNTR / BNLS run with ``-tao_bnk_as_type none`` unless
+  given (the default active-set estimate collapsed the trust region on every hard-wall state).
   Preconditioner / metric: M = K^-1 (+ c on the mean mode), diagonal in Fourier space, one FFT
   pair per application: H0 of BLMVM (``TaoLMVMSetH0`` with a preonly KSP whose PC applies M^-1);
   the PC of BNTR / BNLS, whose Hessian is a shell Mat K^-1 + diag(Phi''(g)) (+ c on the mean).
@@ -39,8 +43,13 @@ Energy: dA [1/2 sum p v + sum Phi(g)], v = K p zero-mean, computed the same way 
 fields.  The non-adhesive reference: ``ContactProblem`` (spectral, tol 1e-8) cold at mean
 pressure 0.005 E* (the rough benchmark), fresh problem per repeat.
 
-    /work/main/.venv/bin/python run_scripts/bench/descent_probe.py --sizes 256 512 [--laws hardwall-lj lj]
-        [--methods blmvm bntr bnls bqnls z-lmvm z-ntr] [--repeats 3] [--json out.jsonl]
+    cd run_scripts/bench
+    /work/main/.venv/bin/python descent_probe.py --sizes 256 512 [--laws hardwall-lj lj]
+        [--methods blmvm bntr bnls bqnls z-lmvm z-ntr blmvm0] [--repeats 3] [--json out.jsonl]
+        [PETSc options, e.g. -probe_bnls_tao_bnk_ksp_rtol 1e-1]
+    /work/main/.venv/bin/python descent_probe.py --summarize out.jsonl      (markdown tables)
+
+(``blmvm0``: BLMVM with its own scalar H0; method prefixes ``probe_<method>_``.)
 """
 import argparse
 import json
