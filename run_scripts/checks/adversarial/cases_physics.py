@@ -114,9 +114,11 @@ def api_weak_adhesion_case(w, ranks) -> Case:
 # --------------------------------------------------------------------------------------------
 # class 2 and 3: the flat periodic cell
 def flat_case(name, w=0.1, law="lj", values=None, e_star=None, refine=True, ranks=1, klass="2",
-              check_forces=True, no_jumps=False, tol=1e-3, **interaction) -> Case:
+              check_forces=True, no_jumps=False, tol=1e-3, method="newton", **interaction) -> Case:
     scene = flat_cell(w=w, law=law, values=values, e_star=e_star, **interaction)
     scene["protocol"]["refine_pull_off"] = refine
+    if method != "newton":
+        scene["solver"] = {"method": method}
     kw = law_kwargs(scene)
     n = scene["geometry"]["nx"]
     area = (n * Z0) ** 2
@@ -154,7 +156,7 @@ def flat_case(name, w=0.1, law="lj", values=None, e_star=None, refine=True, rank
         res = run_scene(d, scene, ranks=ranks)
         return judge_success(res, lambda: check(d / "out"))
     return Case(name, klass, f"flat periodic cell 32^2, {law}, w = {w:g}, E* = "
-                f"{scene['material']['e_star']:.2g}, refine_pull_off = {refine}, {ranks} rank(s)",
+                f"{scene['material']['e_star']:.2g}, refine_pull_off = {refine}, {method}, {ranks} rank(s)",
                 ("pull-off -A x peak" if refine else "pull-off = most tensile sampled unloading state")
                 + (", F = A p(-delta) each step" if check_forces else "")
                 + (", no jumps" if no_jumps else ""), run, ranks)

@@ -85,6 +85,10 @@ def compare_runs(ref: Path, out: Path, step: float) -> tuple[str, str]:
     worst = float(np.max(np.abs(fa - fb))) / scale
     if worst > 1e-4 or not np.allclose(column(a, "approach_m"), column(b, "approach_m")):
         return WRONG, f"curve.csv differs from the uninterrupted run (force error {worst:.1e})"
+    for name in ("stable", "stability_checked"):
+        if name in a[0] and [r[name] for r in a] != [r.get(name) for r in b]:
+            steps = [r["step"] for r, s in zip(a, b) if r[name] != s.get(name)]
+            return WRONG, f"curve.csv's {name} differs from the uninterrupted run at steps {steps}"
     ja, jb = read_jumps(ref), read_jumps(out)
     if [j["kind"] for j in jb] != [j["kind"] for j in ja]:
         cls = LOST if len(jb) < len(ja) else WRONG

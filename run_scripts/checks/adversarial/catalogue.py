@@ -57,6 +57,13 @@ def all_cases() -> list[Case]:
     add(flat_case("flat-dugdale-no-refine", 0.1, law="dugdale", sigma0=0.1 / Z0, refine=False,
                   values=z0s(-2, -1.5, -0.7, -0.3, -0.7, -1.5)))
     add(flat_case("flat-lj-np2", 0.1, ranks=2))
+    # the paper's relaxation: its pull-off refined by relaxation solves
+    add(flat_case("flat-lj-relaxation", 0.1, method="relaxation"))
+    add(flat_case("flat-lj-relaxation-coarse-steps", 0.1, method="relaxation",
+                  values=z0s(-2, -1.3, -0.6, 0, -0.37, -0.74, -1.11, -1.48)))
+    add(flat_case("flat-hardwall-lj-relaxation", 0.1, law="hardwall-lj", method="relaxation",
+                  values=z0s(-2, -1, -0.5, -0.02, -0.1, -0.15, -0.19, -0.23, -0.3, -0.6)))
+    add(flat_case("flat-lj-relaxation-np2", 0.1, method="relaxation", ranks=2))
     # 3: no jumps where the force is smooth
     add(rigid_sphere_case("far-sphere-lj-w0.05", 0.05, 1e10, values=FAR, klass="3", no_jumps=True, tol=1e-2))
     add(rigid_sphere_case("far-sphere-lj-w0.3", 0.3, 1e10, values=FAR, klass="3", no_jumps=True, tol=1e-2))
