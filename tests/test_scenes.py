@@ -211,7 +211,8 @@ def read_curve(out):
 
 
 #: example paths long enough to be checked on 1 and 2 ranks only (the suite's time on 3)
-LONG_EXAMPLES = ("rough_adhesive_cell.toml",)
+# adhesive paths and the area-load search: checked on 1 and 2 ranks (heavy)
+LONG_EXAMPLES = ("rough_adhesive_cell.toml", "adhesive_sphere.toml", "atomic_tip.toml", "rough_area_load.toml")
 
 
 @pytest.mark.parametrize("path", [pytest.param(p, marks=pytest.mark.heavy) if p.endswith(LONG_EXAMPLES) else p

@@ -38,7 +38,8 @@ def _path(mode, law, prefix):
 
 # the hard-wall path is the dearest test of the suite: checked serially (the full LJ path
 # checks that auto's decisions do not depend on the rank count)
-@pytest.mark.parametrize("law", ["lj", pytest.param("hardwall-lj", marks=pytest.mark.serial)])
+@pytest.mark.parametrize("law", [pytest.param("lj", marks=pytest.mark.heavy),
+                                 pytest.param("hardwall-lj", marks=pytest.mark.serial)])
 def test_auto_finds_the_jumps_and_pull_off_of_the_always_on_check(coll, law):
     """Tabor 1 sphere, load and unload: jump-on, jump-off and pull-off identical with auto and
     with the check forced on; auto leaves the check out at some states, each of them one the
@@ -113,6 +114,7 @@ def auto_run():
         shutil.rmtree(out, ignore_errors=True)
 
 
+@pytest.mark.heavy   # an adhesive sweep: 1 and 2 ranks
 def test_curve_says_per_state_whether_the_check_ran(shared_tmp, auto_run):
     """curve.csv: stable is True/False exactly where stability_checked is True, nan elsewhere;
     the states auto leaves out are stable in the always-on run, and the checked ones agree
@@ -178,6 +180,7 @@ def test_cli_dry_run_names_a_forced_check():
     assert bad.returncode != 0 and "accepted values are true, false, auto" in bad.stdout + bad.stderr
 
 
+@pytest.mark.heavy   # an adhesive sweep: 1 and 2 ranks
 def test_a_stopped_sweep_restarts_to_the_uninterrupted_run(coll, shared_tmp, auto_run):
     """The sweep stopped after 3, 6 and 9 of its 12 steps and restarted each time (a run of the
     first k values, then --restart with more): curve.csv has the uninterrupted run's Newton
@@ -205,6 +208,7 @@ def test_a_stopped_sweep_restarts_to_the_uninterrupted_run(coll, shared_tmp, aut
         assert float(levels["1"].attrs["approach"]) == float(ref[8]["approach_m"])
 
 
+@pytest.mark.heavy   # an adhesive sweep: 1 and 2 ranks
 def test_a_step_file_without_coarse_levels_still_restarts(coll, shared_tmp, capfd):
     """A step file of an older version, without the coarse levels: the sweep restarts from it
     (the next steps predicted without the coarse grids, as before) and the log says so."""
