@@ -28,3 +28,28 @@ def test_energy_change_is_the_work_of_the_force(coll, law):
     assert coll.max(-abs(change / trapezoid - 1)) < -1e-5
     assert change < 0
     pb.destroy()
+
+
+@pytest.mark.filterwarnings("ignore::contactpetsc.physics.resolution.UnderResolvedWarning")
+def test_curve_csv_energy_is_the_work_of_its_forces(coll, shared_tmp):
+    """A scene's curve.csv: energy_J changes along the loading branch by Simpson's integral of
+    its force_N column over the approach (to 1e-4 of the change), in SI units."""
+    import csv
+    from contactpetsc.app import runner, scenes
+    z0 = 0.3e-9
+    values = [z0 * k / 10 for k in range(11)]
+    scene = dict(name="energy", geometry=dict(kind="sphere", radius=15e-9, nx=32, dx=z0),
+                 material=dict(e_star=10e9), interaction=dict(law="lj", work_of_adhesion=0.3, z0=z0),
+                 protocol=dict(control="approach", values=values, refine_pull_off=False),
+                 output=dict(fields=False))
+    out = shared_tmp / "energy"
+    runner.run(scenes.validate(scene), output=str(out))
+    with open(out / "curve.csv") as f:
+        rows = list(csv.DictReader(f))
+    energy = np.array([float(r["energy_J"]) for r in rows])
+    force = np.array([float(r["force_N"]) for r in rows])
+    h = values[1] - values[0]
+    simpson = h / 3 * (force[0] + force[-1] + 4 * force[1:-1:2].sum() + 2 * force[2:-1:2].sum())
+    change = energy[-1] - energy[0]
+    assert all(r["converged"] == "True" for r in rows)
+    assert coll.max(abs(change / simpson - 1)) <= 1e-4

@@ -248,7 +248,7 @@ class AdhesiveSteps:
                     central_gap_m=st.central_gap, stable=NAN if st.stable is None else st.stable,
                     stability_checked=st.stable is not None, adhesive_error=st.adhesive_error,
                     total_error=st.total_error, pressure_error=st.pressure_error, solver=st.solver,
-                    **mean_gap(self.grid, st, self.z0 * np.nanmax([st.complementarity_error, st.adhesive_error,
+                    energy_J=st.energy, **mean_gap(self.grid, st, self.z0 * np.nanmax([st.complementarity_error, st.adhesive_error,
                                                                    st.total_error])))
 
     def progress(self, st, row) -> str:
