@@ -235,6 +235,59 @@ def _write_rows(group, field: str, grid, data, code: str):
     return dset
 
 
+def coarse_level_approaches(path: str) -> list | None:
+    """The approaches [m] of the coarse levels stored in step file ``path`` (``write_state``),
+    finest first; None in files of older versions, written before the levels were."""
+    with h5py.File(path, "r") as f:
+        if COARSE_LEVELS not in f.attrs:
+            return None
+        return [float(f[f"{COARSE_LEVELS}/{k}"].attrs["approach"]) for k in range(1, int(f.attrs[COARSE_LEVELS]) + 1)]
+
+
+def read_coarse_level(path: str, k: int, grid, fields: tuple) -> np.ndarray:
+    """The rank's rows of coarse level ``k``'s ``fields`` (those it has, in that order) on the
+    level's ``grid``, stacked (n_fields, ny_local, nx); a dataset of another shape is refused."""
+    with h5py.File(path, "r") as f:
+        level = f[f"{COARSE_LEVELS}/{k}"]
+        names = [name for name in fields if name in level]
+        for name in names:
+            if level[name].shape != (grid.ny, grid.nx):
+                raise ValueError(f"coarse level {k}'s {name} has shape {level[name].shape}, its grid "
+                                 f"(ny, nx) = ({grid.ny}, {grid.nx})")
+        return np.stack([np.asarray(level[name][grid.ys:grid.ye, :], dtype=float) for name in names])
+
+
+def check_step_file(path: str, grid, fields: tuple) -> None:
+    """A step file fit to restart from: complete, ``fields`` present, every dataset of the grid's
+    (ny, nx) shape and axes "y,x"."""
+    if not os.path.exists(path):
+        raise FileNotFoundError(f"{path} is missing")
+    try:
+        f = h5py.File(path, "r")
+    except OSError as exc:
+        raise ValueError(f"{path} is damaged ({exc})") from None
+    with f:
+        axes = f.attrs.get("axes", AXES)
+        if axes != AXES:
+            raise ValueError(f"{path} has axes {axes!r}; this version reads {AXES!r}")
+        for name in fields:
+            if name not in f:
+                raise ValueError(f"{path} has no dataset {name!r}")
+        datasets = [name for name in f if name != COARSE_LEVELS]   # the coarse grids: ``coarse_levels``
+        for name in datasets:
+            if f[name].shape != (grid.ny, grid.nx):
+                raise ValueError(f"{path}: {name} has shape {f[name].shape}: it does not fit the scene's grid "
+                                 f"(ny, nx) = ({grid.ny}, {grid.nx})")
+            if f[name].attrs.get("axes", AXES) != AXES:
+                raise ValueError(f"{path}: {name} has axes {f[name].attrs['axes']!r}; expected {AXES!r}")
+        sizes = []   # every dataset's, the coarse levels' too
+        f.visititems(lambda _, obj: sizes.append(obj.size * obj.dtype.itemsize)
+                     if isinstance(obj, h5py.Dataset) else None)
+        need = sum(sizes)
+    if os.path.getsize(path) < need:
+        raise ValueError(f"{path} is truncated ({os.path.getsize(path)} bytes, its datasets need {need})")
+
+
 def write_collection(directory: str, grid, steps: list, length_unit: str = "m") -> None:
     """``directory/fields.xdmf`` (rank 0; written whole under a temporary name): one temporal
     collection of the written ``steps``, a list of (step, approach [m], {field: type code}).

@@ -28,8 +28,8 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..collective import collective_call
-from .output import (AXES, COARSE_LEVELS, COLLECTION, read_written_step, scene_field_types, write_collection,
-                     write_state, write_text_atomic)
+from .output import (COLLECTION, check_step_file, coarse_level_approaches, read_coarse_level, read_written_step,
+                     scene_field_types, write_collection, write_state, write_text_atomic)
 from .plots import is_number
 
 CURVE_COLUMNS = ["step", "branch", "approach_m", "force_N", "mean_pressure_Pa", "contact_fraction",
@@ -212,32 +212,14 @@ class StepRecorder:
         """The coarse levels stored with step ``step`` (``record``), finest first, each (approach
         [m], read): ``read(grid)`` gives the rank's rows of the level's ``fields`` (those it has, in
         that order) on the level's ``grid``, stacked; None in files of older versions."""
-        import h5py
         path = self.path(f"step_{step:04d}.h5")
-
-        def approaches():
-            with h5py.File(path, "r") as f:
-                if COARSE_LEVELS not in f.attrs:
-                    return None
-                return [float(f[f"{COARSE_LEVELS}/{k}"].attrs["approach"])
-                        for k in range(1, int(f.attrs[COARSE_LEVELS]) + 1)]
-
-        def read(k, grid):
-            with h5py.File(path, "r") as f:
-                level = f[f"{COARSE_LEVELS}/{k}"]
-                names = [name for name in fields if name in level]
-                for name in names:
-                    if level[name].shape != (grid.ny, grid.nx):
-                        raise ValueError(f"coarse level {k}'s {name} has shape {level[name].shape}, its grid "
-                                         f"(ny, nx) = ({grid.ny}, {grid.nx})")
-                return np.stack([np.asarray(level[name][grid.ys:grid.ye, :], dtype=float) for name in names])
-
         message = f"cannot restart from {path}: {{error}}"
 
         def reader(k):
-            return lambda grid: collective_call(grid.mpi_comm, RuntimeError, message, read, k, grid)
+            return lambda grid: collective_call(grid.mpi_comm, RuntimeError, message, read_coarse_level, path, k,
+                                                grid, fields)
 
-        found = collective_call(self.grid.mpi_comm, RuntimeError, message, approaches)
+        found = collective_call(self.grid.mpi_comm, RuntimeError, message, coarse_level_approaches, path)
         return None if found is None else [(a, reader(k)) for k, a in enumerate(found, 1)]
 
     def path_state(self, step: int) -> dict:
@@ -383,38 +365,6 @@ class StepRecorder:
         text = json.dumps(json_safe(s), indent=1, allow_nan=False) + "\n"
         collective_call(self.grid.mpi_comm, OSError, f"cannot write {self.path('summary.json')}: {{error}}",
                         lambda: write_text_atomic(self.path("summary.json"), text) if self.rank0 else None)
-
-
-def check_step_file(path: str, grid, fields: tuple) -> None:
-    """A step file fit to restart from: complete, ``fields`` present, every dataset of the grid's
-    (ny, nx) shape and axes "y,x"."""
-    import h5py
-    if not os.path.exists(path):
-        raise FileNotFoundError(f"{path} is missing")
-    try:
-        f = h5py.File(path, "r")
-    except OSError as exc:
-        raise ValueError(f"{path} is damaged ({exc})") from None
-    with f:
-        axes = f.attrs.get("axes", AXES)
-        if axes != AXES:
-            raise ValueError(f"{path} has axes {axes!r}; this version reads {AXES!r}")
-        for name in fields:
-            if name not in f:
-                raise ValueError(f"{path} has no dataset {name!r}")
-        datasets = [name for name in f if name != COARSE_LEVELS]   # the coarse grids: ``coarse_levels``
-        for name in datasets:
-            if f[name].shape != (grid.ny, grid.nx):
-                raise ValueError(f"{path}: {name} has shape {f[name].shape}: it does not fit the scene's grid "
-                                 f"(ny, nx) = ({grid.ny}, {grid.nx})")
-            if f[name].attrs.get("axes", AXES) != AXES:
-                raise ValueError(f"{path}: {name} has axes {f[name].attrs['axes']!r}; expected {AXES!r}")
-        sizes = []   # every dataset's, the coarse levels' too
-        f.visititems(lambda _, obj: sizes.append(obj.size * obj.dtype.itemsize)
-                     if isinstance(obj, h5py.Dataset) else None)
-        need = sum(sizes)
-    if os.path.getsize(path) < need:
-        raise ValueError(f"{path} is truncated ({os.path.getsize(path)} bytes, its datasets need {need})")
 
 
 def _read_rows(path: str, required, notes: list, numeric=()) -> list[dict]:
