@@ -193,7 +193,7 @@ class TangentAndState:
                 self.check_time += self.history.elapsed() - t_check
         area = grid.lengths[0] * grid.lengths[1]
         energy = float("nan") if self.element_integration else grid.element_area * comm.allreduce(
-            0.5 * float(np.sum(xb.sum(axis=0) * self._v)) + float(np.sum(self.traction.energy(gap_rows))))
+            0.5 * float(np.sum(prow * self._v)) + float(np.sum(self.traction.energy(gap_rows))))
         return AdhesiveState(
             pressure=p, contact_pressure=q, adhesive_pressure=a, gap=gap, displacement=v,
             approach=self._approach, central_gap=self.centre_value(gap_rows),
