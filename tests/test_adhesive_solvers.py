@@ -50,13 +50,15 @@ def test_stalled_newton_hands_over_to_ptc_and_ends_in_the_same_state(coll):
     # one GMRES iteration: a step too poor to converge (one BiCGStab iteration still does here)
     opts.setValue("stalled_ksp_type", "gmres")
     opts.setValue("stalled_ksp_max_it", 1)
+    # PTC alone (the default chain descends first: test_descent.py)
+    opts.setValue("stalled_fallback", "ptc")
     states = []
     try:
         for prefix in ("plain_", "stalled_"):
             pb = AdhesiveProblem(grid, h, 1.0, make_law("lj", work_of_adhesion=0.05, z0=1.0), prefix=prefix)
             states.append(pb.solve(approach=h.min()[1] + 0.5))
     finally:
-        for name in ("stall_steps", "ksp_type", "ksp_max_it"):
+        for name in ("stall_steps", "ksp_type", "ksp_max_it", "fallback"):
             opts.delValue("stalled_" + name)
     plain, stalled = states
     assert "+ptc" not in plain.solver and stalled.solver.endswith("+ptc")
@@ -136,7 +138,7 @@ def test_ptc_alone_reaches_newtons_state_on_any_rank_count(coll):
     n = 64
     law = make_law("lj", work_of_adhesion=0.05, z0=1.0)
     opts = PETSc.Options()
-    for key, value in dict(max_it=0, predictor="false", fmg="false").items():
+    for key, value in dict(max_it=0, predictor="false", fmg="false", fallback="ptc").items():
         opts.setValue("ptconly_" + key, value)
     gaps = []
     try:
@@ -156,7 +158,7 @@ def test_ptc_alone_reaches_newtons_state_on_any_rank_count(coll):
             assert ("+ptc" in st.solver) == (prefix == "ptconly_")
             gaps.append(grid.gather(st.gap))
     finally:
-        for key in ("max_it", "predictor", "fmg"):
+        for key in ("max_it", "predictor", "fmg", "fallback"):
             opts.delValue("ptconly_" + key)
     assert coll.max(np.abs(gaps[1] - gaps[0])) < 1e-6
     assert coll.max(np.abs(gaps[2] - gaps[1])) < 1e-7

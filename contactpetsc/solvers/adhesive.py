@@ -43,6 +43,7 @@ from .adhesive_jacobian import AdhesiveJacobian, minloc
 from .adhesive_residual import AdhesiveCallbacks
 from .base import AdhesiveSolveError, VIProblem, check_tolerance, reason_name, with_options
 from .continuation import Continuation
+from .descent import EnergyDescent, descent_applies
 from .history import SolveHistory
 from .load_control import solve_force
 from .options import LINESEARCH_MAX_STEP, code_default, print_help
@@ -51,6 +52,9 @@ from .states import AdhesiveState
 from .tangent import TangentAndState, stability_mode
 
 __all__ = ["AdhesiveProblem", "AdhesiveSolveError", "AdhesiveState", "newton_ksp_type", "newton_linesearch"]
+
+#: the methods of -<prefix>fallback
+FALLBACKS = ("descent", "relaxation", "ptc")
 
 #: line search of the pseudo-transient continuation SNES: full (shifted) steps, the residual
 #: norm need not fall monotonically along the relaxation path
@@ -233,15 +237,27 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         # the relaxation paths tried in turn where Newton fails or ends on an unstable state.
         # Hard-wall laws: the paper's relaxation first, then PTC -- each reaches states where
         # the other stops at its cap (a strongly adhesive sphere loaded from rest, a jump-off)
-        chain = opts.getString("fallback", "relaxation,ptc" if self.hard_wall else "ptc").lower()
+        # the energy descent first where it applies: it reaches the minimum next to the last
+        # state without pseudo-time (docs/formulation.md, "Energy descent")
+        chain = ("descent," if descent_applies(self) else "") + ("relaxation,ptc" if self.hard_wall else "ptc")
+        chain = opts.getString("fallback", chain).lower()
         self.fallback_chain = [m.strip() for m in chain.split(",") if m.strip()]
-        if not self.fallback_chain or any(m not in ("relaxation", "ptc") for m in self.fallback_chain):
-            raise ValueError(f"-{self.prefix}fallback must be relaxation, ptc or a comma-separated "
+        if not self.fallback_chain or any(m not in FALLBACKS for m in self.fallback_chain):
+            raise ValueError(f"-{self.prefix}fallback must be {', '.join(FALLBACKS)} or a comma-separated "
                              f"chain of them, got {chain!r}")
+        if "descent" in self.fallback_chain and not descent_applies(self):
+            raise ValueError(f"-{self.prefix}fallback descent needs a periodic grid and the nodal rule "
+                             f"(K^-1 diagonal in Fourier space), got chain {chain!r}")
         if "relaxation" in self.fallback_chain and not self.hard_wall:
             raise ValueError(f"-{self.prefix}fallback relaxation needs a hard-wall law (the paper's relaxation "
                              f"stores contact pressures apart), got {self.law.name!r}")
         self.fallback_tol = opts.getReal("fallback_tol", code_default("adhesion", "fallback_tol"))
+        self.strategy = opts.getString("strategy", code_default("adhesion", "strategy")).lower()
+        if self.strategy not in ("newton", "descent"):
+            raise ValueError(f"-{self.prefix}strategy must be newton or descent, got {self.strategy!r}")
+        if self.strategy == "descent" and not descent_applies(self):
+            raise ValueError(f"-{self.prefix}strategy descent needs a periodic grid and the nodal rule "
+                             f"(K^-1 diagonal in Fourier space)")
         # past the wall-time budget every solve stops (WALL_TIME_BUDGET): a batch job ends
         # cleanly with its finished steps written, an unresolvable case in bounded time
         self.time_budget = opts.getReal("time_budget", code_default("adhesion", "time_budget"))
@@ -397,8 +413,12 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self.check_time = 0.0
         self._solve_best = (np.inf, "")
         x_start = self._x.copy()
-        coarse_predicted = approach is not None and self._coarse_step(float(approach))
-        if not coarse_predicted and approach is not None and self.use_predictor:
+        # -<prefix>strategy descent: the energy descent from the last state, Newton polishes
+        descend = self.strategy == "descent" and approach is not None
+        if descend:
+            ok, d_reason, d_newton, d_linear = EnergyDescent(self).descend(float(approach), x_start)
+        coarse_predicted = not descend and approach is not None and self._coarse_step(float(approach))
+        if not (coarse_predicted or descend) and approach is not None and self.use_predictor:
             self._ensure_tangent()   # x is still the previous state
             if self._tangent is not None:
                 # Euler predictor along the branch: x + dx/d delta * (delta - delta_prev)
@@ -408,16 +428,21 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
                     np.maximum(q, 0.0, out=q)
         check = self.stability_check if check_stability is None else check_stability
         # only where PTC would take over
-        self._stall_watch = self.stall_steps > 0 and fallback and approach is not None and "ptc" in self.fallback_chain
+        self._stall_watch = self.stall_steps > 0 and fallback and approach is not None and bool(
+            {"ptc", "descent"} & set(self.fallback_chain))
         converged, reason, newton, linear = self._run_snes()
         self._stall_watch = False
         solver = self.solver_name
+        if descend:
+            solver, newton, linear = "descent+" + solver, newton + d_newton, linear + d_linear
+            if not ok:
+                reason += f" (after {d_reason})"
         if callable(check):
             check = not converged or bool(check(newton, self.net_force()))
         margin = self.stability() if (converged and check) else float("nan")
         if fallback and approach is not None and (not converged or margin <= 0) and not self.out_of_time():
             converged, reason, newton, linear, margin, solver = self._follow_fallback(
-                approach, x_start, check, newton, linear, solver)
+                approach, x_start, check, newton, linear, solver, skip=("descent",) if descend else ())
         if not converged:
             # the state reported: the iterate of smallest error (never what a failed SNES
             # left in its solution); the next solve starts from the last converged state

@@ -13,6 +13,7 @@ from petsc4py import PETSc
 from ..physics.resolution import UnderResolvedWarning
 from .base import AdhesiveSolveError, ContactSolveError, reason_name
 from .problem import ContactProblem
+from .descent import EnergyDescent
 from .relaxation import RelaxationSolver
 from .states import AdhesiveState
 from .transfer import can_halve, halved, prolong_bilinear, prolong_constant, restrict
@@ -233,19 +234,26 @@ class Continuation:
                     f"{self._best[0]:.3e} z0 at step {self._best[1]})")
         return code > 0, name, snes.getIterationNumber(), snes.getLinearSolveIterations()
 
-    def _follow_fallback(self, approach, x_start, check, newton, linear, solver):
+    def _follow_fallback(self, approach, x_start, check, newton, linear, solver, skip=()):
         """The methods of ``-<prefix>fallback`` in turn from the last converged state ``x_start``
-        (or a stalled Newton's best iterate); returns (converged, reason, newton, linear,
-        margin, solver)."""
+        (or a stalled Newton's best iterate), but those in ``skip``; returns (converged, reason,
+        newton, linear, margin, solver)."""
         # Newton found no state on this branch, or an unstable one (the branch has
         # ended: a jump).  From the last converged state, follow a relaxation path
         # to a stable state, then polish by Newton: the methods of -<prefix>fallback
         # in turn (hard-wall laws: the paper's relaxation, then PTC; lj: PTC).
         stalled = self._stalled
-        for method in self.fallback_chain:
+        for method in (m for m in self.fallback_chain if m not in skip):
             # a stalled Newton was near a state but for a few nodes: PTC from its best iterate
             (self._x_best if stalled and method == "ptc" else x_start).copy(self._x)
-            if method == "relaxation":
+            if method == "descent":
+                ok, reason, n2, l2 = EnergyDescent(self).descend(approach, self._x)
+                if ok:
+                    # the polish: VI Newton at the approach itself (a hard wall's descent ends
+                    # within offset_tol z0 of it)
+                    ok, reason, n3, l3 = self._run_snes()
+                    n2, l2 = n2 + n3, l2 + l3
+            elif method == "relaxation":
                 relax = RelaxationSolver(self, tol=self.fallback_tol, max_cycles=self.fallback_max_cycles)
                 ok, reason, n2, l2 = relax.relax(approach, polished=True)
                 if ok:

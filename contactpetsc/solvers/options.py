@@ -82,7 +82,15 @@ ADHESION = (
            "every displacement-controlled state's tangent stiffness (false: NaN, the tangent only for the predictor)"),
     Option(("load_from_rest", "initial_step"), (False, 0.25),
            "first solve: load from separation in steps of at most this many z0"),
-    Option(("fallback",), "relaxation,ptc (hard wall); ptc", "where Newton fails or ends unstable: these in turn"),
+    Option(("strategy",), ("newton",), "newton (from the predicted state) or descent (the energy descent from the "
+           "last state, then Newton; periodic grids, nodal rule)"),
+    Option(("fallback",), "descent first on periodic nodal grids, then relaxation,ptc (hard wall) or ptc",
+           "where Newton fails or ends unstable: these in turn"),
+    Option(("descent_tol", "descent_max_rounds", "descent_offset_tol"), (1e-4, 8, 1e-2),
+           "energy descent (fallback): error measure reached before Newton polishes (z0), a hard wall's "
+           "mean-pressure rounds and mean offset (z0)"),
+    Option(("descent_tao_*",), "bnls, bnk_as_type none, bnk_ksp_rtol 0.1, max_it 500",
+           "the TAO of the energy descent (`-<prefix>descent_tao_monitor`)"),
     Option(("fallback_tol", "fallback_max_cycles"), (1e-3, 5000), "relaxation fallback"),
     Option(("ptc_shift", "ptc_max_it"), (1.0, 300), "pseudo-transient continuation: first shift, steps"),
     Option(("ptc_snes_*",), "vinewtonrsls, line search basic", "the SNES of pseudo-transient continuation"),

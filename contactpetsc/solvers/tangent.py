@@ -205,7 +205,7 @@ class TangentAndState:
             fft_pairs=self.fft_pairs() - pairs0, wall_time=self.history.elapsed() - t0,
             check_time=self.check_time,
             stability_converged=self.stability_converged if np.isfinite(margin) else None,
-            solver=solver, fallback=solver.endswith(("+ptc", "+relaxation")), energy=energy)
+            solver=solver, fallback=solver.endswith(("+ptc", "+relaxation", "+descent")), energy=energy)
 
     def total_error(self, a_rows: np.ndarray, gap_rows: np.ndarray) -> float:
         """The paper's E_Total [z0]: rms of K (a(g) - a), the gap change when the trial

@@ -71,7 +71,7 @@ def calibrate(grid, h, law, areas, steps=40, max_n=128):
         # one preconditioner whatever the default: the approaches stay those of earlier tables
         pb = AdhesiveProblem(grid, h, 1.0, law, prefix="cal_", tol=1e-6, stability_check=False,
                              preconditioner="spectral")
-    lo, hi = float(h.min()[1]) - law.z0, float(h.max()[1])
+    lo, hi = float(h.min()[1]) - law.length_scale(), float(h.max()[1])
     deltas, fractions = [], []
     for d in np.linspace(lo, hi, steps):
         st = pb.solve(approach=d, raise_on_failure=False)

@@ -1,0 +1,353 @@
+"""Energy descent: an adhesive state as a local minimum of the total energy (PETSc TAO).
+
+A strategy that drives an ``AdhesiveProblem`` (it owns none of the physics): from a start
+state it descends the total potential energy at fixed approach delta,
+
+    E(u) / dA = 1/2 u . K^-1 u + sum_i Phi(g_i),      g = h + u - delta,
+
+over the surface displacement u [m] (docs/formulation.md, "Energy descent"), with TAO's
+bound-constrained Newton line search (``bnls``: Hessian K^-1 + diag Phi''(g), truncated CG,
+negative curvature handled by the line search's shift) preconditioned by the compliance K,
+diagonal in Fourier space (one FFT pair).  Every accepted step lowers the energy, so the
+state reached is a minimum next to the start: across a snap the path does not climb, and
+no pseudo-time is spent on it.  The gradient is p - a(g) per node [Pa], p = K^-1 u (+ the
+mean pressure): zero where the state is an equilibrium.
+
+* Full LJ curve (no wall): the mean of u, which K^-1 does not see and the approach fixes,
+  is projected out exactly: g = h + (u - mean u) - delta, p = K^-1 u + mean a(g).
+* Hard wall: the bound u >= delta - h is TAO's variable bound (the contact nodes are its
+  active set; the multiplier q = p - a(g) >= 0).  The mean of u is held by a penalty
+  c/2 N mean(u)^2 + W N mean(u) (c the largest modal stiffness, W the mean-pressure
+  multiplier): a state with mean(u) = m is exactly an equilibrium at approach delta - m.
+  W is updated to the measured mean pressure between rounds (Uzawa) until |m| is below
+  ``offset_tol`` z0; Newton then closes the last offset.
+
+Its stopping test is the problem's own error measures (``AdhesiveProblem._measures``) on
+the descent iterate, to ``-<prefix>descent_tol`` (loose by default: the VI Newton polish
+that follows converges quadratically from there).  Periodic grids and the nodal rule only:
+K^-1 is then diagonal in Fourier space and Phi is the law's energy at the nodes.
+
+Options (prefix ``<problem prefix>descent_``): ``tol`` (error measure, z0), ``max_rounds``
+(Uzawa rounds of a hard wall), ``offset_tol`` (z0), and every ``tao_*`` option (code
+defaults: ``tao_type bnls``, ``tao_bnk_as_type none``, ``tao_bnk_ksp_rtol 0.1``,
+``tao_max_it 500``; ``-<prefix>descent_tao_monitor`` prints its iterations).
+"""
+from __future__ import annotations
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from ..log_events import log_event
+from .options import code_default
+
+#: TAO's code defaults (set under the strategy's prefix unless the user gave them)
+TAO_DEFAULTS = {
+    "tao_type": "bnls",
+    # BNK's default active-set estimate takes a Euclidean gradient step whose scale is off by
+    # orders of magnitude here: its trust region collapsed on every hard-wall state
+    # (docs/journal/descent_probe.md)
+    "tao_bnk_as_type": "none",
+    # inexact Newton: a tenth of the gradient per step is cheapest (docs/journal/descent_probe.md)
+    "tao_bnk_ksp_rtol": "0.1",
+    "tao_max_it": "500",
+}
+
+
+def descent_applies(problem) -> bool:
+    """Whether ``EnergyDescent`` can drive ``problem``: a periodic grid (K^-1 diagonal in
+    Fourier space) and the nodal rule (the law's energy at the nodes)."""
+    return bool(problem.grid.periodic and not problem.element_integration)
+
+
+class _Hessian:
+    """Python-context Mat: H = K^-1 + diag Phi''(g) on the displacement (the mean as the penalty
+    of a hard wall, the identity on the projected-out mean of the full LJ curve).  Its
+    principal sub-matrices (TAO's inactive set) embed, apply and extract rank-locally."""
+
+    def __init__(self, descent, index=None):
+        self.d, self.index = descent, index
+        self.shift_value = 0.0
+        if index is not None:
+            shape = descent.shape
+            self._x, self._y = np.zeros(shape), np.zeros(shape)
+
+    def mult(self, mat, x, y):
+        xa, ya = x.getArray(readonly=True), y.getArray()
+        if self.index is None:
+            self.d.hessian_mult(xa.reshape(self.d.shape), ya.reshape(self.d.shape))
+        else:
+            self._x[...] = 0.0
+            self._x.reshape(-1)[self.index] = xa
+            self.d.hessian_mult(self._x, self._y)
+            ya[:] = self._y.reshape(-1)[self.index]
+        if self.shift_value:
+            ya += self.shift_value * xa
+
+    def shift(self, mat, s):
+        # BNLS's perturbation of an indefinite Hessian
+        self.shift_value += s
+
+    def createSubMatrix(self, mat, isrow, iscol=None, reuse=None, submat=None):
+        index = isrow.getIndices() - self.d.offset
+        ctx = _Hessian(self.d, index)
+        ctx.shift_value = self.shift_value
+        if submat is not None:
+            submat.setPythonContext(ctx)
+            return submat
+        return self.d.shell((len(index), self.d.comm.allreduce(len(index))), ctx)
+
+
+class _Compliance:
+    """Python-context PC: the compliance K (the inverse of the Hessian's elastic part), on TAO's
+    inactive set by embedding."""
+
+    def __init__(self, descent):
+        self.d = descent
+
+    def apply(self, pc, x, y):
+        d = self.d
+        xa, ya = x.getArray(readonly=True), y.getArray()
+        index = pc.getOperators()[1].getPythonContext().index
+        if index is None:
+            d.precondition(xa.reshape(d.shape), ya.reshape(d.shape))
+            return
+        d.work[...] = 0.0
+        d.work.reshape(-1)[index] = xa
+        d.precondition(d.work, d.work2)
+        ya[:] = d.work2.reshape(-1)[index]
+
+
+class EnergyDescent:
+    """Descend the total energy of ``problem`` (an ``AdhesiveProblem``) at one approach.
+
+    ``descend(approach, start)`` leaves the state reached in the problem's unknowns
+    ([q,] a) and returns (converged, reason, iterations, linear iterations).
+    """
+
+    def __init__(self, problem):
+        if not descent_applies(problem):
+            raise ValueError("energy descent needs a periodic grid and the nodal rule "
+                             f"(-{problem.prefix}element_integration false)")
+        self.p = problem
+        grid = problem.grid
+        self.comm, self.grid = grid.mpi_comm, grid
+        self.prefix = problem.prefix + "descent_"
+        self.shape = (grid.ny_local, grid.nx)
+        self.offset = grid.offset
+        self.n = grid.nx * grid.ny
+        opts = PETSc.Options(self.prefix)
+        self.tol = opts.getReal("tol", code_default("adhesion", "descent_tol"))
+        self.max_rounds = opts.getInt("max_rounds", code_default("adhesion", "descent_max_rounds"))
+        self.offset_tol = opts.getReal("offset_tol", code_default("adhesion", "descent_offset_tol"))
+        for key, value in TAO_DEFAULTS.items():
+            problem.set_default(key, value, self.prefix)
+        op = problem.op
+        fft = op.fft
+        norm = 1.0 / (fft.Nx * fft.Ny)
+        stiffness = op.inverse_kernel / norm             # modal stiffness E* |q| / 2 [Pa/m], 0 on the mean
+        self.c = (self.comm.allreduce(float(stiffness.max()), op=MPI.MAX) if problem.hard_wall else 0.0)
+        mean_mode = stiffness == 0
+        mean_value = 1.0 / self.c if self.c else 1.0
+        compliance = np.where(mean_mode, mean_value, 1.0 / np.where(mean_mode, 1.0, stiffness))
+        self._k_inv = op.as_pairs(op.inverse_kernel)
+        self._compliance = op.as_pairs(compliance * norm)
+        self.h = grid.rows(problem.heights, readonly=True)
+        self.W = 0.0
+        self.delta = 0.0
+        self.curvature = np.zeros(self.shape)
+        self.work, self.work2 = np.zeros(self.shape), np.zeros(self.shape)
+        self._fields = None          # (u copy, g, p, a, mean u) of the last evaluation
+
+    # -- PETSc objects ------------------------------------------------------------------
+    def shell(self, sizes, ctx) -> PETSc.Mat:
+        mat = PETSc.Mat().createPython((sizes, sizes), ctx, comm=self.grid.comm)
+        mat.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+        mat.setUp()
+        return mat
+
+    # -- the energy -----------------------------------------------------------------------
+    def _sum(self, value: float) -> float:
+        return self.comm.allreduce(value)
+
+    def fields(self, u: np.ndarray):
+        """(g, p, a, mean u, K^-1 u) of the displacement rows u: one FFT pair."""
+        if self._fields is not None and np.array_equal(self._fields[0], u):
+            return self._fields[1:]
+        p = self.p
+        mean_u = self._sum(float(u.sum())) / self.n
+        k_inv_u = p.op.convolve(self._k_inv, u, np.empty(self.shape))
+        if p.hard_wall:
+            g = self.h + u - self.delta
+            a = p.traction.pressure(g)
+            pressure = k_inv_u + (self.c * mean_u + self.W)
+        else:
+            g = self.h + (u - mean_u) - self.delta
+            a = p.traction.pressure(g)
+            pressure = k_inv_u + self._sum(float(a.sum())) / self.n
+        self._fields = (u.copy(), g, pressure, a, mean_u, k_inv_u)
+        return self._fields[1:]
+
+    def objective_gradient(self, tao, x, gradient) -> float:
+        """E(u) / dA [J/m^2 times the number of nodes' area] and its gradient p - a(g) [Pa]."""
+        u, grad = x.getArray(readonly=True).reshape(self.shape), gradient.getArray().reshape(self.shape)
+        g, pressure, a, mean_u, k_inv_u = self.fields(u)
+        local = 0.5 * float(np.dot(u.ravel(), k_inv_u.ravel())) + float(self.p.traction.energy(g).sum())
+        energy = self._sum(local)
+        np.subtract(pressure, a, out=grad)
+        if self.p.hard_wall:
+            energy += self.n * mean_u * (0.5 * self.c * mean_u + self.W)
+        else:
+            grad -= self._sum(float(grad.sum())) / self.n    # the mean is a null direction
+        return energy
+
+    def hessian(self, tao, x, H, P):
+        g = self.fields(x.getArray(readonly=True).reshape(self.shape))[0]
+        self.curvature = -self.p.traction.nodal_derivative(g)      # Phi''(g) = -da/dg
+        H.getPythonContext().shift_value = 0.0
+
+    def hessian_mult(self, x: np.ndarray, y: np.ndarray) -> None:
+        self.p.op.convolve(self._k_inv, x, y)
+        dx = self.curvature * x
+        if self.p.hard_wall:
+            y += dx + self.c * self._sum(float(x.sum())) / self.n
+        else:
+            # P0 D P0 on the zero-mean part, the identity on the mean
+            y += dx + (self._sum(float(x.sum())) - self._sum(float(dx.sum()))) / self.n
+
+    def precondition(self, x: np.ndarray, y: np.ndarray) -> None:
+        self.p.op.convolve(self._compliance, x, y)
+
+    # -- measures ----------------------------------------------------------------------
+    def error(self, g, pressure, a) -> float:
+        """The problem's error measures (``AdhesiveProblem._measures``) on (g, p, a), their max."""
+        p = self.p
+        d = pressure - a
+        if p.hard_wall:
+            local = max(float(np.abs(np.minimum(p.kappa * d, g)).max()) / p.z0,
+                        float(np.abs(np.minimum(d / p.pressure_scale, g / p.z0)).max()))
+        else:
+            local = max(p.kappa * float(np.abs(d).max()) / p.z0,
+                        float((np.abs(d) / (p.pressure_scale + np.abs(a))).max()))
+        return self.comm.allreduce(local, op=MPI.MAX)
+
+    def _converged(self, tao):
+        u = tao.getSolution().getArray(readonly=True).reshape(self.shape)
+        g, pressure, a, mean_u, _ = self.fields(u)
+        err = self.error(g, pressure, a)
+        it = tao.getIterationNumber()
+        p = self.p
+        contact = self._sum(float(np.count_nonzero(pressure > 0))) / self.n
+        p.history.append(
+            solve=p.solve_count, iteration=it, fft_pairs=p.fft_pairs(), linear_iterations=self._lin0 + self._ksp_its(tao),
+            complementarity_error=err if p.hard_wall else float("nan"), load_error=float("nan"),
+            approach=self.delta - mean_u, mean_pressure=self._sum(float(pressure.sum())) / self.n,
+            contact_fraction=contact, solver="descent", adhesive_error=float("nan") if p.hard_wall else err,
+            pressure_error=err)
+        self.last_error = err
+        if tao.getConvergedReason() < 0:
+            return       # TAO's own failure (line search, ...)
+        if err <= self.tol:
+            tao.setConvergedReason(PETSc.TAO.Reason.CONVERGED_USER)
+        elif it >= tao.getMaximumIterations() or not np.isfinite(err) or p.out_of_time():
+            tao.setConvergedReason(PETSc.TAO.Reason.DIVERGED_MAXITS)
+        else:
+            tao.setConvergedReason(PETSc.TAO.Reason.CONTINUE_ITERATING)
+
+    @staticmethod
+    def _ksp_its(tao) -> int:
+        try:
+            return tao.getKSP().getTotalIterations()
+        except (AttributeError, PETSc.Error):
+            return 0
+
+    # -- the strategy ------------------------------------------------------------------------
+    def descend(self, approach: float, start: PETSc.Vec) -> tuple[bool, str, int, int]:
+        """From the unknowns ``start`` ([q,] a of a state, usually the last converged one),
+        descend the energy at approach delta [m]; the state reached is written to the problem's
+        unknowns (hard wall: at approach delta - m, |m| <= offset_tol z0, for Newton to close)."""
+        ev = log_event("CPEnergyDescent")
+        ev.begin()
+        try:
+            return self._descend(float(approach), start)
+        finally:
+            ev.end()
+
+    def _descend(self, approach, start):
+        p, grid = self.p, self.grid
+        self.delta = approach
+        self._fields = None
+        blocks = p.blocks(start, readonly=True)
+        pressure0 = blocks.sum(axis=0)
+        # the start's displacement: u = K p (zero mean), the bound projected
+        x = grid.create_vec()
+        u = grid.rows(x)
+        p.op.apply(pressure0, u)
+        if p.hard_wall:
+            self.W = self._sum(float(pressure0.sum())) / self.n
+            np.maximum(u, approach - self.h, out=u)
+        gradient = x.duplicate()
+        H = self.shell((grid.n_local, self.n), _Hessian(self))
+        tao = PETSc.TAO().create(comm=grid.comm)
+        tao.setOptionsPrefix(self.prefix)
+        tao.setObjectiveGradient(self.objective_gradient, gradient)
+        tao.setHessian(self.hessian, H)
+        bounds = ()
+        if p.hard_wall:
+            lower, upper = x.duplicate(), x.duplicate()
+            grid.rows(lower)[...] = approach - self.h
+            upper.set(PETSc.INFINITY)
+            tao.setVariableBounds((lower, upper))
+            bounds = (lower, upper)
+        tao.setSolution(x)
+        tao.setTolerances(gatol=0.0, grtol=0.0, gttol=0.0)
+        tao.setConvergenceTest(self._converged)
+        tao.setFromOptions()
+        ksp = tao.getKSP()
+        if ksp is not None:
+            pc = ksp.getPC()
+            pc.setType("python")
+            pc.setPythonContext(_Compliance(self))
+        self._lin0 = p.history[-1].linear_iterations if len(p.history) else 0
+        iterations = linear = rounds = 0
+        self.last_error = np.inf
+        try:
+            while True:
+                tao.solve()
+                rounds += 1
+                iterations += tao.getIterationNumber()
+                code = tao.getConvergedReason()
+                mean_u = self.fields(grid.rows(x, readonly=True))[3]
+                if not p.hard_wall or code < 0 or rounds >= self.max_rounds or abs(mean_u) <= self.offset_tol * p.z0:
+                    break
+                self.W += self.c * mean_u     # the measured mean pressure: the next round's multiplier
+                self._fields = None
+            linear = self._ksp_its(tao)
+            converged = code > 0
+            reason = f"descent {reason_text(code)} ({iterations} TAO iterations"
+            reason += f", {rounds} rounds)" if p.hard_wall else ")"
+            self._write_state(grid.rows(x, readonly=True))
+            return converged, reason, iterations, linear
+        finally:
+            for obj in (tao, H, x, gradient) + bounds:
+                obj.destroy()
+
+    def _write_state(self, u: np.ndarray) -> None:
+        """The problem's unknowns from the displacement u: a = a(g), q = p - a >= 0 (hard wall)."""
+        p = self.p
+        g, pressure, a = self.fields(u)[:3]
+        xb = p.blocks(p._x)
+        if p.hard_wall:
+            xb[0] = np.maximum(pressure - a, 0.0)
+            xb[1] = a
+        else:
+            xb[0] = pressure
+        self._fields = None
+
+
+def reason_text(code: int) -> str:
+    """A TAO converged reason's name."""
+    for name in dir(PETSc.TAO.Reason):
+        if not name.startswith("_") and getattr(PETSc.TAO.Reason, name) == code:
+            return name
+    return str(code)

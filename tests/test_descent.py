@@ -1,0 +1,116 @@
+"""The energy descent (``solvers/descent.py``): an adhesive state as a local minimum of the total energy.
+
+Independent truths: the equilibrium Newton reaches from the same start (a different method on
+the same equations), COMM_WORLD against COMM_SELF, the Lanczos stability check, and the
+descent property itself (the state reached across a snap has less energy than the state it
+started from).  Units: z0 = 1, E* = 1, dx = 1.
+"""
+import numpy as np
+import pytest
+from petsc4py import PETSc
+
+from contactpetsc.grid import SurfaceGrid
+from contactpetsc.geometry.surfaces import self_affine
+from contactpetsc.physics.interactions import make_law
+from contactpetsc.physics.traction import AdhesiveTraction
+from contactpetsc.solvers.adhesive import AdhesiveProblem
+from contactpetsc.solvers.descent import EnergyDescent
+
+
+def rough(comm, n=64):
+    grid = SurfaceGrid(n, n, 1.0, periodic=True, comm=comm)
+    return grid, self_affine(grid, hurst=0.8, rms_height=1.0, seed=7)
+
+
+@pytest.mark.parametrize("law_name", ["lj", "hardwall-lj"])
+def test_descent_reaches_newtons_state_on_any_rank_count(coll, law_name):
+    """From the converged state at one approach, the descent alone (to 1e-9) reaches the state
+    Newton reaches at the next approach, and the same on one rank as on all."""
+    law = make_law(law_name, work_of_adhesion=0.05, z0=1.0)
+    key = law_name.replace("-", "")
+    opts = PETSc.Options(f"desc{key}_")
+    for name, value in dict(descent_tol=1e-9, descent_offset_tol=1e-11, descent_max_rounds=30).items():
+        opts.setValue(name, value)
+    pressures = []
+    try:
+        for comm in (PETSc.COMM_WORLD, PETSc.COMM_SELF):
+            grid, h = rough(comm)
+            d0, d1 = h.min()[1] + 0.5, h.min()[1] + 1.0
+            newton = AdhesiveProblem(grid, h, 1.0, law, prefix=f"newt{key}_")
+            newton.solve(approach=d0)
+            start = newton._x.copy()
+            reference = newton.solve(approach=d1)
+            pb = AdhesiveProblem(grid, h, 1.0, law, prefix=f"desc{key}_")
+            pb.prepare(d0)
+            ok, reason, iterations, _ = EnergyDescent(pb).descend(d1, start)
+            assert ok, reason
+            assert iterations > 0
+            p = pb.blocks(pb._x, readonly=True).sum(axis=0)
+            scale = float(law.peak_attraction)
+            diff = coll.max(np.abs(p - grid.rows(reference.pressure, readonly=True))) / scale
+            assert diff < 1e-6, diff
+            pressures.append(grid.gather(_as_vec(grid, p)))
+    finally:
+        for name in ("descent_tol", "descent_offset_tol", "descent_max_rounds"):
+            opts.delValue(name)
+    assert coll.max(np.abs(pressures[0] - pressures[1])) / float(law.peak_attraction) < 1e-9
+
+
+def _as_vec(grid, rows):
+    v = grid.create_vec()
+    grid.rows(v)[...] = rows
+    return v
+
+
+def test_a_snap_in_is_a_descent_to_a_stable_state(coll):
+    """A step across a snap-in (w = 0.3 E* dx) with Newton capped at 3 steps, too few for any
+    state here: the fallback descends from the last state (to 1e-9, so Newton's polish has
+    nothing left to do) to a converged, stable state of lower energy than that state has at
+    the new approach, the same on one rank as on all."""
+    law = make_law("lj", work_of_adhesion=0.3, z0=1.0)
+    opts = PETSc.Options("snapdesc_")
+    for name, value in dict(max_it=3, descent_tol=1e-9).items():
+        opts.setValue(name, value)
+    gaps = []
+    try:
+        for comm in (PETSc.COMM_WORLD, PETSc.COMM_SELF):
+            grid, h = rough(comm)
+            hmin = h.min()[1]
+            pb = AdhesiveProblem(grid, h, 1.0, law, prefix="snapdesc_")
+            before = pb.solve(approach=hmin - 0.5)
+            after = pb.solve(approach=hmin)
+            assert after.solver.endswith("+descent") and after.fallback, after.solver
+            assert after.converged and after.stable
+            # the start's energy at the new approach: the same displacement, every gap 0.5 z0 smaller
+            traction = AdhesiveTraction(law, grid)
+            rows = grid.rows
+            start_energy = grid.element_area * grid.mpi_comm.allreduce(
+                0.5 * float(np.sum(rows(before.pressure, readonly=True) * rows(before.displacement, readonly=True)))
+                + float(np.sum(traction.energy(rows(before.gap, readonly=True) - 0.5))))
+            assert after.energy < start_energy
+            gaps.append(grid.gather(after.gap))
+    finally:
+        for name in ("max_it", "descent_tol"):
+            opts.delValue(name)
+    assert coll.max(np.abs(gaps[0] - gaps[1])) < 1e-7
+
+
+@pytest.mark.parametrize("law_name", ["lj", "hardwall-lj"])
+def test_the_descent_strategy_follows_newtons_path(coll, law_name):
+    """``-<prefix>strategy descent`` (every step a descent from the last state, then Newton)
+    lands in the states of the default strategy along a loading path without jumps."""
+    law = make_law(law_name, work_of_adhesion=0.05, z0=1.0)
+    grid, h = rough(PETSc.COMM_WORLD)
+    hmin = h.min()[1]
+    key = law_name.replace("-", "")
+    opts = PETSc.Options(f"strat{key}_")
+    opts.setValue("strategy", "descent")
+    try:
+        paths = [AdhesiveProblem(grid, h, 1.0, law, prefix=prefix) for prefix in (f"plain{key}_", f"strat{key}_")]
+        for d in (0.25, 0.75, 1.25):
+            plain, descended = (pb.solve(approach=hmin + d) for pb in paths)
+            assert descended.solver.startswith("descent+") and descended.converged and descended.stable
+            dg = grid.rows(plain.gap, readonly=True) - grid.rows(descended.gap, readonly=True)
+            assert coll.max(np.abs(dg)) < 1e-6
+    finally:
+        opts.delValue("strategy")
