@@ -40,6 +40,10 @@ from petsc4py import PETSc
 
 from ..log_events import log_event
 from .options import code_default
+from .reduced import python_submatrix
+
+#: TAO's converged reasons (petsc4py >= 3.20 also names them ConvergedReason)
+TAO_REASON = getattr(PETSc.TAO, "ConvergedReason", None) or PETSc.TAO.Reason
 
 #: TAO's code defaults (set under the strategy's prefix unless the user gave them)
 TAO_DEFAULTS = {
@@ -89,13 +93,13 @@ class _Hessian:
         self.shift_value += s
 
     def createSubMatrix(self, mat, isrow, iscol=None, reuse=None, submat=None):
-        index = isrow.getIndices() - self.d.offset
-        ctx = _Hessian(self.d, index)
+        ctx = _Hessian(self.d, isrow.getIndices() - self.d.offset)
         ctx.shift_value = self.shift_value
-        if submat is not None:
-            submat.setPythonContext(ctx)
-            return submat
-        return self.d.shell((len(index), self.d.comm.allreduce(len(index))), ctx)
+        return python_submatrix(ctx, mat)
+
+    @property
+    def n_local(self) -> int:
+        return self.d.shape[0] * self.d.shape[1] if self.index is None else len(self.index)
 
 
 class _Compliance:
@@ -107,6 +111,7 @@ class _Compliance:
 
     def apply(self, pc, x, y):
         d = self.d
+        d.pc_applies += 1      # one per Krylov iteration: the descent's linear iterations
         xa, ya = x.getArray(readonly=True), y.getArray()
         index = pc.getOperators()[1].getPythonContext().index
         if index is None:
@@ -157,7 +162,8 @@ class EnergyDescent:
         self.delta = 0.0
         self.curvature = np.zeros(self.shape)
         self.work, self.work2 = np.zeros(self.shape), np.zeros(self.shape)
-        self._fields = None          # (u copy, g, p, a, mean u) of the last evaluation
+        self._fields = None          # (u copy, g, p, a, mean u, K^-1 u) of the last evaluation
+        self.pc_applies = 0
 
     # -- PETSc objects ------------------------------------------------------------------
     def shell(self, sizes, ctx) -> PETSc.Mat:
@@ -239,7 +245,7 @@ class EnergyDescent:
         p = self.p
         contact = self._sum(float(np.count_nonzero(pressure > 0))) / self.n
         p.history.append(
-            solve=p.solve_count, iteration=it, fft_pairs=p.fft_pairs(), linear_iterations=self._lin0 + self._ksp_its(tao),
+            solve=p.solve_count, iteration=it, fft_pairs=p.fft_pairs(), linear_iterations=self._lin0 + self.pc_applies,
             complementarity_error=err if p.hard_wall else float("nan"), load_error=float("nan"),
             approach=self.delta - mean_u, mean_pressure=self._sum(float(pressure.sum())) / self.n,
             contact_fraction=contact, solver="descent", adhesive_error=float("nan") if p.hard_wall else err,
@@ -248,18 +254,11 @@ class EnergyDescent:
         if tao.getConvergedReason() < 0:
             return       # TAO's own failure (line search, ...)
         if err <= self.tol:
-            tao.setConvergedReason(PETSc.TAO.Reason.CONVERGED_USER)
+            tao.setConvergedReason(TAO_REASON.CONVERGED_USER)
         elif it >= tao.getMaximumIterations() or not np.isfinite(err) or p.out_of_time():
-            tao.setConvergedReason(PETSc.TAO.Reason.DIVERGED_MAXITS)
+            tao.setConvergedReason(TAO_REASON.DIVERGED_MAXITS)
         else:
-            tao.setConvergedReason(PETSc.TAO.Reason.CONTINUE_ITERATING)
-
-    @staticmethod
-    def _ksp_its(tao) -> int:
-        try:
-            return tao.getKSP().getTotalIterations()
-        except (AttributeError, PETSc.Error):
-            return 0
+            tao.setConvergedReason(TAO_REASON.CONTINUE_ITERATING)
 
     # -- the strategy ------------------------------------------------------------------------
     def descend(self, approach: float, start: PETSc.Vec) -> tuple[bool, str, int, int]:
@@ -322,7 +321,7 @@ class EnergyDescent:
                     break
                 self.W += self.c * mean_u     # the measured mean pressure: the next round's multiplier
                 self._fields = None
-            linear = self._ksp_its(tao)
+            linear = self.pc_applies
             converged = code > 0
             reason = f"descent {reason_text(code)} ({iterations} TAO iterations"
             reason += f", {rounds} rounds)" if p.hard_wall else ")"
@@ -347,7 +346,7 @@ class EnergyDescent:
 
 def reason_text(code: int) -> str:
     """A TAO converged reason's name."""
-    for name in dir(PETSc.TAO.Reason):
-        if not name.startswith("_") and getattr(PETSc.TAO.Reason, name) == code:
+    for name in dir(TAO_REASON):
+        if not name.startswith("_") and getattr(TAO_REASON, name) == code:
             return name
     return str(code)

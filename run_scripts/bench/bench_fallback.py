@@ -1,0 +1,113 @@
+#!/usr/bin/env python3
+"""Benchmark: the adhesive fallback chain, energy descent first against the chain without it.
+
+The rough benchmark heights (``rough_surface.py``, periodic, E* = 1), a law with w = --w E* dx
+and range dx (``lj``: z0; ``exponential`` and ``hardwall-lj``: a hard wall), and per chain of
+``-<prefix>fallback`` (--chains; the default chain descends first):
+
+* cold states at the approaches giving --areas contact (``rough_surface.calibrate``), each a
+  fresh problem with every default a scene gets (nested start, stability check, tangent);
+* the load-unload path of ``bench_adhesion_path.py`` (--states approaches from 1 % to 10 %
+  contact and back, warm starts).
+
+Per state one JSON line: FFT pairs (exact, coarse levels weighted), CPU s (``process_time``,
+one run), converged, stable, the solver (its ``+descent`` / ``+relaxation`` / ``+ptc`` where the
+finest grid fell back), contact fraction, energy [J]; the same state in the first chain's run:
+the largest gap difference [z0].  First line: the non-adhesive solve on the same heights (the
+benchmark's mean pressure 0.005 E*), the unit of the ratios.  A state's solve has a budget of
+--budget s (``-<prefix>time_budget``): one that runs out is reported as not converged.
+
+    .venv/bin/python run_scripts/bench/bench_fallback.py --size 256 --law exponential
+    .venv/bin/python run_scripts/bench/bench_fallback.py --size 512 --law lj --w 0.05
+
+One rank.
+"""
+import argparse
+import json
+import os
+import sys
+import time
+
+import petsc4py
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+ap.add_argument("--size", type=int, default=256)
+ap.add_argument("--law", default="exponential", choices=["exponential", "hardwall-lj", "lj"])
+ap.add_argument("--w", type=float, default=0.05, help="work of adhesion / (E* dx)")
+ap.add_argument("--areas", type=float, nargs="+", default=[0.01, 0.02, 0.05, 0.10])
+ap.add_argument("--states", type=int, default=10, help="states of the load-unload path (0: none)")
+ap.add_argument("--chains", nargs="+", default=None,
+                help="fallback chains (default: the code default, then the chain without descent)")
+ap.add_argument("--budget", type=float, default=300.0, help="wall-time budget of one solve [s]")
+args, petsc_args = ap.parse_known_args()
+petsc4py.init([sys.argv[0]] + petsc_args)
+
+import numpy as np  # noqa: E402
+from petsc4py import PETSc  # noqa: E402
+
+from contactpetsc.physics.interactions import make_law  # noqa: E402
+from contactpetsc.solvers.adhesive import AdhesiveProblem  # noqa: E402
+from contactpetsc.solvers.problem import ContactProblem  # noqa: E402
+
+sys.path.insert(0, HERE)
+from rough_surface import calibrate, path_approaches, rough_surface  # noqa: E402
+
+assert PETSc.COMM_WORLD.getSize() == 1, "one rank"
+
+
+def emit(**row):
+    print(json.dumps(row), flush=True)
+
+
+def make_problem(grid, h, law, chain, tag):
+    prefix = f"fb{tag}_"
+    opts = PETSc.Options(prefix)
+    if chain != "default":
+        opts.setValue("fallback", chain)
+    opts.setValue("time_budget", args.budget)
+    return AdhesiveProblem(grid, h, 1.0, law, prefix=prefix)
+
+
+def solve(pb, approach):
+    t0 = time.process_time()
+    st = pb.solve(approach=approach, raise_on_failure=False)
+    return st, time.process_time() - t0
+
+
+def main():
+    n = args.size
+    grid, h, _ = rough_surface(n)
+    dx = grid.dx
+    law = make_law(args.law, work_of_adhesion=args.w * dx,
+                   **({"rho": dx} if args.law == "exponential" else {"z0": dx}))
+    z0 = law.length_scale()
+    t0 = time.process_time()
+    sig = ContactProblem(grid, h, 1.0, prefix="sig_", tol=1e-8).solve(mean_pressure=0.005)
+    emit(n=n, case="non-adhesive", fft_pairs=sig.fft_pairs, cpu=time.process_time() - t0)
+    chains = args.chains or ["default", "relaxation,ptc" if law.hard_wall else "ptc"]
+    cold = calibrate(grid, h, law, args.areas, max_n=128)
+    ends = calibrate(grid, h, law, [0.01, 0.10], max_n=128)
+    path = path_approaches(ends[0], ends[1], args.states) if args.states else []
+    first = {}
+    for c, chain in enumerate(chains):
+        def report(case, k, approach, st, cpu):
+            gap = grid.rows(st.gap, readonly=True).copy()
+            key = (case, k)
+            diff = float(np.abs(gap - first[key]).max()) / z0 if key in first else None
+            first.setdefault(key, gap)
+            emit(n=n, law=args.law, w=args.w, chain=chain, case=case, state=k, approach=approach,
+                 fft_pairs=st.fft_pairs, ratio=st.fft_pairs / sig.fft_pairs, cpu=cpu,
+                 converged=st.converged, stable=st.stable, solver=st.solver,
+                 contact_fraction=st.contact_fraction, energy=st.energy, gap_diff_z0=diff,
+                 reason="" if st.converged else st.reason[:200])
+        for k, d in enumerate(cold or []):
+            st, cpu = solve(make_problem(grid, h, law, chain, f"{c}c{k}"), float(d))
+            report("cold", k, float(d), st, cpu)
+        pb = make_problem(grid, h, law, chain, f"{c}p")
+        for k, d in enumerate(path):
+            st, cpu = solve(pb, float(d))
+            report("path", k, float(d), st, cpu)
+
+
+main()

@@ -1,0 +1,96 @@
+#!/usr/bin/env python3
+"""Benchmark: is a load-unload path the limit of small steps?  (issue 33, goal 3)
+
+The rough benchmark heights (``rough_surface.py``, periodic, E* = 1) and a law with
+w = --w E* dx and range dx, on the load-unload path of ``bench_adhesion_path.py`` (--states
+approaches from 1 % to 10 % contact and back).  The path is run with its own steps and with
+every step divided into --refine equal sub-steps (warm starts throughout, every default a
+scene gets).  At each approach the coarse path visits, the paths' states are compared
+with the finest run's (the quasi-static limit): the contact nodes (p > 0) that differ, the
+force's relative difference, the largest gap difference [z0] and the energy difference [J].
+Where the states differ, the lower energy says which path found the lower minimum.
+
+Per state one JSON line; pairs exact, CPU s one run (``process_time``).
+
+    .venv/bin/python run_scripts/bench/bench_step_refinement.py --size 256 --law lj --refine 1 4 16
+
+One rank.
+"""
+import argparse
+import json
+import os
+import sys
+import time
+
+import petsc4py
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+ap.add_argument("--size", type=int, default=256)
+ap.add_argument("--law", default="lj", choices=["exponential", "hardwall-lj", "lj"])
+ap.add_argument("--w", type=float, default=0.05, help="work of adhesion / (E* dx)")
+ap.add_argument("--states", type=int, default=10)
+ap.add_argument("--refine", type=int, nargs="+", default=[1, 4, 16])
+args, petsc_args = ap.parse_known_args()
+petsc4py.init([sys.argv[0]] + petsc_args)
+
+import numpy as np  # noqa: E402
+from petsc4py import PETSc  # noqa: E402
+
+from contactpetsc.physics.interactions import make_law  # noqa: E402
+from contactpetsc.solvers.adhesive import AdhesiveProblem  # noqa: E402
+
+sys.path.insert(0, HERE)
+from rough_surface import calibrate, path_approaches, rough_surface  # noqa: E402
+
+assert PETSc.COMM_WORLD.getSize() == 1, "one rank"
+
+
+def emit(**row):
+    print(json.dumps(row), flush=True)
+
+
+def main():
+    n = args.size
+    grid, h, _ = rough_surface(n)
+    dx = grid.dx
+    law = make_law(args.law, work_of_adhesion=args.w * dx,
+                   **({"rho": dx} if args.law == "exponential" else {"z0": dx}))
+    z0 = law.length_scale()
+    ends = calibrate(grid, h, law, [0.01, 0.10], max_n=128)
+    coarse = path_approaches(ends[0], ends[1], args.states)
+    reference = {}
+    for r in sorted(args.refine, reverse=True):     # the finest first: the reference
+        # every coarse step in r equal sub-steps; the coarse approaches are among them
+        path = [coarse[0]]
+        for a, b in zip(coarse, coarse[1:]):
+            path += list(np.linspace(a, b, r + 1)[1:])
+        pb = AdhesiveProblem(grid, h, 1.0, law, prefix=f"ref{r}_")
+        pairs = cpu = 0.0
+        failed = 0
+        for k, d in enumerate(path):
+            t0 = time.process_time()
+            st = pb.solve(approach=float(d), raise_on_failure=False)
+            cpu += time.process_time() - t0
+            pairs += st.fft_pairs
+            failed += not st.converged
+            if k % r:
+                continue
+            j = k // r
+            gap = grid.rows(st.gap, readonly=True).copy()
+            contact = grid.rows(st.pressure, readonly=True) > 0
+            row = dict(n=n, law=args.law, w=args.w, refine=r, state=j, approach=float(d), force=st.force,
+                       energy=st.energy, contact_fraction=st.contact_fraction, converged=st.converged,
+                       stable=st.stable, solver=st.solver, fft_pairs_so_far=pairs, cpu_so_far=cpu,
+                       failed_so_far=failed)
+            if j in reference:
+                g0, c0, f0, e0 = reference[j]
+                row.update(contact_nodes_differing=int(np.count_nonzero(contact != c0)),
+                           force_rel_diff=abs(st.force - f0) / abs(f0), gap_diff_z0=float(np.abs(gap - g0).max()) / z0,
+                           energy_diff=st.energy - e0)
+            else:
+                reference[j] = (gap, contact, st.force, st.energy)
+            emit(**row)
+
+
+main()
