@@ -63,6 +63,10 @@ class Continuation:
         coarse._budget_start = self._budget_start   # one budget for the nested solves
         coarse.tol = max(self.fmg_tol, self.tol)
         coarse.use_predictor = False
+        if "descent" in coarse.fallback_chain:
+            # a level only predicts: where its descent does not reach a state, the level is
+            # dropped rather than followed by thousands of relaxation cycles or PTC steps
+            coarse.fallback_chain = ["descent"]
         coarse.compute_tangent = False   # a level of the nested iteration needs no predictor or stiffness
         self._coarse = coarse
         return coarse

@@ -86,9 +86,9 @@ ADHESION = (
            "last state, then Newton; periodic grids, nodal rule)"),
     Option(("fallback",), "descent first on periodic nodal grids, then relaxation,ptc (hard wall) or ptc",
            "where Newton fails or ends unstable: these in turn"),
-    Option(("descent_tol", "descent_max_rounds", "descent_offset_tol"), (1e-4, 8, 1e-2),
-           "energy descent (fallback): error measure reached before Newton polishes (z0), a hard wall's "
-           "mean-pressure rounds and mean offset (z0)"),
+    Option(("descent_max_rounds",), (40,), "energy descent: a hard wall's mean-pressure rounds"),
+    Option(("descent_tol", "descent_offset_tol"), "tol, tol",
+           "energy descent: error measure reached before Newton polishes, a hard wall's mean offset (z0)"),
     Option(("descent_tao_*",), "bnls, bnk_as_type none, bnk_ksp_rtol 0.1, max_it 500",
            "the TAO of the energy descent (`-<prefix>descent_tao_monitor`)"),
     Option(("fallback_tol", "fallback_max_cycles"), (1e-3, 5000), "relaxation fallback"),
