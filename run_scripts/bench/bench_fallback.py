@@ -14,8 +14,9 @@ Per state one JSON line: FFT pairs (exact, coarse levels weighted), CPU s (``pro
 one run), converged, stable, the solver (its ``+descent`` / ``+relaxation`` / ``+ptc`` where the
 finest grid fell back), contact fraction, energy [J]; the same state in the first chain's run:
 the largest gap difference [z0].  First line: the non-adhesive solve on the same heights (the
-benchmark's mean pressure 0.005 E*), the unit of the ratios.  A state's solve has a budget of
---budget s (``-<prefix>time_budget``): one that runs out is reported as not converged.
+benchmark's mean pressure 0.005 E*), the unit of the ratios.  Each problem (a cold state, or
+the whole path) has a wall-time budget of --budget s (``-<prefix>time_budget``, all its solves
+together): a state it stops is reported as not converged (``WALL_TIME_BUDGET``).
 
     .venv/bin/python run_scripts/bench/bench_fallback.py --size 256 --law exponential
     .venv/bin/python run_scripts/bench/bench_fallback.py --size 512 --law lj --w 0.05
@@ -39,7 +40,7 @@ ap.add_argument("--areas", type=float, nargs="+", default=[0.01, 0.02, 0.05, 0.1
 ap.add_argument("--states", type=int, default=10, help="states of the load-unload path (0: none)")
 ap.add_argument("--chains", nargs="+", default=None,
                 help="fallback chains (default: the code default, then the chain without descent)")
-ap.add_argument("--budget", type=float, default=300.0, help="wall-time budget of one solve [s]")
+ap.add_argument("--budget", type=float, default=300.0, help="wall-time budget of one problem [s]")
 args, petsc_args = ap.parse_known_args()
 petsc4py.init([sys.argv[0]] + petsc_args)
 
