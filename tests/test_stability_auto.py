@@ -69,6 +69,7 @@ def test_auto_finds_the_jumps_and_pull_off_of_the_always_on_check(coll, law):
     assert all(a.stable == b.stable for a, b in zip(auto.points, on.points) if a.stable is not None)
 
 
+@pytest.mark.serial   # rules on made-up records: no communicator
 def test_fold_watch_rules():
     """The rules on made-up records: no trend without two checked states; a reversal, a new
     most tensile force, a missed tangent prediction, a harder Newton step and a falling
