@@ -9,6 +9,10 @@ rank (under mpirun).
 """
 import csv
 import os
+import shutil
+import tempfile
+import warnings
+from pathlib import Path
 from xml.etree import ElementTree
 
 import h5py
@@ -17,6 +21,7 @@ import pytest
 from petsc4py import PETSc
 
 from contactpetsc.app import runner, scenes
+from contactpetsc.physics.resolution import UnderResolvedWarning
 
 SCENES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "examples", "scenes")
 VALUES = [5e6, 1e7, 1.5e7, 2e7, 2.5e7, 3e7, 3.5e7]
@@ -187,16 +192,35 @@ def sweep(out, **output):
     return scenes.validate(scene)
 
 
+def sweep_every_4th(out):
+    """``sweep`` writing every 4th step's gap in float32, lengths shown in nm."""
+    return sweep(out, field_every=4, field_precision="float32", fields=["gap"], length_unit="nm")
+
+
+@pytest.fixture(scope="module")
+def adhesive_sweep():
+    """The directory of ``sweep_every_4th`` run once on COMM_WORLD (uninterrupted, the pull-off
+    refined), shared by the ranks and the adhesive tests of this module."""
+    comm = PETSc.COMM_WORLD.tompi4py()
+    root = comm.bcast(tempfile.mkdtemp(prefix="contactpetsc-sweep-") if comm.rank == 0 else None)
+    out = Path(root) / "sweep"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnderResolvedWarning)
+        runner.run(sweep_every_4th(out), comm=PETSc.COMM_WORLD)
+    yield out
+    comm.Barrier()
+    if comm.rank == 0:
+        shutil.rmtree(root, ignore_errors=True)
+
+
 @pytest.mark.heavy   # an adhesive path: 1 and 2 ranks (3 oversubscribed ranks spend minutes)
 @pytest.mark.filterwarnings("ignore::contactpetsc.physics.resolution.UnderResolvedWarning")
-def test_an_adhesive_sweep_writes_its_jumps_and_pull_off_candidates(coll, shared_tmp):
+def test_an_adhesive_sweep_writes_its_jumps_and_pull_off_candidates(coll, shared_tmp, adhesive_sweep):
     """Loading and unloading a sphere with field_every = 4: the written steps are the rule's
     (jump steps, the most tensile states, the last); the collection's time is the step number
     (the approach turns); the restart fields stay float64 when the others are float32; under
     mpirun, the files of one rank."""
-    out = shared_tmp / "sweep"
-    make = lambda out: sweep(out, field_every=4, field_precision="float32", fields=["gap"], length_unit="nm")  # noqa
-    runner.run(make(out), comm=PETSc.COMM_WORLD)
+    out = adhesive_sweep
     jumps = read_rows(out / "jumps.csv")
     assert [j["kind"] for j in jumps] == ["jump-on", "jump-off"]
     written = step_files(out)
@@ -207,7 +231,7 @@ def test_an_adhesive_sweep_writes_its_jumps_and_pull_off_candidates(coll, shared
     with h5py.File(out / f"step_{written[0]:04d}.h5", "r") as f:
         assert {n: f[n].dtype for n in f} == {"gap": np.float32, "contact_pressure": np.float64,
                                               "adhesive_pressure": np.float64}
-    same_on_one_rank(coll, make, out, shared_tmp)
+    same_on_one_rank(coll, sweep_every_4th, out, shared_tmp)
 
 
 def test_restart_resumes_from_the_last_step_file(coll, shared_tmp):
@@ -258,14 +282,12 @@ def same_on_one_rank(coll, make, out, shared_tmp):
 
 @pytest.mark.heavy   # an adhesive path: 1 and 2 ranks (3 oversubscribed ranks spend minutes)
 @pytest.mark.filterwarnings("ignore::contactpetsc.physics.resolution.UnderResolvedWarning")
-def test_restart_without_the_pull_off_state_file_goes_on(coll, shared_tmp):
+def test_restart_without_the_pull_off_state_file_goes_on(coll, shared_tmp, adhesive_sweep):
     """A sweep written without pull-off refinement every 4th step, restarted with the refinement
     on: its most tensile state (step 3) has no file, so the refinement starts from the new steps
-    (a note) and the path completes with the uninterrupted run's curve."""
-    ref, out = shared_tmp / "ref", shared_tmp / "cut"
-    uninterrupted = sweep(ref, field_every=4)
-    uninterrupted["protocol"]["refine_pull_off"] = False   # the curve is the same, refined or not
-    runner.run(uninterrupted, comm=PETSc.COMM_WORLD)
+    (a note) and the path completes with the uninterrupted run's curve (``adhesive_sweep``'s: the
+    curve is the same whatever the fields written, refined or not)."""
+    ref, out = adhesive_sweep, shared_tmp / "cut"
     first = sweep(out, field_every=4)
     first["protocol"].update(values=first["protocol"]["values"][:8], refine_pull_off=False)
     runner.run(first, comm=PETSc.COMM_WORLD)
