@@ -9,10 +9,6 @@ rank (under mpirun).
 """
 import csv
 import os
-import shutil
-import tempfile
-import warnings
-from pathlib import Path
 from xml.etree import ElementTree
 
 import h5py
@@ -21,9 +17,8 @@ import pytest
 from petsc4py import PETSc
 
 from contactpetsc.app import runner, scenes
-from contactpetsc.physics.resolution import UnderResolvedWarning
+from scene_files import adhesive_sweep_scene as sweep, sweep_every_4th
 
-SCENES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "examples", "scenes")
 VALUES = [5e6, 1e7, 1.5e7, 2e7, 2.5e7, 3e7, 3.5e7]
 
 
@@ -179,40 +174,6 @@ def test_every_kth_step_and_the_temporal_collection(coll, shared_tmp):
     same_on_one_rank(coll, make, out, shared_tmp)
 
 
-def sweep(out, **output):
-    """The adhesive sphere example (Tabor parameter 1) on 48 x 48 nodes, loaded past its jump-on
-    (-489 pm) to +0 and unloaded past its jump-off (-522 pm), in steps of z0 / 2."""
-    scene = scenes.load(os.path.join(SCENES, "adhesive_sphere.toml"))
-    g = scene["geometry"]
-    g["dx"] = g["dy"] = g["dx"] * g["nx"] / 48
-    g["nx"] = g["ny"] = 48
-    scene["protocol"].update(values=[-0.6e-9, -0.45e-9, -0.3e-9, -0.15e-9, 0.0, -0.15e-9, -0.3e-9, -0.45e-9,
-                                     -0.6e-9, -0.75e-9], jump_refinement=3)
-    scene["output"].update(directory=str(out), **output)
-    return scenes.validate(scene)
-
-
-def sweep_every_4th(out):
-    """``sweep`` writing every 4th step's gap in float32, lengths shown in nm."""
-    return sweep(out, field_every=4, field_precision="float32", fields=["gap"], length_unit="nm")
-
-
-@pytest.fixture(scope="module")
-def adhesive_sweep():
-    """The directory of ``sweep_every_4th`` run once on COMM_WORLD (uninterrupted, the pull-off
-    refined), shared by the ranks and the adhesive tests of this module."""
-    comm = PETSc.COMM_WORLD.tompi4py()
-    root = comm.bcast(tempfile.mkdtemp(prefix="contactpetsc-sweep-") if comm.rank == 0 else None)
-    out = Path(root) / "sweep"
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UnderResolvedWarning)
-        runner.run(sweep_every_4th(out), comm=PETSc.COMM_WORLD)
-    yield out
-    comm.Barrier()
-    if comm.rank == 0:
-        shutil.rmtree(root, ignore_errors=True)
-
-
 @pytest.mark.heavy   # an adhesive path: 1 and 2 ranks (3 oversubscribed ranks spend minutes)
 @pytest.mark.filterwarnings("ignore::contactpetsc.physics.resolution.UnderResolvedWarning")
 def test_an_adhesive_sweep_writes_its_jumps_and_pull_off_candidates(coll, shared_tmp, adhesive_sweep):
@@ -285,8 +246,8 @@ def same_on_one_rank(coll, make, out, shared_tmp):
 def test_restart_without_the_pull_off_state_file_goes_on(coll, shared_tmp, adhesive_sweep):
     """A sweep written without pull-off refinement every 4th step, restarted with the refinement
     on: its most tensile state (step 3) has no file, so the refinement starts from the new steps
-    (a note) and the path completes with the uninterrupted run's curve (``adhesive_sweep``'s: the
-    curve is the same whatever the fields written, refined or not)."""
+    (a note) and the path completes with the uninterrupted run's curve (conftest's
+    ``adhesive_sweep``: the curve is the same whatever the fields written, refined or not)."""
     ref, out = adhesive_sweep, shared_tmp / "cut"
     first = sweep(out, field_every=4)
     first["protocol"].update(values=first["protocol"]["values"][:8], refine_pull_off=False)
