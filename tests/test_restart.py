@@ -329,6 +329,9 @@ def test_restart_after_the_height_file_was_rewritten_is_refused_naming_it(coll, 
     assert len(states) == 1 and coll.all(states[0].converged)
 
 
+# three relaxation sweeps: 1 and 2 ranks (on 3 ranks test_pull_off_and_jumps' relaxation sweep
+# and the restarts of test_scenes and test_field_output split unevenly)
+@pytest.mark.heavy
 @pytest.mark.filterwarnings("ignore::contactpetsc.physics.resolution.UnderResolvedWarning")
 @pytest.mark.filterwarnings("ignore::contactpetsc.topography.units.TopographyUnitWarning")
 def test_a_restarted_relaxation_sweep_refines_the_uninterrupted_runs_pull_off(coll, shared_tmp):
