@@ -33,7 +33,30 @@ stage() {   # NAME COMMAND...: one stage under the time limit, and a message if 
     fi
     return "$status"
 }
-stage "1 rank" "$py" -m pytest -q -p no:cacheprovider --durations=8 tests "$@"
+one_rank() {   # the 1-rank pass as two pytest sessions side by side (a machine has >= 2 cores): the
+    # tests marked serial (mostly command lines and mpirun jobs run as subprocesses) and the others
+    # (in process); each with its own temporary root (pytest prunes old numbered directories per
+    # root), their reports printed one after the other when both have ended
+    local tmp a b sa=0 sb=0
+    tmp="$(mktemp -d "${TMPDIR:-/tmp}/contactpetsc-one-rank-XXXXXX")"
+    # the time limit (timeout signals the whole group): the reports so far
+    trap 'echo "-- stopped: the reports so far"; cat "$tmp"/*.log; rm -rf "$tmp"; exit 124' TERM
+    "$py" -m pytest -q -p no:cacheprovider --durations=8 --basetemp="$tmp/serial" -m serial tests "$@" \
+        >"$tmp/serial.log" 2>&1 & a=$!
+    "$py" -m pytest -q -p no:cacheprovider --durations=8 --basetemp="$tmp/other" -m "not serial" tests "$@" \
+        >"$tmp/other.log" 2>&1 & b=$!
+    wait "$a" || sa=$?
+    wait "$b" || sb=$?
+    echo "-- the tests marked serial (exit status $sa)"
+    cat "$tmp/serial.log"
+    echo "-- the other tests (exit status $sb)"
+    cat "$tmp/other.log"
+    rm -rf "$tmp"
+    [ "$sa" = 0 ] && [ "$sb" = 0 ]
+}
+export -f one_rank
+export py
+stage "1 rank" bash -c 'one_rank "$@"' one_rank "$@"
 for n in 2 3; do
     stage "$n ranks" mpirun -n "$n" "$py" -m pytest -q -p no:cacheprovider -m "not serial" tests "$@"
 done

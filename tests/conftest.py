@@ -165,3 +165,24 @@ def _keep_ranks_in_step():
     step_together()
     yield
 
+
+
+@pytest.fixture(scope="session")
+def adhesive_sweep():
+    """The adhesive sphere example's short sweep (scene_files.sweep_every_4th: a jump-on, the most
+    tensile state, a jump-off, the pull-off refined) run once on COMM_WORLD, uninterrupted: its
+    directory, shared by the ranks and by the tests that read a finished adhesive run's files
+    (test_field_output, test_recorder)."""
+    import warnings
+    from contactpetsc.app import runner
+    from contactpetsc.physics.resolution import UnderResolvedWarning
+    from scene_files import sweep_every_4th
+    root = WORLD.bcast(tempfile.mkdtemp(prefix="contactpetsc-sweep-") if WORLD.Get_rank() == 0 else None)
+    out = Path(root) / "sweep"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnderResolvedWarning)    # 2 z0 spacing: the files, not the physics
+        runner.run(sweep_every_4th(out), comm=PETSc.COMM_WORLD)
+    yield out
+    step_together()
+    if WORLD.Get_rank() == 0:
+        shutil.rmtree(root, ignore_errors=True)

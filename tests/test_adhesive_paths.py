@@ -34,14 +34,25 @@ def test_stiffness_is_the_force_slope_and_can_be_left_out(coll):
         PETSc.Options().delValue("lazy_stiffness")
 
 
+R_TAIL = 100.0   # the window (96 z0) holds the LJ tail: gap 11.5 z0 at its edge
+LOADING = np.arange(-2.5, 0.01, 0.25)
+
+
+@pytest.fixture(scope="module")
+def loaded_and_unloaded():
+    """(problem, path): the mu = 1 full-LJ sphere (R = 100 z0 on 96 x 96 nodes) loaded along
+    LOADING and unloaded back, solved once for this module's tests (every rank alike)."""
+    pb = sphere_problem(1.0, law="lj", n=96, dx=1.0, radius=R_TAIL)
+    return pb, sweep(pb, np.concatenate([LOADING, np.arange(-0.25, -2.51, -0.25)]))
+
+
 @pytest.mark.heavy   # an adhesive path: 1 and 2 ranks (3 oversubscribed ranks spend minutes)
-def test_loading_unloading_hysteresis_and_jumps(coll):
+def test_loading_unloading_hysteresis_and_jumps(coll, loaded_and_unloaded):
     """mu = 1, full LJ: jump-on while loading, jump-off while unloading at a smaller
     approach (hysteresis), pull-off between the JKR and DMT limits."""
-    r = 100.0   # the window (96 z0) holds the LJ tail: gap 11.5 z0 at its edge
-    pb = sphere_problem(1.0, law="lj", n=96, dx=1.0, radius=r)
+    r = R_TAIL
+    pb, path = loaded_and_unloaded
     w = work_for(1.0, r)
-    path = sweep(pb, np.concatenate([np.arange(-2.5, 0.01, 0.25), np.arange(-0.25, -2.51, -0.25)]))
     kinds = [j.kind for j in path.jumps]
     assert kinds == ["jump-on", "jump-off"]
     on, off = path.jumps
@@ -128,16 +139,19 @@ def test_load_control_where_stable(coll):
 
 
 @pytest.mark.heavy   # an adhesive path: 1 and 2 ranks (3 oversubscribed ranks spend minutes)
-def test_a_budget_spent_while_a_jump_is_located_keeps_neither_step_nor_jump(coll, monkeypatch):
+def test_a_budget_spent_while_a_jump_is_located_keeps_neither_step_nor_jump(coll, monkeypatch,
+                                                                            loaded_and_unloaded):
     """The time budget runs out inside the jump's bisection: its solves were cut short, so the
     step is not kept (not converged, the budget's reason), no jump is recorded, and the
-    problem is back at the last converged state -- the uninterrupted path's jump-on is found
-    when the path goes on from there."""
+    problem is back at the last converged state -- the uninterrupted path's jump-on (that of
+    ``loaded_and_unloaded``, whose loading is this path) is found when the path goes on from
+    there."""
     from contactpetsc import paths
-    r = 100.0
-    approaches = np.arange(-2.5, 0.01, 0.25)
-    reference = sweep(sphere_problem(1.0, law="lj", n=96, dx=1.0, radius=r), approaches)
-    (on,) = reference.jumps
+    r = R_TAIL
+    approaches = LOADING
+    reference = loaded_and_unloaded[1]
+    on = reference.jumps[0]
+    assert on.kind == "jump-on" and on.approach_before < approaches[-1]     # the one jump of the loading
     pb = sphere_problem(1.0, law="lj", n=96, dx=1.0, radius=r)
     locate = paths._locate_jump
     spent = {"now": False}

@@ -45,6 +45,7 @@ def test_vanishing_adhesion_gives_the_signorini_solution(coll):
     assert coll.max(np.abs(dp)) < 0.05 * coll.max(pb.grid.rows(ref.pressure, readonly=True))
 
 
+@pytest.mark.serial   # a closed form: no communicator
 def test_maugis_dugdale_limits():
     assert abs(maugis_pull_off_bar(1e-4) + 2.0) < 1e-3
     assert abs(maugis_pull_off_bar(1e4) + 1.5) < 1e-3

@@ -155,6 +155,7 @@ def test_3d_sphere_matches_the_axisymmetric_solution(coll):
     assert coll.max(abs(kinds["jump-off"] - folds[0])) < 0.01, (kinds, folds)
 
 
+@pytest.mark.serial   # numpy geometry: no communicator
 def test_disk_in_square_area_and_the_outside_of_a_square():
     """The rings' share of a square window (``_disk_in_square``): against a fine count of points
     inside both, either side of the corners (sqrt(2) half-widths); and the rings' integral of r^-6

@@ -6,7 +6,7 @@ import sys
 import textwrap
 
 import pytest
-from scene_files import rough_scene
+from scene_files import adhesive_sphere_scene, rough_scene
 
 SCRIPT = textwrap.dedent("""
     import sys, petsc4py; petsc4py.init(sys.argv)
@@ -158,13 +158,13 @@ def test_time_budget_ends_a_sweep_loudly_and_restart_completes_it(tmp_path):
     (summary.json: the most tensile stable state of the whole path, not of the restarted part)."""
     import json
     import csv
-    scene = os.path.join(os.path.dirname(__file__), "..", "examples", "scenes", "adhesive_sphere.toml")
+    full, cut = tmp_path / "full", tmp_path / "cut"
+    scene = adhesive_sphere_scene(tmp_path / "s.toml", tmp_path / "out")    # the example on a 10-step path
 
     def rows(path):
         with open(path) as f:
             return list(csv.DictReader(f))
 
-    full, cut = tmp_path / "full", tmp_path / "cut"
     subprocess.run(CLI + ["run", scene, "--output", str(full)], env=ENV, capture_output=True, timeout=300,
                    check=True)
     proc = subprocess.run(CLI + ["run", scene, "--output", str(cut), "-adhesion_time_budget", "0.3"], env=ENV,

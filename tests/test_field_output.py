@@ -17,8 +17,8 @@ import pytest
 from petsc4py import PETSc
 
 from contactpetsc.app import runner, scenes
+from scene_files import adhesive_sweep_scene as sweep, sweep_every_4th
 
-SCENES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "examples", "scenes")
 VALUES = [5e6, 1e7, 1.5e7, 2e7, 2.5e7, 3e7, 3.5e7]
 
 
@@ -174,29 +174,14 @@ def test_every_kth_step_and_the_temporal_collection(coll, shared_tmp):
     same_on_one_rank(coll, make, out, shared_tmp)
 
 
-def sweep(out, **output):
-    """The adhesive sphere example (Tabor parameter 1) on 48 x 48 nodes, loaded past its jump-on
-    (-489 pm) to +0 and unloaded past its jump-off (-522 pm), in steps of z0 / 2."""
-    scene = scenes.load(os.path.join(SCENES, "adhesive_sphere.toml"))
-    g = scene["geometry"]
-    g["dx"] = g["dy"] = g["dx"] * g["nx"] / 48
-    g["nx"] = g["ny"] = 48
-    scene["protocol"].update(values=[-0.6e-9, -0.45e-9, -0.3e-9, -0.15e-9, 0.0, -0.15e-9, -0.3e-9, -0.45e-9,
-                                     -0.6e-9, -0.75e-9], jump_refinement=3)
-    scene["output"].update(directory=str(out), **output)
-    return scenes.validate(scene)
-
-
 @pytest.mark.heavy   # an adhesive path: 1 and 2 ranks (3 oversubscribed ranks spend minutes)
 @pytest.mark.filterwarnings("ignore::contactpetsc.physics.resolution.UnderResolvedWarning")
-def test_an_adhesive_sweep_writes_its_jumps_and_pull_off_candidates(coll, shared_tmp):
+def test_an_adhesive_sweep_writes_its_jumps_and_pull_off_candidates(coll, shared_tmp, adhesive_sweep):
     """Loading and unloading a sphere with field_every = 4: the written steps are the rule's
     (jump steps, the most tensile states, the last); the collection's time is the step number
     (the approach turns); the restart fields stay float64 when the others are float32; under
     mpirun, the files of one rank."""
-    out = shared_tmp / "sweep"
-    make = lambda out: sweep(out, field_every=4, field_precision="float32", fields=["gap"], length_unit="nm")  # noqa
-    runner.run(make(out), comm=PETSc.COMM_WORLD)
+    out = adhesive_sweep
     jumps = read_rows(out / "jumps.csv")
     assert [j["kind"] for j in jumps] == ["jump-on", "jump-off"]
     written = step_files(out)
@@ -207,7 +192,7 @@ def test_an_adhesive_sweep_writes_its_jumps_and_pull_off_candidates(coll, shared
     with h5py.File(out / f"step_{written[0]:04d}.h5", "r") as f:
         assert {n: f[n].dtype for n in f} == {"gap": np.float32, "contact_pressure": np.float64,
                                               "adhesive_pressure": np.float64}
-    same_on_one_rank(coll, make, out, shared_tmp)
+    same_on_one_rank(coll, sweep_every_4th, out, shared_tmp)
 
 
 def test_restart_resumes_from_the_last_step_file(coll, shared_tmp):
@@ -258,14 +243,12 @@ def same_on_one_rank(coll, make, out, shared_tmp):
 
 @pytest.mark.heavy   # an adhesive path: 1 and 2 ranks (3 oversubscribed ranks spend minutes)
 @pytest.mark.filterwarnings("ignore::contactpetsc.physics.resolution.UnderResolvedWarning")
-def test_restart_without_the_pull_off_state_file_goes_on(coll, shared_tmp):
+def test_restart_without_the_pull_off_state_file_goes_on(coll, shared_tmp, adhesive_sweep):
     """A sweep written without pull-off refinement every 4th step, restarted with the refinement
     on: its most tensile state (step 3) has no file, so the refinement starts from the new steps
-    (a note) and the path completes with the uninterrupted run's curve."""
-    ref, out = shared_tmp / "ref", shared_tmp / "cut"
-    uninterrupted = sweep(ref, field_every=4)
-    uninterrupted["protocol"]["refine_pull_off"] = False   # the curve is the same, refined or not
-    runner.run(uninterrupted, comm=PETSc.COMM_WORLD)
+    (a note) and the path completes with the uninterrupted run's curve (conftest's
+    ``adhesive_sweep``: the curve is the same whatever the fields written, refined or not)."""
+    ref, out = adhesive_sweep, shared_tmp / "cut"
     first = sweep(out, field_every=4)
     first["protocol"].update(values=first["protocol"]["values"][:8], refine_pull_off=False)
     runner.run(first, comm=PETSc.COMM_WORLD)

@@ -34,6 +34,7 @@ def tail_by_summation(law, radius, approach, edges, h=0.25, reach=400.0, far=0.0
             + 2 * np.pi * radius * float(law.energy(reach * reach / (2 * radius) - approach + far / reach)))
 
 
+@pytest.mark.serial   # closed forms against a numpy sum: no communicator
 @pytest.mark.parametrize("law", ["lj", "exponential"])
 def test_window_tail_is_the_law_outside_the_window(law):
     """closed_forms.window_tail_force (a polar integral of Phi) against a brute-force sum, on the
@@ -104,6 +105,7 @@ def test_element_integration_does_not_cut_the_contact_edge_scatter(coll):
         assert coll.max(abs(f.mean() / truth - 1)) < 5e-3, (f, truth)
 
 
+@pytest.mark.serial   # a table lookup: no communicator
 def test_sawtooth_estimate_vanishes_on_a_resolved_grid():
     """The estimate the log gives (resolution.sawtooth_amplitude): measured values at the measured
     resolutions, zero from the criterion on, bracketing zero in between."""

@@ -38,6 +38,7 @@ def ranged_keys():
                 yield section, key, s
 
 
+@pytest.mark.serial   # scene validation: no communicator
 @pytest.mark.parametrize("section, key, spec", list(ranged_keys()), ids=lambda v: v if isinstance(v, str) else "")
 def test_printed_ranges_say_what_is_accepted(section, key, spec):
     """Each bound is accepted exactly when the printed range includes it ([ or ]), and a refusal
@@ -58,6 +59,7 @@ def test_printed_ranges_say_what_is_accepted(section, key, spec):
         scenes.check_value(f"{section}.{key}", spec, spec["kind"](inside))
 
 
+@pytest.mark.serial   # scene validation: no communicator
 @pytest.mark.parametrize("tol", [1e300, 1.0, 0.0101])
 @pytest.mark.parametrize("interaction, solver", [
     ({}, {}),
@@ -70,6 +72,7 @@ def test_tolerances_are_bounded(tol, interaction, solver):
     assert scenes.validate(sphere(interaction=interaction, solver={**solver, "tol": 1e-2}))["solver"]["tol"] == 1e-2
 
 
+@pytest.mark.serial   # scene validation: no communicator
 def test_adhesion_without_a_law_is_refused():
     refused(sphere(interaction={"work_of_adhesion": 0.1}), "interaction.work_of_adhesion = 0.1",
             "interaction.law = 'none'", "work_of_adhesion = 0")
@@ -78,6 +81,7 @@ def test_adhesion_without_a_law_is_refused():
                                                                "z0": 1e-9})))
 
 
+@pytest.mark.serial   # scene validation: no communicator
 @pytest.mark.parametrize("control, smallest, unit", [
     ("mean_pressure", 1e-12 * 1e9, "Pa"),                        # 1e-12 E*
     ("force", 1e-12 * 1e9 * (16 * 1e-9) ** 2, "N"),             # 1e-12 E* Lx Ly
@@ -91,6 +95,7 @@ def test_round_off_loads_are_refused(control, smallest, unit):
     assert ok["protocol"]["values"][0] == smallest
 
 
+@pytest.mark.serial   # scene validation: no communicator
 def test_round_off_approaches_are_displacements_not_loads():
     """An approach through zero made by arange (4e-25 m) is a displacement of zero: accepted."""
     values = list(np.arange(-1.5, 0.01, 0.1) * 0.3e-9)
@@ -160,6 +165,7 @@ def test_tip_radius_accepted_exactly_when_the_tip_covers_the_window(kind):
         assert builds == (radius > need)
 
 
+@pytest.mark.serial   # scene validation: no communicator
 @pytest.mark.parametrize("scene, words", [
     (sphere(geometry={"hurst": 0.5}), ["geometry.hurst", "geometry.kind = 'sphere'", "self-affine"]),
     (sphere(geometry={"rms_height": 1e-9}), ["geometry.rms_height", "'sphere'"]),
@@ -174,6 +180,7 @@ def test_keys_the_scene_would_ignore_are_refused(scene, words):
     refused(scene, *words)
 
 
+@pytest.mark.serial   # scene validation: no communicator
 def test_a_validated_scene_validates_again():
     for scene in (sphere(), self_affine(), scenes.DEFAULT_SCENE):
         once = scenes.validate(scene)

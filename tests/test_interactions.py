@@ -14,6 +14,9 @@ LAWS = {
     "exponential": Exponential(W, 0.5e-9),
     "dugdale": Dugdale(W, 1e8),
 }
+#: laws on numpy arrays, no communicator: checked on one rank
+pytestmark = pytest.mark.serial
+
 # no example database: ranks under mpirun would share and race on one directory
 fast = settings(max_examples=60, deadline=None, database=None)
 

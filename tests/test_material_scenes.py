@@ -32,6 +32,7 @@ def refused(scene, *words):
     assert all(w in str(err.value) for w in words), str(err.value)
 
 
+@pytest.mark.serial   # scene validation: no communicator
 def test_youngs_modulus_and_poisson_ratio_give_e_star():
     s = scenes.validate(rough())
     assert scenes.e_star(s) == pytest.approx(70e9 / (1 - 0.33 ** 2), rel=1e-15)
@@ -40,6 +41,7 @@ def test_youngs_modulus_and_poisson_ratio_give_e_star():
     assert scenes.validate(rough(poisson_ratio=0.5))["material"]["poisson_ratio"] == 0.5   # incompressible
 
 
+@pytest.mark.serial   # scene validation: no communicator
 @pytest.mark.parametrize("material, words", [
     (dict(e_star=5e10), ["exactly one of material.e_star or material.youngs_modulus", "both"]),
     (dict(youngs_modulus=None, poisson_ratio=None), ["material.e_star is required", "material.youngs_modulus"]),
@@ -61,6 +63,7 @@ def test_bad_material_names_the_keys(material, words):
     refused(rough(**material), *words)
 
 
+@pytest.mark.serial   # scene validation: no communicator
 def test_refused_combinations():
     s = rough(layer_thickness=1e-7)
     s["geometry"]["periodic"] = False

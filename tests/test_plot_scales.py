@@ -1,10 +1,12 @@
 """Colour and histogram limits that one outlier node does not set
 (contactpetsc.app.plots.scales), and the pressure map and histograms drawn on them.  numpy
-(and matplotlib, where drawn) on each rank alike."""
+(and matplotlib, where drawn), no communicator: checked on one rank."""
 import numpy as np
 import pytest
 
 from contactpetsc.app.plots import scales
+
+pytestmark = pytest.mark.serial
 
 
 def bulk_with_outlier(n=64, contact=0.906, seed=1):

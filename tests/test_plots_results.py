@@ -30,6 +30,7 @@ def read_rows(path):
 
 
 # -- closed forms ----------------------------------------------------------------------------
+@pytest.mark.serial   # closed forms: no communicator
 def test_jkr_and_dmt_curves_have_their_known_points():
     """JKR: pull-off -1.5 pi R w at A^(3/2) = sqrt(6)/2, zero load at a0^2 = 3 R delta0
     (A = 6^(1/3), Delta = 6^(2/3) / 3); DMT: pull-off -2 pi R w at delta = 0."""
@@ -42,6 +43,7 @@ def test_jkr_and_dmt_curves_have_their_known_points():
     assert cf.dmt_curve(0.0) == (0.0, -2.0)
 
 
+@pytest.mark.serial   # closed forms: no communicator
 @pytest.mark.parametrize("lam, limit", [(1e3, cf.jkr_curve), (1e-6, cf.dmt_curve)])
 def test_maugis_approach_tends_to_jkr_and_dmt(lam, limit):
     """Maugis-Dugdale (A, Delta, P_bar) on the JKR curve for large lambda and on DMT for small,
@@ -52,6 +54,7 @@ def test_maugis_approach_tends_to_jkr_and_dmt(lam, limit):
     assert np.max(np.abs(delta[keep] - d_ref)) < 2e-2 and np.max(np.abs(load[keep] - p_ref)) < 2e-2
 
 
+@pytest.mark.serial   # closed forms: no communicator
 def test_maugis_units_and_lambda_of_the_lennard_jones_law():
     """lambda = 2 sigma0 (R / (pi w K^2))^(1/3) with sigma0 the LJ peak 16 w / (9 sqrt 3 z0) is
     1.157 mu (Johnson & Greenwood 1997); the units put a JKR pull-off at -1.5 pi R w."""

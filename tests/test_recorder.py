@@ -47,9 +47,11 @@ def adhesive_sphere(out, n=64, values=None):
 
 
 @pytest.mark.heavy   # an adhesive path: 1 and 2 ranks (3 oversubscribed ranks spend minutes)
-def test_summary_is_json_and_its_jumps_are_the_rows_of_jumps_csv(coll, shared_tmp):
-    out = shared_tmp / "sweep"
-    runner.run(adhesive_sphere(out), comm=PETSc.COMM_WORLD)
+def test_summary_is_json_and_its_jumps_are_the_rows_of_jumps_csv(coll, shared_tmp, adhesive_sweep):
+    """A finished adhesive sweep's summary.json (conftest's adhesive_sweep: a jump-on, a jump-off,
+    the pull-off refined) is strict JSON and its jumps are jumps.csv's rows; a path whose first
+    step fails has a null pull-off force."""
+    out = adhesive_sweep
     s = strict_json(out / "summary.json")
     with open(out / "jumps.csv", newline="") as f:
         reader = csv.DictReader(f)

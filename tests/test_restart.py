@@ -55,11 +55,17 @@ def finished_rows(path) -> int:
         return 0
 
 
-def kill_after(ranks, args, curve, n):
+def kill_after(ranks, args, curve, n, log=None):
     """Launch a run and SIGKILL the whole job (every rank, mpirun) once ``n`` steps are in
-    ``curve``; returns the steps left on disk."""
-    proc = subprocess.Popen(command(ranks, args), env=ENV, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL)
+    ``curve``; returns the steps left on disk.  With ``log`` (a path) its standard output is
+    kept there (unbuffered: what it printed before the kill)."""
+    with open(log or os.devnull, "w") as out:
+        proc = subprocess.Popen(command(ranks, args), env=dict(ENV, PYTHONUNBUFFERED="1") if log else ENV, stdout=out,
+                                stderr=subprocess.DEVNULL)
+        return _kill_when(proc, curve, n)
+
+
+def _kill_when(proc, curve, n):
     t0 = time.time()
     # the time limit only guards against a hung run: on an oversubscribed machine reaching
     # step n has taken over 300 s
@@ -111,29 +117,42 @@ def same_jumps(a, b):
 @pytest.mark.parametrize("ranks", [2])   # serial kills and restarts: test_faults, test_stability_auto
 def test_killed_adhesive_sweep_restarts_to_the_uninterrupted_results(tmp_path, ranks):
     """The adhesive sphere (a jump-on while loading, the most tensile state at step 22, a
-    jump-off at step 26), killed after the jump-on and again after the most tensile state:
-    --restart gives the uninterrupted run's curve, jumps.csv and refined pull-off force."""
+    jump-off at step 26), killed after the jump-on, restarted, and the restarted run killed
+    again after the most tensile state: each --restart takes over the killed run's lock and
+    resumes after its last step, and the path ends with the uninterrupted run's curve,
+    jumps.csv and refined pull-off force (so the first restart's steps, the jump-on kept
+    across both restarts and the most tensile state written by the restarted run are those
+    of the uninterrupted run)."""
     scene = os.path.join(SCENES, "adhesive_sphere.toml")
     full = tmp_path / "full"
     cli(ranks, ["run", scene, "--output", str(full)])
     ref, ref_jumps, ref_summary = rows(full / "curve.csv"), rows(full / "jumps.csv"), summary(full)
     assert [j["kind"] for j in ref_jumps] == ["jump-on", "jump-off"] and ref_summary["pull_off_refined"]
-    for n in (8, 24):
-        cut = tmp_path / f"cut{n}"
-        kept = kill_after(ranks, ["run", scene, "--output", str(cut)], cut / "curve.csv", n)
-        assert n <= kept < len(ref), "the run was not killed mid-path"
-        out = cli(ranks, ["run", scene, "--output", str(cut), "--restart"]).stdout
+    cut = tmp_path / "cut"
+    run = ["run", scene, "--output", str(cut)]
+    kept = kill_after(ranks, run, cut / "curve.csv", 8)
+    assert 8 <= kept < len(ref), "the run was not killed mid-path"
+    for n in (24, None):    # the restart killed after the most tensile state, then one to the end
+        if n is not None:
+            log = tmp_path / f"restart{kept}.log"
+            done = kill_after(ranks, run + ["--restart"], cut / "curve.csv", n, log=log)
+            assert n <= done < len(ref), "the restarted run was not killed mid-path"
+            out = log.read_text()
+        else:
+            out = cli(ranks, run + ["--restart"]).stdout
         assert f"restart: {kept} of {len(ref)} steps already done" in out
         assert "took over the lock" in out
-        resumed = rows(cut / "curve.csv")
-        assert [r["step"] for r in resumed] == [r["step"] for r in ref]
-        for a, b in zip(resumed, ref):
-            assert float(a["force_N"]) == pytest.approx(float(b["force_N"]), rel=1e-5, abs=1e-12)
-        same_jumps(rows(cut / "jumps.csv"), ref_jumps)
-        s = summary(cut)
-        same_jumps(s["jumps"], ref_jumps)
-        assert s["steps"] == len(ref) and s["converged"] and s["pull_off_refined"]
-        assert s["pull_off_force_N"] == pytest.approx(ref_summary["pull_off_force_N"], rel=1e-6)
+        if n is not None:
+            kept = done
+    resumed = rows(cut / "curve.csv")
+    assert [r["step"] for r in resumed] == [r["step"] for r in ref]
+    for a, b in zip(resumed, ref):
+        assert float(a["force_N"]) == pytest.approx(float(b["force_N"]), rel=1e-5, abs=1e-12)
+    same_jumps(rows(cut / "jumps.csv"), ref_jumps)
+    s = summary(cut)
+    same_jumps(s["jumps"], ref_jumps)
+    assert s["steps"] == len(ref) and s["converged"] and s["pull_off_refined"]
+    assert s["pull_off_force_N"] == pytest.approx(ref_summary["pull_off_force_N"], rel=1e-6)
 
 
 def tip_scene(path, out, output=()):
@@ -310,6 +329,9 @@ def test_restart_after_the_height_file_was_rewritten_is_refused_naming_it(coll, 
     assert len(states) == 1 and coll.all(states[0].converged)
 
 
+# three relaxation sweeps: 1 and 2 ranks (on 3 ranks test_pull_off_and_jumps' relaxation sweep
+# and the restarts of test_scenes and test_field_output split unevenly)
+@pytest.mark.heavy
 @pytest.mark.filterwarnings("ignore::contactpetsc.physics.resolution.UnderResolvedWarning")
 @pytest.mark.filterwarnings("ignore::contactpetsc.topography.units.TopographyUnitWarning")
 def test_a_restarted_relaxation_sweep_refines_the_uninterrupted_runs_pull_off(coll, shared_tmp):

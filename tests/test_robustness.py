@@ -116,6 +116,7 @@ def test_time_budget_ends_an_unresolvable_solve_on_every_rank(coll, fallback):
 
 
 # -- the resolution criterion --------------------------------------------------------------------
+@pytest.mark.serial   # closed forms and a warning: no communicator
 def test_resolution_criterion_and_warning():
     """The zone length in both limits (closed forms), a warning naming the criterion below
     RESOLUTION_NODES nodes per zone, none above it."""
@@ -134,6 +135,7 @@ def test_resolution_criterion_and_warning():
     assert check_resolution(weak, 1.0, 1.0, radius=1e4) > RESOLUTION_NODES
 
 
+@pytest.mark.serial   # the builder's resolution check on a scene: no communicator
 def test_under_resolved_scene_warns():
     """The scene's one resolution check (the builder's, with the sphere's radius)."""
     def check(scene):
@@ -174,6 +176,7 @@ def test_bad_law_parameters(coll, law, params, key, unit):
     coll.raises(ValueError, [key, "accepted range (0, inf)", unit], make_law, law, **params)
 
 
+@pytest.mark.serial   # scene validation: no communicator
 @pytest.mark.parametrize("section, values, message", [
     ("interaction", {"law": "lj", "work_of_adhesion": 0.1, "z0": 0.0}, "interaction.z0 = 0.0: accepted range (0, inf) m"),
     ("interaction", {"law": "lj", "work_of_adhesion": 0.1, "z0": 1e-9, "range": 2}, "unknown key interaction.range"),

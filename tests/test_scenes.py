@@ -23,6 +23,7 @@ def minimal(**geometry):
     return {"geometry": g, "material": {"e_star": 50e9}, "protocol": {"values": [1e-9, 2e-9]}}
 
 
+@pytest.mark.serial   # scene validation: no communicator
 @pytest.mark.parametrize("scene, message", [
     ({"foo": 1}, "unknown key 'foo'"),
     (minimal(radiu=1.0), "unknown key geometry.radiu"),
@@ -50,6 +51,7 @@ def test_bad_scenes_name_the_key(scene, message):
     assert message in str(err.value)
 
 
+@pytest.mark.serial   # scene validation: no communicator
 def test_defaults_are_filled_in_and_the_default_scene_is_valid():
     s = scenes.validate(minimal())
     assert s["geometry"]["ny"] == 32 and s["geometry"]["dy"] == 5e-8
@@ -58,6 +60,7 @@ def test_defaults_are_filled_in_and_the_default_scene_is_valid():
     assert scenes.validate(scenes.DEFAULT_SCENE)["name"] == "hertz-sphere"
 
 
+@pytest.mark.serial   # scene validation: no communicator
 def test_docs_scene_page_is_the_schema_and_its_example_is_valid():
     """docs/scenes.md ends with the tables generated from SCHEMA, and its TOML example validates."""
     import re
@@ -69,6 +72,7 @@ def test_docs_scene_page_is_the_schema_and_its_example_is_valid():
     assert scenes.validate(example)["output"]["plots"] is True
 
 
+@pytest.mark.serial   # scene validation: no communicator
 def test_unreadable_and_invalid_toml(tmp_path):
     with pytest.raises(scenes.SceneError, match="cannot read scene"):
         scenes.load(str(tmp_path / "missing.toml"))

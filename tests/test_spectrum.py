@@ -1,12 +1,14 @@
 """The power spectrum of a height map (contactpetsc.app.plots.spectrum) against independent
 truths: Parseval (the integral of C(q) over the plane is the mean-square height of the map it
 transforms, windowed or not), a sinusoid's power at its wavevector, the Hann window's removal
-of a non-periodic map's edge leakage, and the rms slope by finite differences.  numpy only:
-each rank checks the same arrays."""
+of a non-periodic map's edge leakage, and the rms slope by finite differences.  numpy only, no
+communicator: checked on one rank."""
 import numpy as np
 import pytest
 
 from contactpetsc.app.plots import spectrum
+
+pytestmark = pytest.mark.serial
 
 
 def measure(nx, ny, dx, dy):

@@ -29,6 +29,7 @@ def study(name):
 
 
 # -- metrics ----------------------------------------------------------------------------------------
+@pytest.mark.serial   # metrics on numpy curves: no communicator
 def test_hysteresis_of_analytic_curves():
     """F_load = d^2, F_unload = d^2 - sin(pi d / 2) on [0, 2]: area 4 / pi (trapezoid, fine
     samples, unequal sampling of the two curves, unloading given in falling order)."""
@@ -38,6 +39,7 @@ def test_hysteresis_of_analytic_curves():
     assert abs(area - 4 / np.pi) < 1e-6
 
 
+@pytest.mark.serial
 def test_hysteresis_of_piecewise_linear_curves_is_exact():
     """A triangle between a straight loading line and an unloading line with one kink at
     samples the loading curve does not have: exact area 0.5 * base * height."""
@@ -83,6 +85,7 @@ def _sampled_loop(step, refine=4):
     return NS(points=pts, jumps=jumps), exact
 
 
+@pytest.mark.serial
 @pytest.mark.parametrize("step", [1.0, 0.5, 0.25])
 def test_hysteresis_estimate_of_a_closed_loop(step):
     """A loop with a jump-on and a jump-off (closed form, ``_sampled_loop``): the estimate is
@@ -99,6 +102,7 @@ def test_hysteresis_estimate_of_a_closed_loop(step):
     assert metrics.path_hysteresis(same) == 0.0
 
 
+@pytest.mark.serial
 def test_jump_in_stages_of_a_path_with_known_jumps():
     """A loading path in closed form, sampled every 0.5: no contact and F = -1 / (1 + (d + 2)^2)
     up to d = -2, with the whole body's jump-in there (-0.8 -> -2.5, a fall of 1.7); then in
