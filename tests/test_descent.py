@@ -95,6 +95,7 @@ def test_a_snap_in_is_a_descent_to_a_stable_state(coll):
     assert coll.max(np.abs(gaps[0] - gaps[1])) < 1e-7
 
 
+@pytest.mark.heavy
 @pytest.mark.parametrize("law_name", ["lj", "hardwall-lj"])
 def test_the_descent_strategy_follows_newtons_path(coll, law_name):
     """``-<prefix>strategy descent`` (every step a descent from the last state, then Newton)
