@@ -43,7 +43,7 @@ from .adhesive_jacobian import AdhesiveJacobian, minloc
 from .adhesive_residual import AdhesiveCallbacks
 from .base import AdhesiveSolveError, VIProblem, check_tolerance, reason_name, with_options
 from .continuation import Continuation
-from .descent import EnergyDescent, descent_applies
+from .descent import EnergyDescent
 from .history import SolveHistory
 from .load_control import solve_force
 from .options import LINESEARCH_MAX_STEP, code_default, print_help
@@ -52,9 +52,6 @@ from .states import AdhesiveState
 from .tangent import TangentAndState, stability_mode
 
 __all__ = ["AdhesiveProblem", "AdhesiveSolveError", "AdhesiveState", "newton_ksp_type", "newton_linesearch"]
-
-#: the methods of -<prefix>fallback
-FALLBACKS = ("descent", "relaxation", "ptc")
 
 #: line search of the pseudo-transient continuation SNES: full (shifted) steps, the residual
 #: norm need not fall monotonically along the relaxation path
@@ -234,30 +231,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         # bounded: where PTC has not settled in a few hundred steps it wanders
         # (under-resolved strong adhesion; docs/robustness.md)
         self.ptc_max_it = opts.getInt("ptc_max_it", code_default("adhesion", "ptc_max_it"))
-        # the relaxation paths tried in turn where Newton fails or ends on an unstable state.
-        # Hard-wall laws: the paper's relaxation first, then PTC -- each reaches states where
-        # the other stops at its cap (a strongly adhesive sphere loaded from rest, a jump-off)
-        # the energy descent first where it applies: it reaches the minimum next to the last
-        # state without pseudo-time (docs/formulation.md, "Energy descent")
-        chain = ("descent," if descent_applies(self) else "") + ("relaxation,ptc" if self.hard_wall else "ptc")
-        chain = opts.getString("fallback", chain).lower()
-        self.fallback_chain = [m.strip() for m in chain.split(",") if m.strip()]
-        if not self.fallback_chain or any(m not in FALLBACKS for m in self.fallback_chain):
-            raise ValueError(f"-{self.prefix}fallback must be {', '.join(FALLBACKS)} or a comma-separated "
-                             f"chain of them, got {chain!r}")
-        if "descent" in self.fallback_chain and not descent_applies(self):
-            raise ValueError(f"-{self.prefix}fallback descent needs a periodic grid and the nodal rule "
-                             f"(K^-1 diagonal in Fourier space), got chain {chain!r}")
-        if "relaxation" in self.fallback_chain and not self.hard_wall:
-            raise ValueError(f"-{self.prefix}fallback relaxation needs a hard-wall law (the paper's relaxation "
-                             f"stores contact pressures apart), got {self.law.name!r}")
-        self.fallback_tol = opts.getReal("fallback_tol", code_default("adhesion", "fallback_tol"))
-        self.strategy = opts.getString("strategy", code_default("adhesion", "strategy")).lower()
-        if self.strategy not in ("newton", "descent"):
-            raise ValueError(f"-{self.prefix}strategy must be newton or descent, got {self.strategy!r}")
-        if self.strategy == "descent" and not descent_applies(self):
-            raise ValueError(f"-{self.prefix}strategy descent needs a periodic grid and the nodal rule "
-                             f"(K^-1 diagonal in Fourier space)")
+        self._read_fallback_options(opts)
         # past the wall-time budget every solve stops (WALL_TIME_BUDGET): a batch job ends
         # cleanly with its finished steps written, an unresolvable case in bounded time
         self.time_budget = opts.getReal("time_budget", code_default("adhesion", "time_budget"))
@@ -427,7 +401,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
                     q = self.blocks(self._x)[0]
                     np.maximum(q, 0.0, out=q)
         check = self.stability_check if check_stability is None else check_stability
-        # only where PTC would take over
+        # only where PTC or the descent would take over
         self._stall_watch = self.stall_steps > 0 and fallback and approach is not None and bool(
             {"ptc", "descent"} & set(self.fallback_chain))
         converged, reason, newton, linear = self._run_snes()

@@ -12,15 +12,45 @@ from petsc4py import PETSc
 
 from ..physics.resolution import UnderResolvedWarning
 from .base import AdhesiveSolveError, ContactSolveError, reason_name
+from .descent import EnergyDescent, descent_applies, require_descent
+from .options import code_default
 from .problem import ContactProblem
-from .descent import EnergyDescent
 from .relaxation import RelaxationSolver
 from .states import AdhesiveState
 from .transfer import can_halve, halved, prolong_bilinear, prolong_constant, restrict
 
 
+#: the methods of -<prefix>fallback
+FALLBACKS = ("descent", "relaxation", "ptc")
+
+
 class Continuation:
     """Mixin of ``AdhesiveProblem``: how each solve starts and where it goes when Newton fails."""
+
+    def _read_fallback_options(self, opts: PETSc.Options) -> None:
+        """``-<prefix>fallback``, ``fallback_tol`` and ``strategy`` (at build time)."""
+        # the relaxation paths tried in turn where Newton fails or ends on an unstable state.
+        # Hard-wall laws: the paper's relaxation first, then PTC -- each reaches states where
+        # the other stops at its cap (a strongly adhesive sphere loaded from rest, a jump-off);
+        # the energy descent first where it applies: it reaches the minimum next to the last
+        # state without pseudo-time (docs/formulation.md, "Energy descent")
+        chain = ("descent," if descent_applies(self) else "") + ("relaxation,ptc" if self.hard_wall else "ptc")
+        chain = opts.getString("fallback", chain).lower()
+        self.fallback_chain = [m.strip() for m in chain.split(",") if m.strip()]
+        if not self.fallback_chain or any(m not in FALLBACKS for m in self.fallback_chain):
+            raise ValueError(f"-{self.prefix}fallback must be {', '.join(FALLBACKS)} or a comma-separated "
+                             f"chain of them, got {chain!r}")
+        if "descent" in self.fallback_chain:
+            require_descent(self, f"-{self.prefix}fallback {chain}")
+        if "relaxation" in self.fallback_chain and not self.hard_wall:
+            raise ValueError(f"-{self.prefix}fallback relaxation needs a hard-wall law (the paper's relaxation "
+                             f"stores contact pressures apart), got {self.law.name!r}")
+        self.fallback_tol = opts.getReal("fallback_tol", code_default("adhesion", "fallback_tol"))
+        self.strategy = opts.getString("strategy", code_default("adhesion", "strategy")).lower()
+        if self.strategy not in ("newton", "descent"):
+            raise ValueError(f"-{self.prefix}strategy must be newton or descent, got {self.strategy!r}")
+        if self.strategy == "descent":
+            require_descent(self, f"-{self.prefix}strategy descent")
 
     def out_of_time(self) -> bool:
         """Whether the wall-time budget (``-<prefix>time_budget``) is spent; collective (the

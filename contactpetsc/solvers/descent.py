@@ -64,6 +64,13 @@ def descent_applies(problem) -> bool:
     return bool(problem.grid.periodic and not problem.element_integration)
 
 
+def require_descent(problem, what: str) -> None:
+    """Refuse ``what`` (an option naming the descent) where ``descent_applies`` is false."""
+    if not descent_applies(problem):
+        raise ValueError(f"{what} needs the energy descent, which needs a periodic grid and the nodal rule "
+                         f"(-{problem.prefix}element_integration false): K^-1 diagonal in Fourier space")
+
+
 class _Hessian:
     """Python-context Mat: H = K^-1 + diag Phi''(g) on the displacement (the mean as the penalty
     of a hard wall, the identity on the projected-out mean of the full LJ curve).  Its
@@ -131,9 +138,7 @@ class EnergyDescent:
     """
 
     def __init__(self, problem):
-        if not descent_applies(problem):
-            raise ValueError("energy descent needs a periodic grid and the nodal rule "
-                             f"(-{problem.prefix}element_integration false)")
+        require_descent(problem, "EnergyDescent")
         self.p = problem
         grid = problem.grid
         self.comm, self.grid = grid.mpi_comm, grid

@@ -47,12 +47,11 @@ petsc4py.init([sys.argv[0]] + petsc_args)
 import numpy as np  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
-from contactpetsc.physics.interactions import make_law  # noqa: E402
 from contactpetsc.solvers.adhesive import AdhesiveProblem  # noqa: E402
 from contactpetsc.solvers.problem import ContactProblem  # noqa: E402
 
 sys.path.insert(0, HERE)
-from rough_surface import calibrate, path_approaches, rough_surface  # noqa: E402
+from rough_surface import adhesive_law, calibrate, path_approaches, rough_surface  # noqa: E402
 
 assert PETSc.COMM_WORLD.getSize() == 1, "one rank"
 
@@ -79,9 +78,7 @@ def solve(pb, approach):
 def main():
     n = args.size
     grid, h, _ = rough_surface(n)
-    dx = grid.dx
-    law = make_law(args.law, work_of_adhesion=args.w * dx,
-                   **({"rho": dx} if args.law == "exponential" else {"z0": dx}))
+    law = adhesive_law(grid, args.w, 1.0, name=args.law)
     z0 = law.length_scale()
     t0 = time.process_time()
     sig = ContactProblem(grid, h, 1.0, prefix="sig_", tol=1e-8).solve(mean_pressure=0.005)

@@ -37,11 +37,10 @@ petsc4py.init([sys.argv[0]] + petsc_args)
 import numpy as np  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
-from contactpetsc.physics.interactions import make_law  # noqa: E402
 from contactpetsc.solvers.adhesive import AdhesiveProblem  # noqa: E402
 
 sys.path.insert(0, HERE)
-from rough_surface import calibrate, path_approaches, rough_surface  # noqa: E402
+from rough_surface import adhesive_law, calibrate, path_approaches, rough_surface  # noqa: E402
 
 assert PETSc.COMM_WORLD.getSize() == 1, "one rank"
 
@@ -53,9 +52,7 @@ def emit(**row):
 def main():
     n = args.size
     grid, h, _ = rough_surface(n)
-    dx = grid.dx
-    law = make_law(args.law, work_of_adhesion=args.w * dx,
-                   **({"rho": dx} if args.law == "exponential" else {"z0": dx}))
+    law = adhesive_law(grid, args.w, 1.0, name=args.law)
     z0 = law.length_scale()
     ends = calibrate(grid, h, law, [0.01, 0.10], max_n=128)
     coarse = path_approaches(ends[0], ends[1], args.states)

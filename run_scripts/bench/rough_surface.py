@@ -39,11 +39,12 @@ def rough_surface(n: int, row_alignment: int = 1, comm=None):
 ADHESIVE_W, ADHESIVE_Z0 = 0.05, 1.0
 
 
-def adhesive_law(grid, w_rel=ADHESIVE_W, z0_rel=ADHESIVE_Z0):
-    """The law ``lj`` of the rough adhesive case on ``grid`` (E* = 1): work of adhesion
-    w_rel * dx [J/m^2], range z0_rel * dx [m]."""
+def adhesive_law(grid, w_rel=ADHESIVE_W, z0_rel=ADHESIVE_Z0, name="lj"):
+    """The law ``name`` of the rough adhesive case on ``grid`` (E* = 1): work of adhesion
+    w_rel * dx [J/m^2], range z0_rel * dx [m] (z0; the exponential law's rho)."""
     from contactpetsc.physics.interactions import make_law
-    return make_law("lj", work_of_adhesion=w_rel * grid.dx, z0=z0_rel * grid.dx)
+    length = {"rho" if name == "exponential" else "z0": z0_rel * grid.dx}
+    return make_law(name, work_of_adhesion=w_rel * grid.dx, **length)
 
 
 def calibrate(grid, h, law, areas, steps=40, max_n=128):
