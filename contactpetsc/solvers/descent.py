@@ -23,12 +23,12 @@ mean pressure): zero where the state is an equilibrium.
   ``offset_tol`` z0; Newton then closes the last offset.
 
 Its stopping test is the problem's own error measures (``AdhesiveProblem._measures``) on
-the descent iterate, to ``-<prefix>descent_tol`` (default: the problem's ``tol``; Newton's
+the descent iterate, to ``-<prefix>descent_tol`` (default: half the problem's ``tol``; Newton's
 polish then only confirms the state and builds its Jacobian).  Periodic grids and the nodal rule only:
 K^-1 is then diagonal in Fourier space and Phi is the law's energy at the nodes.
 
 Options (prefix ``<problem prefix>descent_``): ``tol`` (error measure, z0), ``max_rounds``
-(Uzawa rounds of a hard wall), ``offset_tol`` (z0; default the problem's ``tol``), and every ``tao_*`` option (code
+(Uzawa rounds of a hard wall), ``offset_tol`` (z0; default a tenth of the problem's ``tol``), and every ``tao_*`` option (code
 defaults: ``tao_type bnls``, ``tao_bnk_as_type none``, ``tao_bnk_ksp_rtol 0.1``,
 ``tao_max_it 500``; ``-<prefix>descent_tao_monitor`` prints its iterations).
 """
@@ -147,10 +147,12 @@ class EnergyDescent:
         self.offset = grid.offset
         self.n = grid.nx * grid.ny
         opts = PETSc.Options(self.prefix)
-        # to the problem's own tolerance: Newton's polish (bt line search) failed from hard-wall
-        # states descended to 1e-4 - 1e-7 and handed them on to the relaxation's thousands of cycles
-        self.tol = opts.getReal("tol", problem.tol)
-        self.offset_tol = opts.getReal("offset_tol", problem.tol)
+        # inside the problem's own tolerance, the descent's error and a hard wall's offset
+        # together: Newton's confirmation then converges at its first iterate.  Its backtracking
+        # line search failed from hard-wall states descended to 1e-4 - 1e-7, or to tol with an
+        # offset of tol, and handed them on to the relaxation's cycles
+        self.tol = opts.getReal("tol", 0.5 * problem.tol)
+        self.offset_tol = opts.getReal("offset_tol", 0.1 * problem.tol)
         self.max_rounds = opts.getInt("max_rounds", code_default("adhesion", "descent_max_rounds"))
         for key, value in TAO_DEFAULTS.items():
             problem.set_default(key, value, self.prefix)

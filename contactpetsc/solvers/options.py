@@ -87,7 +87,7 @@ ADHESION = (
     Option(("fallback",), "descent first on periodic nodal grids, then relaxation,ptc (hard wall) or ptc",
            "where Newton fails or ends unstable: these in turn"),
     Option(("descent_max_rounds",), (40,), "energy descent: a hard wall's mean-pressure rounds"),
-    Option(("descent_tol", "descent_offset_tol"), "tol, tol",
+    Option(("descent_tol", "descent_offset_tol"), "tol / 2, tol / 10",
            "energy descent: error measure reached before Newton polishes, a hard wall's mean offset (z0)"),
     Option(("descent_tao_*",), "bnls, bnk_as_type none, bnk_ksp_rtol 0.1, max_it 500",
            "the TAO of the energy descent (`-<prefix>descent_tao_monitor`)"),
