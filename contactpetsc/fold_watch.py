@@ -1,7 +1,7 @@
 """Which states of a displacement-controlled path need the stability check
 (``-adhesion_stability_check auto``; docs/robustness.md, "Leaving the stability check out").
 
-The check (``solvers/stability.py``, a Lanczos estimate of 1 - lambda_max(A S)) can change
+The check (``solvers/stability.py``, an estimate of 1 - lambda_max of the stability pencil) can change
 an answer of a sweep only where a fold is near: there Newton may converge to the unstable
 branch next to the stable one, and the check sends the solve to its fallback (a jump)
 and keeps the state out of the pull-off.  Away from folds the margin is bounded away

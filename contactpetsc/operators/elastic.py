@@ -147,6 +147,25 @@ class HalfSpaceOperator:
         mat.setUp()
         return destroy_at_exit(mat)
 
+    def as_dense(self, inverse: bool = False) -> np.ndarray:
+        """K [m/Pa] (or K^-1) as a dense (n, n) matrix in global row-major order, one apply per
+        column; every rank holds it (collective).  For small grids: the coarsest level of a
+        multilevel cycle, and tests."""
+        g = self.grid
+        n = g.nx * g.ny
+        e = np.zeros((g.ny_local, g.nx))
+        out = np.empty_like(e)
+        dense = np.zeros((n, n))
+        apply = self.apply_inverse if inverse else self.apply
+        for col in range(n):
+            e[...] = 0.0
+            jc, ic = divmod(col, g.nx)
+            if g.ys <= jc < g.ye:
+                e[jc - g.ys, ic] = 1.0
+            apply(e, out)
+            dense[:, col] = np.concatenate(g.mpi_comm.allgather(out.reshape(-1)))
+        return dense
+
     def spectral_sum(self, kernel_hat: np.ndarray) -> float:
         """(1 / (Nx Ny)) * sum over all modes of a real, even spectrum given on the rfft half."""
         local = float(np.sum(kernel_hat * self.fft.hermitian_weights()))

@@ -17,7 +17,7 @@ Globalisation (the problem is non-convex): Newton steps only start from a
 converged neighbouring state (tangent predictor; line search ``newton_linesearch``);
 where Newton fails or stalls, the fallback chain (``continuation.py``) follows
 a relaxation path.  Every converged state is checked for stability
-(``stability.py``, 1 - lambda_max(A S) by Lanczos); an unstable state is
+(``stability.py``, 1 - lambda_max of the pencil A, (K^-1)_NN); an unstable state is
 reported as such, never passed off as a point of the path.
 
 Controls: ``approach`` delta [m] (displacement control) or ``central_gap``
@@ -146,7 +146,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self._tangent = None            # (approach, dx/d delta, dF/d delta) at the last converged state
         self._tangent_due = None        # approach of the present state when its tangent is not computed yet
         self.compute_tangent = True     # the tangent and stiffness of converged displacement-controlled states
-        self.stability_converged = None  # whether the last stability check's Lanczos settled
+        self.stability_converged = None  # whether the last stability check settled
         self.history = SolveHistory()
         self._x = None
         self._started = False           # a state exists (solved, warm-started or restored)

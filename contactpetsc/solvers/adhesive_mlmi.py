@@ -147,16 +147,7 @@ class _Level:
         """K_c as a dense matrix in global row-major order (once; every rank holds it)."""
         g = self.grid
         n = g.nx * g.ny
-        comm = g.mpi_comm
-        e = np.zeros((g.ny_local, g.nx))
-        k = np.zeros((n, n))
-        for col in range(n):
-            e[...] = 0.0
-            jc, ic = divmod(col, g.nx)
-            if g.ys <= jc < g.ye:
-                e[jc - g.ys, ic] = 1.0
-            self.op.apply(e, self.ku)
-            k[:, col] = np.concatenate(comm.allgather(self.ku.reshape(-1)))
+        k = self.op.as_dense()
         if g.periodic:
             # K has no mean mode there: the lowest mode's compliance keeps K_c + C_c regular
             k += 1.0 / (lowest_stiffness * n)

@@ -1,4 +1,4 @@
-"""Stability of a converged adhesive state: a Lanczos estimate.
+"""Stability of a converged adhesive state: the top eigenvalue of a pencil.
 
 Equilibria of adhesive contact are stationary points of the elastic plus
 interaction energy.  In displacement space, with the contact nodes C held at
@@ -6,18 +6,29 @@ zero gap (their pressure is the multiplier), the Hessian on the other nodes N is
 
     H = (K^-1)_NN - A_N,      A = da/dg (the law's derivative),
 
-and ((K^-1)_NN)^-1 = S = K_NN - K_NC K_CC^-1 K_CN, the compliance of N with C
-clamped.  H is positive definite iff every eigenvalue of A S is below one
-(congruence with S^1/2).  A S is self-adjoint in the S inner product, so
-Lanczos in that inner product (one S product per step) gives its largest
-eigenvalue, the well separated end of the spectrum: an instability is a
-smooth mode over the attractive zone beyond the force peak, where A > 0.
-The reported margin is 1 - lambda_max(A S), the smallest eigenvalue of
-S^1/2 H S^1/2: positive = stable, negative = unstable.
+on W, the displacements that vanish on C (and, on a periodic cell, have zero
+mean: K there has no mean mode).  H is positive definite iff every eigenvalue
+lambda of the pencil A x = lambda (K^-1)_NN x is below one.  The reported
+margin is 1 - lambda_max: positive = stable, negative = unstable.  An
+instability is a smooth mode over the attractive zone beyond the force peak,
+where A > 0, the well separated top of the pencil.
 
-S costs one FFT pair, plus (with contact nodes) a CG solve on K_CC
-preconditioned by the Fourier inverse.  The nodal law derivative is used
-also with element integration (its linearisation is not symmetric).
+Two ways to lambda_max, each where it is cheap:
+
+* Periodic grids with contact nodes: LOBPCG on the pencil itself, preconditioned
+  by the compliance K restricted to W.  K^-1 is diagonal in Fourier space there,
+  so an iteration costs two FFT pairs (one K^-1, one K).  It stops when the
+  preconditioned residual of the top Ritz pair is below ``RESIDUAL_TOL``.
+* Otherwise (no contact nodes, or an isolated window whose K^-1 is not
+  diagonal): Lanczos on A S, S = ((K^-1)_NN)^-1 = K_NN - K_NC K_CC^-1 K_CN the
+  compliance of N with C clamped, self-adjoint in the S inner product.  S is one
+  FFT pair, plus (with contact nodes) a CG solve on K_CC preconditioned by the
+  Fourier inverse.  It stops when the Ritz value changes by less than ``tol``.
+
+In both the top Ritz value grows monotonically towards lambda_max (a Ritz value
+above one proves instability), and an unsettled positive margin is an upper
+bound.  The nodal law derivative is used also with element integration (its
+linearisation is not symmetric).
 """
 from __future__ import annotations
 
@@ -78,15 +89,26 @@ class _Compliance:
                 obj.destroy()
 
 
-def stability_margin(problem, gap: np.ndarray, q_rows: np.ndarray | None, steps: int = 30,
-                     tol: float = 1e-4) -> float:
-    """1 - lambda_max(A S) at the rank's gap rows ``gap`` [m] (ny_loc, nx) of the problem's
-    state, contact pressures ``q_rows`` [Pa] (hard wall) or None (see the module doc); collective.
+#: LOBPCG stops when the K-norm of the top Ritz pair's residual, A x - theta (K^-1)_NN x with
+#: x of unit (K^-1)_NN-norm, is below this (times max(1, theta)).  The Ritz value's error is
+#: then of the order of its square over the spectral gap (docs/performance.md, "The stability
+#: check: LOBPCG on the pencil"), where a settled Ritz value (the Lanczos test) can sit on a
+#: plateau short of lambda_max
+RESIDUAL_TOL = 1e-3
 
-    Sets ``problem.stability_converged``: False when Lanczos ran its ``steps`` without
-    the Ritz value settling to ``tol``.  The Ritz value only grows towards lambda_max, so
-    an unsettled positive margin is an upper bound: the state may still be unstable
-    (seen on rough surfaces, whose top of A S is a cluster of asperity modes)."""
+
+def stability_margin(problem, gap: np.ndarray, q_rows: np.ndarray | None, steps: int = 60,
+                     tol: float = 1e-4, method: str = "auto", residual_tol: float = RESIDUAL_TOL) -> float:
+    """1 - lambda_max of the pencil (module doc) at the rank's gap rows ``gap`` [m] (ny_loc, nx)
+    of the problem's state, contact pressures ``q_rows`` [Pa] (hard wall) or None; at most
+    ``steps`` iterations; collective.  ``method``: "auto" (as in the module doc), or "lobpcg"
+    (periodic grids only; stops at ``residual_tol``) or "lanczos" (stops at ``tol``) to
+    compare them (``run_scripts/bench/bench_stability.py``).
+
+    Sets ``problem.stability_converged``: False when the iteration ran its ``steps`` without
+    settling.  The Ritz value only grows towards lambda_max, so an unsettled positive margin
+    is an upper bound: the state may still be unstable (seen on rough surfaces, whose top of
+    the pencil is a cluster of asperity modes)."""
     problem.stability_converged = True
     grid = problem.grid
     comm = grid.mpi_comm
@@ -94,19 +116,34 @@ def stability_margin(problem, gap: np.ndarray, q_rows: np.ndarray | None, steps:
     contact = (q_rows > 0) if q_rows is not None else np.zeros(gap.shape, bool)
     d = np.where(contact, 0.0, d)
     if comm.allreduce(float(d.max()), op=MPI.MAX) <= 0.0:
-        return 1.0   # A <= 0: A S has no positive eigenvalue
-    S = _Compliance(problem, contact)
-    dot = lambda u, w: comm.allreduce(float(np.vdot(u, w)))  # noqa: E731
+        return 1.0   # A <= 0: no positive eigenvalue
     # start: the positive part of A (the attractive zone beyond the force peak), varied
     # from node to node by a fixed hash of the global index (rank-count independent), so
     # that it has every Fourier mode: a uniform start is in the null space of the
     # periodic compliance (the mean mode)
     index = (np.arange(grid.ys, grid.ye)[:, None] * grid.nx + np.arange(grid.nx)[None, :]).astype(float)
     v = np.maximum(d, 0.0) * (1.0 + 0.5 * np.modf(np.abs(np.sin(index * 12.9898)) * 43758.5453)[0])
+    if method == "auto":
+        method = "lobpcg" if grid.periodic and comm.allreduce(int(contact.sum())) else "lanczos"
+    if method == "lobpcg":
+        if not grid.periodic:
+            raise ValueError("stability method 'lobpcg' needs a periodic grid (K^-1 diagonal in Fourier space)")
+        lam, settled = _lobpcg(problem.op, comm, d, contact, v, steps, residual_tol)
+    else:
+        lam, settled = _lanczos(problem, comm, d, contact, v, steps, tol)
+    problem.stability_converged = settled
+    return 1.0 - lam
+
+
+def _lanczos(problem, comm, d, contact, v, steps, tol):
+    """(lambda_max estimate, settled) of A S by Lanczos in the S inner product from ``v``."""
+    S = _Compliance(problem, contact)
+    dot = lambda u, w: comm.allreduce(float(np.vdot(u, w)))  # noqa: E731
     sv = S(v, np.empty_like(v))
     nrm = np.sqrt(dot(v, sv))
     if not nrm > 0.0:
-        return 1.0   # A S vanishes on the positive part of A
+        S.destroy()
+        return 0.0, True   # A S vanishes on the positive part of A
     # the plain three-term recurrence, no re-orthogonalisation: only lambda_max is wanted,
     # and lost orthogonality only adds copies of converged Ritz values (Paige); the top
     # one still grows monotonically (T_k is a leading block of T_k+1) and stays below
@@ -115,7 +152,7 @@ def stability_margin(problem, gap: np.ndarray, q_rows: np.ndarray | None, steps:
     v, sv = v / nrm, sv / nrm
     v_prev = None
     alphas, betas = [], []
-    lam, beta = -np.inf, 0.0
+    lam, beta, settled = -np.inf, 0.0, True
     for k in range(steps):
         w = d * sv                           # T v_k = A S v_k
         alpha = dot(sv, w)
@@ -134,10 +171,80 @@ def stability_margin(problem, gap: np.ndarray, q_rows: np.ndarray | None, steps:
         if done:
             break
         if k == steps - 1:
-            problem.stability_converged = False
+            settled = False
         beta = np.sqrt(beta2)
         betas.append(beta)
         v_prev, v, sv = v, w / beta, sw / beta
     S.destroy()
-    return 1.0 - lam
+    return lam, settled
 
+
+def _lobpcg(op, comm, d, contact, v, steps, residual_tol):
+    """(lambda_max estimate, settled) of the pencil A x = lambda (K^-1)_NN x on W by LOBPCG
+    (Knyazev's locally optimal block preconditioned CG, block size one) from ``v``,
+    preconditioned by K on W.  Each Rayleigh-Ritz step is on span{x, w, p} (iterate,
+    preconditioned residual, previous direction), so the top Ritz value never decreases."""
+    shape = v.shape
+    free = np.where(contact, 0.0, 1.0).reshape(-1)   # a mask by multiplication: indexing copies
+    n_free = comm.allreduce(float(free.sum()))
+    a = d.reshape(-1)
+
+    def on_w(x):
+        """x projected on W (orthogonally): zero on C, zero mean"""
+        x *= free
+        x -= (comm.allreduce(float(x.sum())) / n_free) * free
+        return x
+
+    def mult(f, x, out):
+        f(x.reshape(shape), out.reshape(shape))
+        return on_w(out)
+
+    # rows: the iterate x, the preconditioned residual w, the direction p; and M times each
+    basis, mbasis = np.zeros((3, a.size)), np.zeros((3, a.size))
+    x, w, p = basis
+    mx, mw, mp = mbasis
+    x[...] = on_w(v.reshape(-1).copy())
+    mult(op.apply_inverse, x, mx)
+    nrm = np.sqrt(comm.allreduce(float(x @ mx)))
+    if not nrm > 0.0:
+        return 0.0, True
+    basis[0] /= nrm
+    mbasis[0] /= nrm
+    theta = comm.allreduce(float(x @ (a * x)))
+    m = 2   # rows of the basis in use (p joins after the first step)
+    for _ in range(steps):
+        r = on_w(a * x - theta * mx)
+        mult(op.apply, r, w)
+        res = np.sqrt(max(comm.allreduce(float(r @ w)), 0.0))
+        if theta > 1.0 or res <= residual_tol * max(1.0, abs(theta)):
+            return theta, True
+        mult(op.apply_inverse, w, mw)
+        nw = np.sqrt(comm.allreduce(float(w @ mw)))
+        w /= nw
+        mw /= nw
+        b, mb = basis[:m], mbasis[:m]
+        # einsum: faster than a (3, n) x (n, 3) matmul with a reference BLAS
+        ga, gm = comm.allreduce(np.stack([np.einsum("ai,bi->ab", b, a * b), np.einsum("ai,bi->ab", b, mb)]))
+        # Rayleigh-Ritz in an M-orthonormal basis of the span, dropping directions it has
+        # (nearly) lost: p and w become parallel as the iteration converges
+        ev, vec = np.linalg.eigh(0.5 * (gm + gm.T))
+        keep = ev > 1e-12 * ev.max()
+        z = vec[:, keep] / np.sqrt(ev[keep])
+        th, y = np.linalg.eigh(z.T @ (0.5 * (ga + ga.T)) @ z)
+        c = z @ y[:, -1]
+        theta = float(th[-1])
+        new_p, new_mp = c[1:m] @ b[1:], c[1:m] @ mb[1:]
+        x *= c[0]
+        x += new_p
+        mx *= c[0]
+        mx += new_mp
+        nrm = np.sqrt(comm.allreduce(float(x @ mx)))
+        x /= nrm
+        mx /= nrm
+        nrm = np.sqrt(comm.allreduce(float(new_p @ new_mp)))
+        if nrm > 0.0:
+            p[...], mp[...] = new_p / nrm, new_mp / nrm
+            m = 3
+        else:
+            m = 2
+    return theta, False

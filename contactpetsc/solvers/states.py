@@ -48,7 +48,7 @@ class AdhesiveState(ContactState):
     #: tangent dF/d delta [N/m] (displacement control); NaN if not computed (-<prefix>stiffness false)
     stiffness: float = float("nan")
     check_time: float = 0.0       #: [s] of wall_time spent on the stability check and the tangent
-    #: False when the Lanczos estimate had not settled after -<prefix>stability_steps: a positive
+    #: False when the stability estimate had not settled after -<prefix>stability_steps: a positive
     #: margin is then an upper bound (None when not checked)
     stability_converged: bool | None = None
     solver: str = "newton"

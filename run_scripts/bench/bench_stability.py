@@ -1,0 +1,87 @@
+#!/usr/bin/env python3
+"""Benchmark: the stability check's two methods on the states of the rough benchmark's path.
+
+The rough benchmark heights (``rough_surface.py``, periodic, E* = 1), a law with w = --w E* dx and
+range dx, the 10-state load-unload path of ``bench_fallback.py`` (approaches from 1 % to 10 %
+contact and back), solved once with warm starts and the check off.  At each state the margin
+1 - lambda_max of the stability pencil (``solvers/stability.py``) by
+
+* ``lobpcg``: LOBPCG on the pencil A x = lambda (K^-1)_NN x, preconditioned by K (periodic grids);
+* ``lanczos``: Lanczos on A S, S the clamped compliance (a CG on the contact set per step where
+  there are contact nodes);
+* ``reference``: LOBPCG to a residual of 1e-7 (at most 3000 iterations);
+
+each at the code's default steps, with its FFT pairs (exact), CPU s (``process_time``), whether
+it settled, and its margin's difference to the reference.  First line: the non-adhesive solve on
+the same heights (the benchmark's mean pressure 0.005 E*), the unit of the ratios.  One JSON line
+per state and method.
+
+    .venv/bin/python run_scripts/bench/bench_stability.py --size 256 --law exponential
+    .venv/bin/python run_scripts/bench/bench_stability.py --size 256 --law lj --w 0.2
+
+One rank.
+"""
+import argparse
+import json
+import os
+import sys
+import time
+
+import petsc4py
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+ap.add_argument("--size", type=int, default=256)
+ap.add_argument("--law", default="exponential", choices=["exponential", "hardwall-lj", "lj"])
+ap.add_argument("--w", type=float, default=0.05, help="work of adhesion / (E* dx)")
+ap.add_argument("--states", type=int, default=10, help="states of the load-unload path")
+args, petsc_args = ap.parse_known_args()
+petsc4py.init([sys.argv[0]] + petsc_args)
+
+from petsc4py import PETSc  # noqa: E402
+
+from contactpetsc.solvers.adhesive import AdhesiveProblem  # noqa: E402
+from contactpetsc.solvers.options import code_default  # noqa: E402
+from contactpetsc.solvers.problem import ContactProblem  # noqa: E402
+from contactpetsc.solvers.stability import stability_margin  # noqa: E402
+
+sys.path.insert(0, HERE)
+from rough_surface import adhesive_law, calibrate, path_approaches, rough_surface  # noqa: E402
+
+assert PETSc.COMM_WORLD.getSize() == 1, "one rank"
+
+
+def emit(**row):
+    print(json.dumps(row), flush=True)
+
+
+def margin(pb, method, **kw):
+    xb = pb.blocks(pb._x, readonly=True)
+    gap = pb._gap(xb, pb._g)
+    p0, t0 = pb.fft_pairs(), time.process_time()
+    m = stability_margin(pb, gap, xb[0] if pb.hard_wall else None, method=method, **kw)
+    return m, pb.stability_converged, pb.fft_pairs() - p0, time.process_time() - t0
+
+
+def main():
+    grid, h, _ = rough_surface(args.size)
+    law = adhesive_law(grid, args.w, 1.0, name=args.law)
+    t0 = time.process_time()
+    pairs_unit = ContactProblem(grid, h, 1.0, prefix="unit_", tol=1e-8).solve(mean_pressure=0.005).fft_pairs
+    emit(kind="non-adhesive", size=args.size, fft_pairs=pairs_unit, cpu_s=time.process_time() - t0)
+    approaches = calibrate(grid, h, law, [0.01, 0.10], max_n=128)
+    pb = AdhesiveProblem(grid, h, 1.0, law, prefix="stab_", stability_check=False)
+    steps = code_default("adhesion", "stability_steps")
+    for k, a in enumerate(path_approaches(approaches[0], approaches[1], args.states)):
+        st = pb.solve(approach=a, raise_on_failure=False)
+        ref = margin(pb, "lobpcg", steps=3000, residual_tol=1e-7)
+        for method in ("lobpcg", "lanczos"):
+            m, settled, pairs, cpu = margin(pb, method, steps=steps)
+            emit(kind="state", law=args.law, w=args.w, size=args.size, state=k, approach=a,
+                 converged=st.converged, contact_fraction=st.contact_fraction, method=method,
+                 margin=m, settled=settled, fft_pairs=pairs, ratio=pairs / pairs_unit, cpu_s=cpu,
+                 reference=ref[0], reference_settled=ref[1], error=m - ref[0])
+
+
+if __name__ == "__main__":
+    main()
