@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The whole test suite: set up (idempotently), then pytest serially and under
-# mpirun with 2 and 3 ranks (3 ranks split every test grid unevenly).
+# mpirun with 2 and 3 ranks (3 ranks split every test grid unevenly: the grid, operator, solver and
+# output tests; tests/conftest.py, TWO_RANK_MODULES).
 #
 #   TEST_TIMEOUT=1800 bash run_scripts/test.sh   # seconds per stage (default 1200)
 #   CONTACTPETSC_VENV=DIR bash run_scripts/test.sh   # another stack's venv (docs/install.md)

@@ -3,7 +3,9 @@
 Every rank runs every test.  Assertions must therefore be collective: compute
 the error on each rank, reduce it over COMM_WORLD (``Collective.max``,
 ``Collective.all``) and assert the reduced value on every rank.  Tests that only
-make sense on one rank are marked ``@pytest.mark.serial`` and skipped under MPI.
+make sense on one rank are marked ``@pytest.mark.serial`` and skipped under MPI; on more than
+two ranks the ``heavy`` tests and the modules of ``TWO_RANK_MODULES`` (scenes, paths, studies)
+are skipped too: that pass is for uneven grid splits.
 A test that fails on some ranks only (a non-collective assertion or exception)
 leaves the others in a collective: the failed rank then aborts the job after
 ``CONTACTPETSC_LONE_FAILURE_WAIT`` seconds (default 120) with its failure printed,
@@ -61,9 +63,26 @@ def pytest_collection_modifyitems(config, items):
                 item.add_marker(skip)
     if WORLD.Get_size() > 2:
         skip = pytest.mark.skip(reason="heavy test: run on 1 and 2 ranks")
+        skip_module = pytest.mark.skip(reason="scene, path and study tests run on 1 and 2 ranks; the pass on "
+                                       "more ranks is for uneven grid splits (TWO_RANK_MODULES)")
         for item in items:
             if "heavy" in item.keywords:
                 item.add_marker(skip)
+            elif item.path.stem in TWO_RANK_MODULES:
+                item.add_marker(skip_module)
+
+
+#: modules checked on 1 and 2 ranks only: scenes, command lines, plots, load paths and studies,
+#: whose parallel code (the grid split, the FFT, the solvers, parallel I/O) is that of the grid,
+#: operator, solver and output tests, which the pass on 3 ranks (every grid split unevenly) runs
+TWO_RANK_MODULES = {
+    "test_adhesive_paths", "test_adhesive_sphere", "test_api_page", "test_axisymmetric_reference",
+    "test_cli_options", "test_examples", "test_faults", "test_grid_biases", "test_interactions",
+    "test_law_registry", "test_material_scenes", "test_output_directory", "test_plot_scales",
+    "test_plots_results", "test_pull_off_and_jumps", "test_robustness", "test_run_lock", "test_scenes",
+    "test_solver_input", "test_solver_options", "test_stability_auto", "test_studies",
+    "test_under_resolved_jump_in", "test_unit_scales",
+}
 
 
 class Collective:
