@@ -98,6 +98,11 @@ class Continuation:
             # dropped rather than followed by thousands of relaxation cycles or PTC steps
             coarse.fallback_chain = ["descent"]
         coarse.compute_tangent = False   # a level of the nested iteration needs no predictor or stiffness
+        # a level only predicts: an under-resolved level's Krylov solves that stagnate to the fine
+        # grid's limit cost more than the fine solve (docs/performance.md, "Energy descent as the
+        # fallback"); an inexact step is still judged by the line search, and the fallback follows
+        ksp = coarse._snes.getKSP()
+        ksp.setTolerances(max_it=min(ksp.getTolerances()[3], self.fmg_ksp_max_it))
         self._coarse = coarse
         return coarse
 

@@ -23,7 +23,7 @@ mean pressure): zero where the state is an equilibrium.
   ``offset_tol`` z0; Newton then closes the last offset.
 
 Its stopping test is the problem's own error measures (``AdhesiveProblem._measures``) on
-the descent iterate, to ``-<prefix>descent_tol`` (default: half the problem's ``tol``; Newton's
+the descent iterate, to ``-<prefix>descent_tol`` (default: the problem's ``tol``, half of it with a hard wall; Newton's
 polish then only confirms the state and builds its Jacobian).  Periodic grids and the nodal rule only:
 K^-1 is then diagonal in Fourier space and Phi is the law's energy at the nodes.
 
@@ -150,8 +150,9 @@ class EnergyDescent:
         # inside the problem's own tolerance, the descent's error and a hard wall's offset
         # together: Newton's confirmation then converges at its first iterate.  Its backtracking
         # line search failed from hard-wall states descended to 1e-4 - 1e-7, or to tol with an
-        # offset of tol, and handed them on to the relaxation's cycles
-        self.tol = opts.getReal("tol", 0.5 * problem.tol)
+        # offset of tol, and handed them on to the relaxation's cycles.  The full LJ curve has
+        # no offset: tol itself (half of it cost more descent, in the coarse levels too)
+        self.tol = opts.getReal("tol", (0.5 if problem.hard_wall else 1.0) * problem.tol)
         self.offset_tol = opts.getReal("offset_tol", 0.1 * problem.tol)
         self.max_rounds = opts.getInt("max_rounds", code_default("adhesion", "descent_max_rounds"))
         for key, value in TAO_DEFAULTS.items():

@@ -70,6 +70,8 @@ ADHESION = (
     Option(("step_limit",), "0.5 (full LJ), 0", "largest fall of a gap below min(g, 0) per Newton step (z0)"),
     Option(("fmg", "fmg_min_size", "fmg_tol", "fmg_steps"), (True, 32, 1e-3, True),
            "nested iteration and the coarse-grid predictor"),
+    Option(("fmg_ksp_max_it",), (100,), "Krylov iterations per Newton step on the coarse levels (at most "
+           "-<prefix>ksp_max_it): a level only predicts"),
     Option(("preconditioner",), ("auto",), "auto (from the snap number K_ii max da/dg: mlmi for 0.01-0.2 "
            "with a hard wall, per grid, and 0.2-0.4 with the full LJ curve, else spectral), spectral (block: spectral on the contact-like rows), mlmi "
            "(multilevel cycle on the whole system) or none"),
@@ -87,7 +89,7 @@ ADHESION = (
     Option(("fallback",), "descent first on periodic nodal grids, then relaxation,ptc (hard wall) or ptc",
            "where Newton fails or ends unstable: these in turn"),
     Option(("descent_max_rounds",), (40,), "energy descent: a hard wall's mean-pressure rounds"),
-    Option(("descent_tol", "descent_offset_tol"), "tol / 2, tol / 10",
+    Option(("descent_tol", "descent_offset_tol"), "tol (full LJ) or tol / 2, tol / 10",
            "energy descent: error measure reached before Newton polishes, a hard wall's mean offset (z0)"),
     Option(("descent_tao_*",), "bnls, bnk_as_type none, bnk_ksp_rtol 0.1, max_it 500",
            "the TAO of the energy descent (`-<prefix>descent_tao_monitor`)"),
