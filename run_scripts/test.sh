@@ -34,26 +34,30 @@ stage() {   # NAME COMMAND...: one stage under the time limit, and a message if 
     fi
     return "$status"
 }
-one_rank() {   # the 1-rank pass as two pytest sessions side by side (a machine has >= 2 cores): the
-    # tests marked serial (mostly command lines and mpirun jobs run as subprocesses) and the others
-    # (in process); each with its own temporary root (pytest prunes old numbered directories per
-    # root), their reports printed one after the other when both have ended
-    local tmp a b sa=0 sb=0
+one_rank() {   # the 1-rank pass on both cores: two pytest sessions side by side, one core each
+    # (tests/conftest.py, CONTACTPETSC_TEST_GROUP: about half of the time each), then the tests
+    # that launch mpirun jobs alone (their ranks need both cores); each session with its own
+    # temporary root (pytest prunes old numbered directories per root), their reports in turn
+    local tmp a b sa=0 sb=0 sm=0
     tmp="$(mktemp -d "${TMPDIR:-/tmp}/contactpetsc-one-rank-XXXXXX")"
     # the time limit (timeout signals the whole group): the reports so far
     trap 'echo "-- stopped: the reports so far"; cat "$tmp"/*.log; rm -rf "$tmp"; exit 124' TERM
-    "$py" -m pytest -q -p no:cacheprovider --durations=8 --basetemp="$tmp/serial" -m serial tests "$@" \
-        >"$tmp/serial.log" 2>&1 & a=$!
-    "$py" -m pytest -q -p no:cacheprovider --durations=8 --basetemp="$tmp/other" -m "not serial" tests "$@" \
-        >"$tmp/other.log" 2>&1 & b=$!
+    CONTACTPETSC_TEST_GROUP=a "$py" -m pytest -q -p no:cacheprovider --durations=8 --basetemp="$tmp/a" \
+        -m "not mpirun" tests "$@" >"$tmp/a.log" 2>&1 & a=$!
+    CONTACTPETSC_TEST_GROUP=b "$py" -m pytest -q -p no:cacheprovider --durations=8 --basetemp="$tmp/b" \
+        -m "not mpirun" tests "$@" >"$tmp/b.log" 2>&1 & b=$!
     wait "$a" || sa=$?
     wait "$b" || sb=$?
-    echo "-- the tests marked serial (exit status $sa)"
-    cat "$tmp/serial.log"
-    echo "-- the other tests (exit status $sb)"
-    cat "$tmp/other.log"
+    "$py" -m pytest -q -p no:cacheprovider --durations=8 --basetemp="$tmp/mpirun" -m mpirun tests "$@" \
+        >"$tmp/mpirun.log" 2>&1 || sm=$?
+    echo "-- group a (exit status $sa)"
+    cat "$tmp/a.log"
+    echo "-- group b: the parallel-capable tests of tests/conftest.py GROUP_B_MODULES (exit status $sb)"
+    cat "$tmp/b.log"
+    echo "-- the tests that launch mpirun jobs, alone (exit status $sm)"
+    cat "$tmp/mpirun.log"
     rm -rf "$tmp"
-    [ "$sa" = 0 ] && [ "$sb" = 0 ]
+    [ "$sa" = 0 ] && [ "$sb" = 0 ] && [ "$sm" = 0 ]
 }
 export -f one_rank
 export py

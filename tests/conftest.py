@@ -48,6 +48,9 @@ def pytest_configure(config):
     config.addinivalue_line(
         "markers", "heavy: long adhesive paths and study runs, checked on 1 and 2 ranks (skipped on more, to keep the "
         "suite short; the 3-rank pass is for uneven splits, covered by the lighter tests)")
+    config.addinivalue_line(
+        "markers", "mpirun: launches mpirun jobs as subprocesses (run_scripts/test.sh runs these alone: their "
+        "ranks need every core; sharing the cores with another session made them 5-10x slower)")
     if WORLD.Get_rank() != 0:
         # ranks != 0 run the same tests and reach the same collective verdicts: keep them quiet
         reporter = config.pluginmanager.get_plugin("terminalreporter")
@@ -55,7 +58,29 @@ def pytest_configure(config):
             config.pluginmanager.unregister(reporter, "terminalreporter")
 
 
+#: run_scripts/test.sh's 1-rank pass as two sessions side by side, one core each:
+#: ``CONTACTPETSC_TEST_GROUP=b`` keeps the parallel-capable tests of these modules (about half
+#: of that pass's time), ``a`` deselects them (and keeps everything else the markers select)
+GROUP_B_MODULES = {
+    "test_scenes", "test_studies", "test_stability_auto", "test_adhesive_paths", "test_adhesive_sphere",
+    "test_pull_off_and_jumps", "test_unit_scales", "test_plots_results", "test_robustness",
+    "test_axisymmetric_reference",
+}
+GROUP = os.environ.get("CONTACTPETSC_TEST_GROUP", "")
+
+
+def _in_group_b(item) -> bool:
+    return item.path.stem in GROUP_B_MODULES and "serial" not in item.keywords
+
+
+@pytest.hookimpl(trylast=True)   # after -m and -k have deselected theirs
 def pytest_collection_modifyitems(config, items):
+    if GROUP:
+        if GROUP not in ("a", "b"):
+            raise pytest.UsageError(f"CONTACTPETSC_TEST_GROUP={GROUP!r}: expected a or b")
+        keep = [t for t in items if _in_group_b(t) == (GROUP == "b")]
+        config.hook.pytest_deselected(items=[t for t in items if _in_group_b(t) != (GROUP == "b")])
+        items[:] = keep
     if WORLD.Get_size() > 1:
         skip = pytest.mark.skip(reason="serial test, COMM_WORLD has several ranks")
         for item in items:

@@ -71,6 +71,7 @@ def test_destroyed_dmda_or_heights_is_a_python_error_naming_it(tmp_path):
 
 
 @pytest.mark.serial
+@pytest.mark.mpirun   # launches mpirun jobs
 @pytest.mark.skipif(shutil.which("mpirun") is None, reason="needs mpirun")
 def test_destroyed_dmda_or_heights_is_refused_on_every_rank(tmp_path):
     script = tmp_path / "destroyed.py"

@@ -60,6 +60,7 @@ def derjaguin_force(radius, w, z0, approach):
 
 
 @pytest.mark.serial
+@pytest.mark.mpirun   # launches mpirun jobs
 def test_adhesive_api_example_serially_and_on_two_ranks(tmp_path):
     from contactpetsc.physics.closed_forms import maugis_pull_off_bar
     results = []

@@ -29,6 +29,7 @@ SCRIPT = textwrap.dedent("""
 
 
 @pytest.mark.serial
+@pytest.mark.mpirun   # launches mpirun jobs
 @pytest.mark.skipif(shutil.which("mpirun") is None, reason="needs mpirun")
 def test_fault_on_one_rank_aborts_the_job(tmp_path):
     script = tmp_path / "fault.py"
@@ -73,6 +74,7 @@ needs_mpirun = pytest.mark.skipif(shutil.which("mpirun") is None, reason="needs 
 
 
 @pytest.mark.serial
+@pytest.mark.mpirun   # launches mpirun jobs
 @needs_mpirun
 def test_cli_fault_on_one_rank_aborts_the_job(tmp_path):
     """The command line's own path: rank 1 fails while rank 0 enters the solve; no hang."""
@@ -86,6 +88,7 @@ def test_cli_fault_on_one_rank_aborts_the_job(tmp_path):
 
 
 @pytest.mark.serial
+@pytest.mark.mpirun   # launches mpirun jobs
 @needs_mpirun
 def test_cli_more_ranks_than_grid_rows(tmp_path):
     """ny = 2 on 3 ranks: the job ends with the message naming the rows and the ranks."""

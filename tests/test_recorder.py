@@ -136,7 +136,7 @@ FILE_SIZE_LIMIT = textwrap.dedent("""
 
 
 @pytest.mark.serial
-@pytest.mark.parametrize("ranks", [1, 2])
+@pytest.mark.parametrize("ranks", [1, pytest.param(2, marks=pytest.mark.mpirun)])
 def test_a_failed_step_file_write_ends_with_the_error_code_and_no_stray_file(tmp_path, ranks):
     """A step file larger than the process may write (RLIMIT_FSIZE, as a nearly full disk):
     exit 1 on every rank, naming the file and the room, nothing half-written -- also on two
@@ -244,6 +244,7 @@ def test_cli_reports_a_petsc_error_by_its_meaning(tmp_path):
 
 
 @pytest.mark.serial
+@pytest.mark.mpirun   # launches mpirun jobs
 @pytest.mark.skipif(shutil.which("mpirun") is None, reason="needs mpirun")
 def test_a_failed_parallel_step_file_write_ends_every_rank(tmp_path):
     """Under mpirun -n 2 a write that fails on every rank (h5py raising, as on a full disk):

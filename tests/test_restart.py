@@ -113,6 +113,7 @@ def same_jumps(a, b):
 
 @pytest.mark.serial
 @pytest.mark.heavy
+@pytest.mark.mpirun   # launches mpirun jobs
 @needs_mpirun
 @pytest.mark.parametrize("ranks", [2])   # serial kills and restarts: test_faults, test_stability_auto
 def test_killed_adhesive_sweep_restarts_to_the_uninterrupted_results(tmp_path, ranks):
@@ -171,7 +172,7 @@ def tip_scene(path, out, output=()):
 
 @pytest.mark.serial
 @needs_mpirun
-@pytest.mark.parametrize("ranks", [1, 2])
+@pytest.mark.parametrize("ranks", [1, pytest.param(2, marks=pytest.mark.mpirun)])
 def test_killed_tip_run_keeps_the_forces_per_atom(tmp_path, ranks):
     """An atomic tip with atom_forces, and field files of every 4th step (float32, a selection,
     lengths in nm), killed mid-path and restarted: atom_forces.csv has every step's forces

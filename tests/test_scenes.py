@@ -432,6 +432,7 @@ def test_cli_version():
 
 
 @pytest.mark.serial
+@pytest.mark.mpirun   # launches mpirun jobs
 @pytest.mark.parametrize("name, solver", [("adhesive_sphere.toml", "SNES vinewtonrsls (prefix -adhesion_"),
                                           ("rough_periodic.toml", "SNES vinewtonrsls (prefix -contact_")])
 def test_cli_dry_run_prints_the_plan_on_two_ranks(tmp_path, name, solver):
@@ -455,6 +456,7 @@ def write_scene(path, text):
 
 
 @pytest.mark.serial
+@pytest.mark.mpirun   # launches mpirun jobs
 @pytest.mark.parametrize("kind", ["non-adhesive", "adhesive"])
 def test_cli_progress_plots_and_plot_command(tmp_path, kind):
     """Progress on rank 0 for every step (step i of N, load, error, elapsed, time left) that
