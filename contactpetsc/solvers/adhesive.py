@@ -258,7 +258,6 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self.fmg_min_size = opts.getInt("fmg_min_size", code_default("adhesion", "fmg_min_size"))
         self.fmg_tol = opts.getReal("fmg_tol", code_default("adhesion", "fmg_tol"))
         self.fmg_steps = opts.getBool("fmg_steps", code_default("adhesion", "fmg_steps"))
-        self.fmg_ksp_max_it = opts.getInt("fmg_ksp_max_it", code_default("adhesion", "fmg_ksp_max_it"))
         choice = opts.getString("preconditioner", self._default("preconditioner")).lower()
         if choice != "auto" and choice not in ADHESIVE_PRECONDITIONERS:
             raise ValueError(f"-{self.prefix}preconditioner must be auto, spectral, mlmi or none, got {choice!r}")

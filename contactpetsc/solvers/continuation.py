@@ -101,8 +101,9 @@ class Continuation:
         # a level only predicts: an under-resolved level's Krylov solves that stagnate to the fine
         # grid's limit cost more than the fine solve (docs/performance.md, "Energy descent as the
         # fallback"); an inexact step is still judged by the line search, and the fallback follows
+        limit = PETSc.Options(self.prefix).getInt("fmg_ksp_max_it", code_default("adhesion", "fmg_ksp_max_it"))
         ksp = coarse._snes.getKSP()
-        ksp.setTolerances(max_it=min(ksp.getTolerances()[3], self.fmg_ksp_max_it))
+        ksp.setTolerances(max_it=min(ksp.getTolerances()[3], limit))
         self._coarse = coarse
         return coarse
 

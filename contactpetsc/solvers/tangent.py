@@ -8,6 +8,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from .base import with_options
+from .continuation import FALLBACKS
 from .pc_registry import ADHESIVE_PRECONDITIONERS
 from .stability import stability_margin
 from .states import AdhesiveState
@@ -205,7 +206,7 @@ class TangentAndState:
             fft_pairs=self.fft_pairs() - pairs0, wall_time=self.history.elapsed() - t0,
             check_time=self.check_time,
             stability_converged=self.stability_converged if np.isfinite(margin) else None,
-            solver=solver, fallback=solver.endswith(("+ptc", "+relaxation", "+descent")), energy=energy)
+            solver=solver, fallback=solver.endswith(tuple("+" + m for m in FALLBACKS)), energy=energy)
 
     def total_error(self, a_rows: np.ndarray, gap_rows: np.ndarray) -> float:
         """The paper's E_Total [z0]: rms of K (a(g) - a), the gap change when the trial

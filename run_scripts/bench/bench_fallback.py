@@ -48,10 +48,9 @@ import numpy as np  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
 from contactpetsc.solvers.adhesive import AdhesiveProblem  # noqa: E402
-from contactpetsc.solvers.problem import ContactProblem  # noqa: E402
 
 sys.path.insert(0, HERE)
-from rough_surface import adhesive_law, calibrate, path_approaches, rough_surface  # noqa: E402
+from rough_surface import adhesive_law, calibrate, load_unload_path, non_adhesive_unit, rough_surface  # noqa: E402
 
 assert PETSc.COMM_WORLD.getSize() == 1, "one rank"
 
@@ -80,13 +79,11 @@ def main():
     grid, h, _ = rough_surface(n)
     law = adhesive_law(grid, args.w, 1.0, name=args.law)
     z0 = law.length_scale()
-    t0 = time.process_time()
-    sig = ContactProblem(grid, h, 1.0, prefix="sig_", tol=1e-8).solve(mean_pressure=0.005)
-    emit(n=n, case="non-adhesive", fft_pairs=sig.fft_pairs, cpu=time.process_time() - t0)
+    unit, cpu = non_adhesive_unit(grid, h)
+    emit(n=n, case="non-adhesive", fft_pairs=unit, cpu=cpu)
     chains = args.chains or ["default", "relaxation,ptc" if law.hard_wall else "ptc"]
     cold = calibrate(grid, h, law, args.areas, max_n=128)
-    ends = calibrate(grid, h, law, [0.01, 0.10], max_n=128)
-    path = path_approaches(ends[0], ends[1], args.states) if args.states else []
+    path = load_unload_path(grid, h, law, args.states) if args.states else []
     first = {}
     for c, chain in enumerate(chains):
         def report(case, k, approach, st, cpu):
@@ -95,7 +92,7 @@ def main():
             diff = float(np.abs(gap - first[key]).max()) / z0 if key in first else None
             first.setdefault(key, gap)
             emit(n=n, law=args.law, w=args.w, chain=chain, case=case, state=k, approach=approach,
-                 fft_pairs=st.fft_pairs, ratio=st.fft_pairs / sig.fft_pairs, cpu=cpu,
+                 fft_pairs=st.fft_pairs, ratio=st.fft_pairs / unit, cpu=cpu,
                  converged=st.converged, stable=st.stable, solver=st.solver,
                  contact_fraction=st.contact_fraction, energy=st.energy, gap_diff_z0=diff,
                  reason="" if st.converged else st.reason[:200])

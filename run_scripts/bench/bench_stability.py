@@ -42,11 +42,10 @@ from petsc4py import PETSc  # noqa: E402
 
 from contactpetsc.solvers.adhesive import AdhesiveProblem  # noqa: E402
 from contactpetsc.solvers.options import code_default  # noqa: E402
-from contactpetsc.solvers.problem import ContactProblem  # noqa: E402
 from contactpetsc.solvers.stability import stability_margin  # noqa: E402
 
 sys.path.insert(0, HERE)
-from rough_surface import adhesive_law, calibrate, path_approaches, rough_surface  # noqa: E402
+from rough_surface import adhesive_law, load_unload_path, non_adhesive_unit, rough_surface  # noqa: E402
 
 assert PETSc.COMM_WORLD.getSize() == 1, "one rank"
 
@@ -66,13 +65,11 @@ def margin(pb, method, **kw):
 def main():
     grid, h, _ = rough_surface(args.size)
     law = adhesive_law(grid, args.w, 1.0, name=args.law)
-    t0 = time.process_time()
-    pairs_unit = ContactProblem(grid, h, 1.0, prefix="unit_", tol=1e-8).solve(mean_pressure=0.005).fft_pairs
-    emit(kind="non-adhesive", size=args.size, fft_pairs=pairs_unit, cpu_s=time.process_time() - t0)
-    approaches = calibrate(grid, h, law, [0.01, 0.10], max_n=128)
+    pairs_unit, cpu = non_adhesive_unit(grid, h)
+    emit(kind="non-adhesive", size=args.size, fft_pairs=pairs_unit, cpu_s=cpu)
     pb = AdhesiveProblem(grid, h, 1.0, law, prefix="stab_", stability_check=False)
     steps = code_default("adhesion", "stability_steps")
-    for k, a in enumerate(path_approaches(approaches[0], approaches[1], args.states)):
+    for k, a in enumerate(load_unload_path(grid, h, law, args.states)):
         st = pb.solve(approach=a, raise_on_failure=False)
         ref = margin(pb, "lobpcg", steps=3000, residual_tol=1e-7)
         for method in ("lobpcg", "lanczos"):

@@ -40,7 +40,7 @@ from petsc4py import PETSc  # noqa: E402
 from contactpetsc.solvers.adhesive import AdhesiveProblem  # noqa: E402
 
 sys.path.insert(0, HERE)
-from rough_surface import adhesive_law, calibrate, path_approaches, rough_surface  # noqa: E402
+from rough_surface import adhesive_law, load_unload_path, rough_surface  # noqa: E402
 
 assert PETSc.COMM_WORLD.getSize() == 1, "one rank"
 
@@ -54,8 +54,7 @@ def main():
     grid, h, _ = rough_surface(n)
     law = adhesive_law(grid, args.w, 1.0, name=args.law)
     z0 = law.length_scale()
-    ends = calibrate(grid, h, law, [0.01, 0.10], max_n=128)
-    coarse = path_approaches(ends[0], ends[1], args.states)
+    coarse = load_unload_path(grid, h, law, args.states)
     reference = {}
     for r in sorted(args.refine, reverse=True):     # the finest first: the reference
         # every coarse step in r equal sub-steps; the coarse approaches are among them

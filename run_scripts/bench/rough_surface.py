@@ -94,3 +94,21 @@ def path_approaches(lo, hi, states):
     up = max(2, states - states // 2)
     down = states - up
     return list(np.linspace(lo, hi, up)) + list(np.linspace(hi, lo, down + 1)[1:])
+
+
+def load_unload_path(grid, h, law, states):
+    """Approaches [m] of the benchmark's load-unload path: ``states`` from 1 % contact up to 10 %
+    and back (``path_approaches``), the ends from ``calibrate``."""
+    ends = calibrate(grid, h, law, [0.01, 0.10])
+    return path_approaches(ends[0], ends[1], states)
+
+
+def non_adhesive_unit(grid, h):
+    """(FFT pairs, CPU s) of the non-adhesive solve of the heights at the benchmark's mean
+    pressure 0.005 E* (E* = 1) to 1e-8: the unit of the adhesive benchmarks' ratios."""
+    import time
+
+    from contactpetsc.solvers.problem import ContactProblem
+    t0 = time.process_time()
+    st = ContactProblem(grid, h, 1.0, prefix="unit_", tol=1e-8).solve(mean_pressure=0.005)
+    return st.fft_pairs, time.process_time() - t0
