@@ -128,7 +128,7 @@ def test_auto_picks_per_grid_from_the_snap_number_and_gives_the_same_state(coll)
         mild = sphere_problem(0.9, law="lj", n=64, dx=1.0, radius=100.0, prefix="amlmi_auto_ljmild_")
         wallless.snes()
         mild.snes()
-        mild_coarse = mild._coarse_problem()
+        mild_coarse = mild.coarse_levels.coarse()
     lj_lo, lj_hi = AUTO_MLMI_SNAP["full LJ"]
     # the full LJ curve: spectral below its window, mlmi in it; its coarse grids follow the finest
     assert mild.snap_number < lj_lo and mild.preconditioner == "spectral"
@@ -141,7 +141,7 @@ def test_auto_picks_per_grid_from_the_snap_number_and_gives_the_same_state(coll)
                             stability_check=False)
         pb.snes()
         if pc == "auto":
-            coarse = pb._coarse_problem()
+            coarse = pb.coarse_levels.coarse()
             assert pb.preconditioner == "mlmi" and (coarse is None or coarse.preconditioner == "spectral")
         pb.solve(approach=-0.5)
         states.append(pb.solve(approach=0.5))

@@ -221,7 +221,7 @@ def adhesive_path(law_name, mu, s, e, name):
         pb = AdhesiveProblem(g, sphere(g, 100.0 * s), e, law, prefix=prefix(name), stability_check=False,
                              petsc_options={"fmg_min_size": 16})
         pb.snes()
-        coarse = pb._coarse_problem()
+        coarse = pb.coarse_levels.coarse()
         states = [pb.solve(approach=d * s) for d in APPROACHES]
     if (s, e) == (1.0, 1.0):
         _reference[key] = pb, coarse, states

@@ -162,11 +162,11 @@ class AdhesiveSteps:
 
     def coarse_levels(self) -> list | None:
         """The nested iteration's coarse levels that predict a sweep's next step, for its step
-        file (``problem.coarse_state``: (grid, {restart field: the rank's rows}, approach) each)."""
+        file (``problem.coarse_levels.state``: (grid, {restart field: the rank's rows}, approach) each)."""
         if not self.sweeping:
             return None
         return [(grid, dict(zip(self.fields[-len(x):], x)), approach)
-                for grid, x, approach in self.problem.coarse_state()]
+                for grid, x, approach in self.problem.coarse_levels.state()]
 
     def _resume_coarse(self, recorder, step: int) -> None:
         """The coarse levels stored with step ``step`` taken up: the next step is predicted as in
@@ -174,8 +174,8 @@ class AdhesiveSteps:
         out for the rest of the path (noted where there would be some)."""
         levels = recorder.coarse_levels(step, self.fields)
         if levels is not None:
-            self.problem.warm_start_coarse(levels)
-        elif self.problem.fmg_steps and self.problem.has_coarse_level():
+            self.problem.coarse_levels.warm_start(levels)
+        elif self.problem.coarse_levels.steps and self.problem.coarse_levels.available():
             PETSc.Sys.Print(f"  note: step {step}'s file has no coarse levels (an older version wrote it): "
                             "the restarted steps are predicted without the nested iteration's coarse grids, "
                             "so their Newton iterations, and where the stability check runs, may differ "

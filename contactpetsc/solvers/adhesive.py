@@ -15,7 +15,7 @@ rows); ``adhesive_mlmi.py`` the multilevel cycle on the whole system.
 
 Globalisation (the problem is non-convex): Newton steps only start from a
 converged neighbouring state (tangent predictor; line search ``newton_linesearch``);
-where Newton fails or stalls, the fallback chain (``continuation.py``) follows
+where Newton fails or stalls, the fallback chain (``fallback.py``) follows
 a relaxation path.  Every converged state is checked for stability
 (``stability.py``, 1 - lambda_max of the pencil A, (K^-1)_NN); an unstable state is
 reported as such, never passed off as a point of the path.
@@ -40,10 +40,12 @@ from ..physics.interactions import InteractionLaw
 from ..physics.resolution import RESOLUTION_NODES, check_resolution, snap_number
 from ..physics.traction import AdhesiveTraction
 from .adhesive_jacobian import AdhesiveJacobian, minloc
+from .adhesive_levels import CoarseLevels
 from .adhesive_residual import AdhesiveCallbacks
 from .base import AdhesiveSolveError, VIProblem, check_tolerance, reason_name, with_options
 from .continuation import Continuation
-from .descent import EnergyDescent
+from .descent import EnergyDescent, require_descent
+from .fallback import FallbackChain
 from .history import SolveHistory
 from .load_control import solve_force
 from .options import LINESEARCH_MAX_STEP, code_default, print_help
@@ -52,11 +54,6 @@ from .states import AdhesiveState
 from .tangent import TangentAndState, stability_mode
 
 __all__ = ["AdhesiveProblem", "AdhesiveSolveError", "AdhesiveState", "newton_ksp_type", "newton_linesearch"]
-
-#: line search of the pseudo-transient continuation SNES: full (shifted) steps, the residual
-#: norm need not fall monotonically along the relaxation path
-PTC_LINESEARCH = "basic"
-
 
 def newton_linesearch(hard_wall: bool) -> str:
     """The line search of the Newton steps (code default of ``-<prefix>snes_linesearch_type``).
@@ -157,8 +154,8 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self._gap_at = None             # (flat positions, G'(a)) of those rows
         self._adhesive_residual = np.nan  # local max kappa |a - a(g)| at the last residual
         self._pressure_residual = np.nan  # local max |a - a(g)| / (P + |a(g)|) there
-        self._coarse = None             # the problem on the 2x coarser grid (nested iteration)
-        self._coarse_pairs = 0.0        # FFT pairs of a dropped coarse level (fine-grid units)
+        self.coarse_levels = None       # the nested iteration (``CoarseLevels``), made with the solvers
+        self.fallback = None            # the fallback chain (``FallbackChain``), made with the solvers
         self._prev_approach = None
         self._budget_start = None       # time.monotonic() at the first solve under a time budget
         self._g = np.zeros((grid.ny_local, grid.nx))
@@ -223,21 +220,21 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
             opts.getString("stability_check", str(self._default("stability_check"))),
             f"-{self.prefix}stability_check")
         self.stability_steps = opts.getInt("stability_steps", code_default("adhesion", "stability_steps"))
-        self.ptc_shift0 = opts.getReal("ptc_shift", code_default("adhesion", "ptc_shift"))
         # Newton without a new smallest error for this many steps has stalled: full steps
         # can cycle for good where a few nodes of one edge sit at their own fold; PTC then
         # goes on from the best iterate (0: never; docs/formulation.md, "Adhesive contact: unknowns and Newton")
         self.stall_steps = opts.getInt("stall_steps", code_default("adhesion", "stall_steps"))
-        # bounded: where PTC has not settled in a few hundred steps it wanders
-        # (under-resolved strong adhesion; docs/robustness.md)
-        self.ptc_max_it = opts.getInt("ptc_max_it", code_default("adhesion", "ptc_max_it"))
-        self._read_fallback_options(opts)
+        self.fallback = FallbackChain(self)
+        self.strategy = opts.getString("strategy", code_default("adhesion", "strategy")).lower()
+        if self.strategy not in ("newton", "descent"):
+            raise ValueError(f"-{self.prefix}strategy must be newton or descent, got {self.strategy!r}")
+        if self.strategy == "descent":
+            require_descent(self, f"-{self.prefix}strategy descent")
         # past the wall-time budget every solve stops (WALL_TIME_BUDGET): a batch job ends
         # cleanly with its finished steps written, an unresolvable case in bounded time
         self.time_budget = opts.getReal("time_budget", code_default("adhesion", "time_budget"))
         if not self.time_budget >= 0.0:
             raise ValueError(f"-{self.prefix}time_budget must be >= 0 s (0: no budget), got {self.time_budget!r}")
-        self.fallback_max_cycles = opts.getInt("fallback_max_cycles", code_default("adhesion", "fallback_max_cycles"))
         self.use_predictor = opts.getBool("predictor", code_default("adhesion", "predictor"))
         # every displacement-controlled state's tangent stiffness (one Krylov solve; sweeps
         # test jumps with it, load control steps with it).  Off: NaN, and the tangent is
@@ -253,11 +250,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         # the gap form needs the law's inverse: the nodal rule of the full LJ curve
         self.gap_form = form == "gap" and self.traction.invertible
         self.step_limit = opts.getReal("step_limit", 0.5 if self.traction.invertible else 0.0)
-        # nested iteration on the first solve: the same problem on 2x coarser grids first
-        self.fmg = opts.getBool("fmg", code_default("adhesion", "fmg"))
-        self.fmg_min_size = opts.getInt("fmg_min_size", code_default("adhesion", "fmg_min_size"))
-        self.fmg_tol = opts.getReal("fmg_tol", code_default("adhesion", "fmg_tol"))
-        self.fmg_steps = opts.getBool("fmg_steps", code_default("adhesion", "fmg_steps"))
+        self.coarse_levels = CoarseLevels(self)
         choice = opts.getString("preconditioner", self._default("preconditioner")).lower()
         if choice != "auto" and choice not in ADHESIVE_PRECONDITIONERS:
             raise ValueError(f"-{self.prefix}preconditioner must be auto, spectral, mlmi or none, got {choice!r}")
@@ -283,9 +276,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self._J = J
         self._snes = self._make_snes(self.prefix, newton_linesearch(self.hard_wall), self.max_it,
                                      1000 if self.hard_wall else 30)
-        # pseudo-transient continuation takes inexact steps: a step of a path need not be
-        # solved exactly (docs/formulation.md, "Adhesive contact: unknowns and Newton")
-        self._ptc = self._make_snes(self.prefix + "ptc_", PTC_LINESEARCH, self.ptc_max_it, 30)
+        self.fallback.build()
         return self._snes
 
     def _make_snes(self, prefix: str, linesearch: str, max_it: int, ksp_max_it: int) -> PETSc.SNES:
@@ -391,7 +382,8 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         descend = self.strategy == "descent" and approach is not None
         if descend:
             ok, d_reason, d_newton, d_linear = EnergyDescent(self).descend(float(approach), x_start)
-        coarse_predicted = not descend and approach is not None and self._coarse_step(float(approach))
+        coarse_predicted = (not descend and approach is not None
+                            and self.coarse_levels.predict(float(approach), self._prev_approach))
         if not (coarse_predicted or descend) and approach is not None and self.use_predictor:
             self._ensure_tangent()   # x is still the previous state
             if self._tangent is not None:
@@ -402,8 +394,8 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
                     np.maximum(q, 0.0, out=q)
         check = self.stability_check if check_stability is None else check_stability
         # only where PTC or the descent would take over
-        self._stall_watch = self.stall_steps > 0 and fallback and approach is not None and bool(
-            {"ptc", "descent"} & set(self.fallback_chain))
+        self._stall_watch = (self.stall_steps > 0 and fallback and approach is not None
+                             and self.fallback.takes_over_stalls())
         converged, reason, newton, linear = self._run_snes()
         self._stall_watch = False
         solver = self.solver_name
@@ -415,8 +407,10 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
             check = not converged or bool(check(newton, self.net_force()))
         margin = self.stability() if (converged and check) else float("nan")
         if fallback and approach is not None and (not converged or margin <= 0) and not self.out_of_time():
-            converged, reason, newton, linear, margin, solver = self._follow_fallback(
-                approach, x_start, check, newton, linear, solver, skip=("descent",) if descend else ())
+            if converged:
+                reason = f"UNSTABLE (stability margin {margin:.3e})"
+            converged, reason, newton, linear, margin, solver = self.fallback.follow(
+                approach, x_start, check, newton, linear, solver, reason, skip=("descent",) if descend else ())
         if not converged:
             # the state reported: the iterate of smallest error (never what a failed SNES
             # left in its solution); the next solve starts from the last converged state

@@ -8,7 +8,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from .base import with_options
-from .continuation import FALLBACKS
+from .fallback import FALLBACKS
 from .pc_registry import ADHESIVE_PRECONDITIONERS
 from .stability import stability_margin
 from .states import AdhesiveState

@@ -1,0 +1,170 @@
+"""Nested iteration of ``AdhesiveProblem``: a strategy that drives the same problem on 2x
+coarser grids (docs/formulation.md, "Adhesive contact: unknowns and Newton").
+
+* The first state of a solve is the coarse problem's solution at the same approach,
+  prolonged piecewise constant (pressures are densities), recursively down to
+  ``min_size`` nodes.
+* Later steps (``steps``) are predicted from the coarse level stepped along with the fine
+  one: x + P (x_c(delta) - x_c(delta_prev)), P bilinear (a full-approximation predictor).
+* A level that fails (even with its fallback) is dropped for good: a grid that cannot
+  follow the path gives no useful start and would cost a fallback run at every later step.
+
+Options, under ``<problem prefix>fmg_``: ``-<prefix>fmg`` (on/off), ``_min_size``, ``_tol`` (the
+levels' error measures, z0), ``_steps`` (the predictor) and ``_ksp_max_it``.
+"""
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+from petsc4py import PETSc
+
+from ..physics.resolution import UnderResolvedWarning
+from .options import code_default
+from .transfer import can_halve, halved, prolong_bilinear, prolong_constant, restrict
+
+
+class CoarseLevels:
+    """The coarse levels below ``problem`` (an ``AdhesiveProblem``); read its options when made
+    (inside the problem's ``inserted_options``)."""
+
+    def __init__(self, problem):
+        self.problem = problem
+        self.prefix = problem.prefix + "fmg_"
+        opts = PETSc.Options(self.prefix)
+        self.enabled = PETSc.Options(problem.prefix).getBool("fmg", code_default("adhesion", "fmg"))
+        self.min_size = opts.getInt("min_size", code_default("adhesion", "fmg_min_size"))
+        self.tol = opts.getReal("tol", code_default("adhesion", "fmg_tol"))
+        self.steps = opts.getBool("steps", code_default("adhesion", "fmg_steps"))
+        # a level only predicts: an under-resolved level's Krylov solves that stagnate to the fine
+        # grid's limit cost more than the fine solve (docs/performance.md, "Energy descent as the
+        # fallback"); an inexact step is still judged by the line search, and the fallback follows
+        self.ksp_max_it = opts.getInt("ksp_max_it", code_default("adhesion", "fmg_ksp_max_it"))
+        self._coarse = None          # the problem on the 2x coarser grid; False: none or dropped
+        self._dropped_pairs = 0.0    # FFT pairs of a dropped level (fine-grid units)
+
+    def available(self) -> bool:
+        """Whether there is a level below the problem's grid."""
+        grid = self.problem.grid
+        # levels coarser than the adhesive range are kept: without them the first level
+        # that resolves it needs continuation too (docs/formulation.md, "Adhesive contact: unknowns and Newton")
+        return bool(self.enabled and can_halve(grid) and min(grid.nx, grid.ny) // 2 >= self.min_size)
+
+    def coarse(self):
+        """The same problem on the 2x coarser grid (h averaged over 2 x 2 blocks), or None;
+        made on first use."""
+        if self._coarse is not None:
+            return self._coarse or None
+        self._coarse = False
+        if not self.available():
+            return None
+        fine = self.problem
+        grid = fine.grid
+        gc = halved(grid)
+        hc = gc.create_vec()
+        gc.rows(hc)[...] = restrict(grid.rows(fine.heights, readonly=True))
+        # FFTW_MEASURE planning would cost more than the coarse solves themselves
+        op = fine.op.on_grid(gc, prefix=fine.prefix, planner="estimate")
+        with warnings.catch_warnings():
+            # a coarse grid of the nested iteration resolves less than the fine one by design
+            warnings.simplefilter("ignore", UnderResolvedWarning)
+            # auto: a hard-wall grid chooses from its own snap number (the cycle fails near one);
+            # the full LJ curve's coarse grids take the finest grid's pick (docs/formulation.md)
+            coarse = type(fine)(gc, hc, fine.e_star, fine.law, element_integration=fine.element_integration,
+                                prefix=fine.prefix, operator=op,
+                                preconditioner=fine.preconditioner_choice if fine.hard_wall else fine.preconditioner,
+                                stability_check=False, petsc_options=fine.petsc_options)
+        coarse._build()
+        coarse._budget_start = fine._budget_start   # one budget for the nested solves
+        coarse.tol = max(self.tol, fine.tol)
+        coarse.use_predictor = False
+        if "descent" in coarse.fallback.methods:
+            # a level only predicts: where its descent does not reach a state, the level is
+            # dropped rather than followed by thousands of relaxation cycles or PTC steps
+            coarse.fallback.methods = ["descent"]
+        coarse.compute_tangent = False   # a level needs no predictor or stiffness
+        ksp = coarse._snes.getKSP()
+        ksp.setTolerances(max_it=min(ksp.getTolerances()[3], self.ksp_max_it))
+        self._coarse = coarse
+        return coarse
+
+    def first_state(self, approach: float) -> bool:
+        """The problem's unknowns from the coarse solution at ``approach``, prolonged piecewise
+        constant; False where there is none (no level, or it failed and is dropped)."""
+        coarse = self.coarse()
+        if coarse is None:
+            return False
+        st = coarse.solve(approach=approach, raise_on_failure=False, check_stability=False)
+        if not st.converged:
+            self._drop()
+            return False
+        fine = self.problem
+        xb, xc = fine.blocks(fine._x), coarse.blocks(coarse._x, readonly=True)
+        for k in range(fine.n_blocks):
+            xb[k] = prolong_constant(xc[k])
+        return True
+
+    def predict(self, approach: float, previous: float | None) -> bool:
+        """Add the prolonged coarse step P (x_c(approach) - x_c(previous)) to the problem's
+        unknowns, the coarse level stepped along; False (unknowns untouched) where the level
+        is not at the previous approach ``previous`` [m] or its step failed."""
+        coarse = self._coarse
+        if not (coarse and self.steps and coarse._approach == previous):
+            return False
+        old = coarse._x.copy()
+        st = coarse.solve(approach=approach, raise_on_failure=False, check_stability=False)
+        if st.converged:
+            fine = self.problem
+            old.aypx(-1.0, coarse._x)
+            xb, dc = fine.blocks(fine._x), coarse.blocks(old, readonly=True)
+            # the increment is smoother than the state: bilinear (fewer FFT pairs than
+            # piecewise constant; docs/formulation.md, "Adhesive contact: unknowns and Newton")
+            for k in range(fine.n_blocks):
+                xb[k] += prolong_bilinear(dc[k], coarse.grid)
+            if fine.hard_wall:
+                np.maximum(xb[0], 0.0, out=xb[0])
+        old.destroy()
+        if not st.converged:
+            self._drop()
+        return st.converged
+
+    def _drop(self) -> None:
+        """Stop using the level after a failed solve there; its FFT pairs stay counted."""
+        self._dropped_pairs += self._coarse.fft_pairs() / 4.0
+        self._coarse = False
+
+    def fft_pairs(self) -> float:
+        """FFT pairs of the levels below, kept and dropped, in the problem's grid units."""
+        return (self._coarse.fft_pairs() / 4.0 if self._coarse else 0.0) + self._dropped_pairs
+
+    def state(self) -> list:
+        """The levels that the next steps are predicted from, as they are now, finest first:
+        (grid, the rank's rows of its unknowns (n_blocks, ny_local, nx): [q,] a, approach [m])
+        each; [] where no level is stepped (``steps`` off, levels dropped).  What a restarted
+        path takes up (``warm_start``) to predict its next step as the uninterrupted one does."""
+        out, level = [], self._coarse if self.steps else None
+        while level and level._started:
+            out.append((level.grid, level.blocks(level._x, readonly=True), level._approach))
+            level = level.coarse_levels._coarse
+        return out
+
+    def warm_start(self, levels: list) -> None:
+        """Take up the levels of ``state`` after the problem's ``warm_start`` (a restart):
+        ``levels`` finest first, each (approach [m], read), ``read(grid)`` giving the rank's rows
+        of the level's unknowns on ``grid``.  The level below the last is off, as it was
+        (dropped, or none); levels this run's options do not make are left out."""
+        here = self
+        for approach, read in levels:
+            coarse = here.coarse()
+            if coarse is None:
+                return
+            coarse.blocks(coarse._x)[...] = read(coarse.grid)
+            coarse._approach, coarse._started = float(approach), True
+            here = coarse.coarse_levels
+        if here._coarse is None:
+            here._coarse = False
+
+    def destroy(self) -> None:
+        """Destroy the levels' solvers (their callbacks hold the coarse problems)."""
+        if self._coarse:
+            self._coarse._destroy_solvers()
