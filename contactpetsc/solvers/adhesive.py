@@ -50,6 +50,7 @@ from .history import SolveHistory
 from .load_control import solve_force
 from .options import LINESEARCH_MAX_STEP, code_default, print_help
 from .pc_registry import ADHESIVE_PRECONDITIONERS, auto_adhesive_preconditioner
+from .predictor import TangentPredictor
 from .states import AdhesiveState
 from .tangent import TangentAndState, stability_mode
 
@@ -140,9 +141,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self.shift = 0.0                # pseudo-transient continuation shift (0: plain Newton)
         self._stall_watch = False       # stop a stalled Newton (see -<prefix>stall_steps)
         self.check_time = 0.0          # stability check and tangent time of the current solve
-        self._tangent = None            # (approach, dx/d delta, dF/d delta) at the last converged state
-        self._tangent_due = None        # approach of the present state when its tangent is not computed yet
-        self.compute_tangent = True     # the tangent and stiffness of converged displacement-controlled states
+        self.predictor = None           # the tangent predictor (``TangentPredictor``), made with the solvers
         self.stability_converged = None  # whether the last stability check settled
         self.history = SolveHistory()
         self._x = None
@@ -235,11 +234,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self.time_budget = opts.getReal("time_budget", code_default("adhesion", "time_budget"))
         if not self.time_budget >= 0.0:
             raise ValueError(f"-{self.prefix}time_budget must be >= 0 s (0: no budget), got {self.time_budget!r}")
-        self.use_predictor = opts.getBool("predictor", code_default("adhesion", "predictor"))
-        # every displacement-controlled state's tangent stiffness (one Krylov solve; sweeps
-        # test jumps with it, load control steps with it).  Off: NaN, and the tangent is
-        # solved only where the next step's predictor needs it (no coarse-grid predictor)
-        self.compute_stiffness = opts.getBool("stiffness", code_default("adhesion", "stiffness"))
+        self.predictor = TangentPredictor(self)
         # off by default: at hard-wall, high-Tabor jump-ins the relaxation fallback can need
         # thousands of cycles from rest; sweeps that start from separation get the same state
         self.load_from_rest = opts.getBool("load_from_rest", code_default("adhesion", "load_from_rest"))
@@ -384,14 +379,8 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
             ok, d_reason, d_newton, d_linear = EnergyDescent(self).descend(float(approach), x_start)
         coarse_predicted = (not descend and approach is not None
                             and self.coarse_levels.predict(float(approach), self._prev_approach))
-        if not (coarse_predicted or descend) and approach is not None and self.use_predictor:
-            self._ensure_tangent()   # x is still the previous state
-            if self._tangent is not None:
-                # Euler predictor along the branch: x + dx/d delta * (delta - delta_prev)
-                self._x.axpy(float(approach) - self._tangent[0], self._tangent[1])
-                if self.hard_wall:
-                    q = self.blocks(self._x)[0]
-                    np.maximum(q, 0.0, out=q)
+        if not (coarse_predicted or descend) and approach is not None:
+            self.predictor.predict(float(approach))
         check = self.stability_check if check_stability is None else check_stability
         # only where PTC or the descent would take over
         self._stall_watch = (self.stall_steps > 0 and fallback and approach is not None
@@ -428,7 +417,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
                 reason += (f" [under-resolved adhesion: the adhesive zone spans {self.zone_nodes:.2g} grid "
                            f"spacings, the criterion is {RESOLUTION_NODES:g}]")
         state = self.make_state(converged, reason, newton, linear, pairs0, t0, margin,
-                            solver, tangent=approach is not None and converged and self.compute_tangent)
+                            solver, tangent=approach is not None and converged)
         if not converged:
             x_start.copy(self._x)   # keep the last good state as the next start
         x_start.destroy()

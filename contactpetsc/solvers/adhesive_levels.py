@@ -77,12 +77,11 @@ class CoarseLevels:
         coarse._build()
         coarse._budget_start = fine._budget_start   # one budget for the nested solves
         coarse.tol = max(self.tol, fine.tol)
-        coarse.use_predictor = False
         if "descent" in coarse.fallback.methods:
             # a level only predicts: where its descent does not reach a state, the level is
             # dropped rather than followed by thousands of relaxation cycles or PTC steps
             coarse.fallback.methods = ["descent"]
-        coarse.compute_tangent = False   # a level needs no predictor or stiffness
+        coarse.predictor.predicts = coarse.predictor.wanted = False   # a level needs no tangent
         ksp = coarse._snes.getKSP()
         ksp.setTolerances(max_it=min(ksp.getTolerances()[3], self.ksp_max_it))
         self._coarse = coarse

@@ -69,11 +69,9 @@ class Continuation:
         xb[-1] = grid.rows(adhesive_pressure, readonly=True)
         self._approach = float(approach)
         self._started = True
-        self._drop_tangent()
-        if self.compute_tangent:
-            # the next step's predictor from this state's tangent, as after the solve that
-            # reached it: a restarted path takes the uninterrupted one's steps
-            self._tangent_due = self._approach
+        # the next step's predictor from this state's tangent, as after the solve that
+        # reached it: a restarted path takes the uninterrupted one's steps
+        self.predictor.due()
     def _load_from_rest(self, approach, raise_on_failure, check_stability) -> AdhesiveState:
         """The first solve: the state reached by loading from separation (min h - z0) to
         ``approach`` in steps of at most ``-<prefix>initial_step`` z0, each warm-started.
@@ -97,7 +95,7 @@ class Continuation:
             # a jump on the way that no relaxation path reached (strong adhesion with a hard
             # wall): start again from the Signorini solution at the target itself
             self._initial_guess(approach)
-            self._drop_tangent()
+            self.predictor.drop()
             st = self.solve(approach=approach, raise_on_failure=False, check_stability=check_stability)
             newton, linear = newton + st.newton_iterations, linear + st.linear_iterations
             st.solver += " (from the Signorini state: loading from rest failed)"
@@ -145,7 +143,8 @@ class Continuation:
         callbacks hold the problem, a cycle that Python's collector cannot see."""
         if self.coarse_levels is not None:
             self.coarse_levels.destroy()
-        self._drop_tangent()
+        if self.predictor is not None:
+            self.predictor.drop()
         if self.fallback is not None:
             self.fallback.destroy()
         if self._snes is not None:

@@ -26,7 +26,8 @@ def solve_force(problem, force: float, *, rel_tol: float = 1e-8, max_updates: in
         delta = float(problem.heights.min()[1])
     scale = max(abs(force), 2.0 * np.pi * problem.law.work_of_adhesion * problem.z0 * 1e3)
     st = None
-    eager, problem.compute_stiffness = problem.compute_stiffness, True    # the updates step with dW/d delta
+    predictor = problem.predictor
+    eager, predictor.stiffness_each_state = predictor.stiffness_each_state, True   # the updates step with dW/d delta
     try:
         for _ in range(max_updates):
             st = problem.solve(approach=delta, raise_on_failure=False)
@@ -46,7 +47,7 @@ def solve_force(problem, force: float, *, rel_tol: float = 1e-8, max_updates: in
             st.converged = False
             st.reason = f"DIVERGED_LOAD_ITERATION ({max_updates} approach updates)"
     finally:
-        problem.compute_stiffness = eager
+        predictor.stiffness_each_state = eager
     if raise_on_failure:
         raise AdhesiveSolveError(f"load-controlled adhesive solve for {force:.4e} N failed: {st.reason}")
     return st

@@ -1,6 +1,6 @@
-"""States of ``AdhesiveProblem``: the tangent dx/d delta and stiffness dF/d delta, snapshots
-to come back to, the stability check and the ``AdhesiveState`` (docs/formulation.md,
-"Adhesive contact: unknowns and Newton")."""
+"""States of ``AdhesiveProblem``: snapshots to come back to, the stability check and the
+``AdhesiveState`` (docs/formulation.md, "Adhesive contact: unknowns and Newton"); the tangent
+is ``predictor.py``'s."""
 from __future__ import annotations
 
 import numpy as np
@@ -9,7 +9,6 @@ from petsc4py import PETSc
 
 from .base import with_options
 from .fallback import FALLBACKS
-from .pc_registry import ADHESIVE_PRECONDITIONERS
 from .stability import stability_margin
 from .states import AdhesiveState
 
@@ -53,23 +52,19 @@ class Snapshot:
 
 
 class TangentAndState:
-    """Mixin of ``AdhesiveProblem``: tangent, snapshots, stability and the solved state."""
+    """Mixin of ``AdhesiveProblem``: snapshots, stability and the solved state."""
 
     @with_options
     def snapshot(self) -> Snapshot:
         """The current unknowns, approach and tangent: to come back to (e.g. to bisect a jump)."""
         self._build()
-        self._ensure_tangent()
-        tangent = None if self._tangent is None else (self._tangent[0], self._tangent[1].copy(), self._tangent[2])
-        return Snapshot(self._x.copy(), self._approach, tangent)
+        return Snapshot(self._x.copy(), self._approach, self.predictor.copy())
 
     def restore(self, snap: Snapshot) -> None:
         """Make ``snap`` the present state (``snap`` stays valid: it is copied)."""
         snap.x.copy(self._x)
         self._approach = snap.approach
-        self._drop_tangent()
-        tangent = snap.tangent
-        self._tangent = None if tangent is None else (tangent[0], tangent[1].copy(), tangent[2])
+        self.predictor.restore(snap.tangent)
         self._started = True
 
     def _inactive_set(self) -> PETSc.IS:
@@ -79,68 +74,6 @@ class TangentAndState:
         local.append(np.arange(xb[-1].size) + (xb[-1].size if self.hard_wall else 0))
         idx = (np.concatenate(local) + self.offset).astype(PETSc.IntType)
         return PETSc.IS().createGeneral(idx, comm=self.grid.comm)
-
-    def _drop_tangent(self) -> None:
-        if self._tangent is not None:
-            self._tangent[1].destroy()
-        self._tangent = self._tangent_due = None
-
-    def _ensure_tangent(self) -> None:
-        """Compute the tangent of the present state if it is due (see ``make_state``)."""
-        if self._tangent_due is None:
-            return
-        approach = self._tangent_due
-        self._tangent_due = None
-        here, self._approach = self._approach, approach   # the state's own approach
-        tv, stiffness = self.tangent()
-        self._approach = here
-        self._tangent = (approach, tv, stiffness)
-
-    @with_options
-    def tangent(self) -> tuple[PETSc.Vec, float]:
-        """(dx/d delta, dF/d delta [N/m]) at the current state: J_II t = -dF/d delta on the
-        inactive set (contact nodes keep zero gap: dq from it, da from the law)."""
-        grid = self.grid
-        self._jacobian(None, self._x, None, None)
-        iset = self._inactive_set()
-        J = self._snes.getJacobian()[0]
-        A = J.createSubMatrix(iset, iset)
-        ctx = A.getPythonContext()
-        rhs = np.zeros_like(ctx.full_in)
-        ones = np.ones((grid.ny_local, grid.nx))
-        if self.hard_wall:
-            rhs[0] = 1.0
-        self.traction.apply_derivative(ones, rhs[-1])
-        rhs[-1] *= -self.kappa
-        if self._gap_rows is not None:
-            rhs[-1][self._gap_rows] = 1.0   # d(g - G(a))/d delta = -1
-        b, t = A.createVecs()
-        ctx.from_full(rhs, b)
-        ksp = PETSc.KSP().create(comm=grid.comm)
-        ksp.setOptionsPrefix(self.prefix + "tangent_")
-        ksp.setType("gmres")
-        # a predictor and a stiffness for jump detection and load updates: 1e-2 is plenty
-        # (a jump is a force change larger than the predicted change itself; the predictor's
-        # error is the branch's curvature times the step squared; docs/performance.md)
-        ksp.setTolerances(rtol=1e-2, max_it=1000)
-        if self.preconditioner == "none":
-            ksp.getPC().setType("none")
-        else:
-            ksp.getPC().setType("python")
-            ksp.getPC().setPythonType(ADHESIVE_PRECONDITIONERS[self.preconditioner])
-        ksp.setOperators(A, A)
-        ksp.setFromOptions()
-        ksp.solve(b, t)
-        full = np.zeros_like(ctx.full_in)
-        ctx.to_full(t, full)
-        tv = self.create_unknown()
-        self.blocks(tv)[...] = full
-        ok = ksp.getConvergedReason() > 0
-        for obj in (ksp, b, t, A, iset):
-            obj.destroy()
-        area = grid.lengths[0] * grid.lengths[1]
-        stiffness = grid.mpi_comm.allreduce(float(full.sum())) / (grid.nx * grid.ny) * area if ok else float("nan")
-        return tv, stiffness
 
     def net_force(self) -> float:
         """The net force [N] of the present unknowns, sum of p dx dy (collective)."""
@@ -183,15 +116,14 @@ class TangentAndState:
         if beyond and converged:
             converged, reason = False, "LJ_BEYOND_SAFE_RANGE (z < 0.5 z0: pressure beyond the law's sane range)"
         stable = None if not np.isfinite(margin) else bool(margin > 0)
-        self._drop_tangent()
         stiffness = float("nan")
         if tangent and converged:
-            self._tangent_due = self._approach
-            if self.compute_stiffness:
-                t_check = self.history.elapsed()
-                self._ensure_tangent()
-                stiffness = self._tangent[2]
-                self.check_time += self.history.elapsed() - t_check
+            self.predictor.due()
+            t_check = self.history.elapsed()
+            stiffness = self.predictor.stiffness()
+            self.check_time += self.history.elapsed() - t_check
+        else:
+            self.predictor.drop()
         area = grid.lengths[0] * grid.lengths[1]
         energy = float("nan") if self.element_integration else grid.element_area * comm.allreduce(
             0.5 * float(np.sum(prow * self._v)) + float(np.sum(self.traction.energy(gap_rows))))

@@ -1,0 +1,133 @@
+"""The tangent predictor of ``AdhesiveProblem``: a strategy that steps a displacement-controlled
+path along its branch (docs/formulation.md, "Adhesive contact: unknowns and Newton").
+
+At a converged state the tangent t = dx/d delta solves J_II t = -dF/d delta on the inactive
+set I (contact nodes keep zero gap: dq from it, da from the law), one Krylov solve (options
+under ``<prefix>tangent_``).  It gives
+
+* the Euler predictor of the next step, x + t (delta - delta_prev) (``-<prefix>predictor``);
+* the tangent stiffness dF/d delta [N/m] = sum(t) dA of every displacement-controlled state
+  (``-<prefix>stiffness``; sweeps test jumps with it, load control steps with it).  Off: NaN,
+  and the tangent is solved only where the next step's predictor needs it.
+"""
+from __future__ import annotations
+
+import numpy as np
+from petsc4py import PETSc
+
+from .options import code_default
+from .pc_registry import ADHESIVE_PRECONDITIONERS
+
+
+class TangentPredictor:
+    """The tangent of ``problem`` (an ``AdhesiveProblem``) at its last converged state, solved
+    when first needed; reads its options when made (inside the problem's ``inserted_options``)."""
+
+    def __init__(self, problem):
+        self.problem = problem
+        opts = PETSc.Options(problem.prefix)
+        self.predicts = opts.getBool("predictor", code_default("adhesion", "predictor"))
+        self.stiffness_each_state = opts.getBool("stiffness", code_default("adhesion", "stiffness"))
+        #: whether converged states get a tangent at all (the nested iteration's coarse levels: no)
+        self.wanted = True
+        self.value = None    # (approach [m], dx/d delta, dF/d delta [N/m]) at the last converged state
+        self._due = None     # approach of the present state when its tangent is not solved yet
+
+    def drop(self) -> None:
+        """Forget the tangent (the state changed)."""
+        if self.value is not None:
+            self.value[1].destroy()
+        self.value = self._due = None
+
+    def due(self) -> None:
+        """The present converged state's tangent is wanted, solved when first needed."""
+        self.drop()
+        if self.wanted:
+            self._due = self.problem._approach
+
+    def ensure(self) -> None:
+        """Solve the present state's tangent if it is due."""
+        if self._due is None:
+            return
+        pb = self.problem
+        approach, self._due = self._due, None
+        here, pb._approach = pb._approach, approach   # the state's own approach
+        tv, stiffness = self.solve()
+        pb._approach = here
+        self.value = (approach, tv, stiffness)
+
+    def stiffness(self) -> float:
+        """dF/d delta [N/m] of the present state where it is wanted for every state, else NaN."""
+        if self._due is None or not self.stiffness_each_state:
+            return float("nan")
+        self.ensure()
+        return self.value[2]
+
+    def predict(self, approach: float) -> None:
+        """Step the problem's unknowns (still the previous state) to ``approach`` [m] along the
+        tangent: x + dx/d delta (delta - delta_prev); q >= 0 kept."""
+        if not self.predicts:
+            return
+        self.ensure()
+        if self.value is None:
+            return
+        pb = self.problem
+        pb._x.axpy(float(approach) - self.value[0], self.value[1])
+        if pb.hard_wall:
+            q = pb.blocks(pb._x)[0]
+            np.maximum(q, 0.0, out=q)
+
+    def copy(self):
+        """The tangent as a tuple with its own Vec (a snapshot's), or None."""
+        self.ensure()
+        return None if self.value is None else (self.value[0], self.value[1].copy(), self.value[2])
+
+    def restore(self, value) -> None:
+        """Make ``value`` (from ``copy``) the tangent; it is copied."""
+        self.drop()
+        self.value = None if value is None else (value[0], value[1].copy(), value[2])
+
+    def solve(self) -> tuple[PETSc.Vec, float]:
+        """(dx/d delta, dF/d delta [N/m]) at the problem's present unknowns."""
+        pb = self.problem
+        grid = pb.grid
+        pb._jacobian(None, pb._x, None, None)
+        iset = pb._inactive_set()
+        J = pb._snes.getJacobian()[0]
+        A = J.createSubMatrix(iset, iset)
+        ctx = A.getPythonContext()
+        rhs = np.zeros_like(ctx.full_in)
+        ones = np.ones((grid.ny_local, grid.nx))
+        if pb.hard_wall:
+            rhs[0] = 1.0
+        pb.traction.apply_derivative(ones, rhs[-1])
+        rhs[-1] *= -pb.kappa
+        if pb._gap_rows is not None:
+            rhs[-1][pb._gap_rows] = 1.0   # d(g - G(a))/d delta = -1
+        b, t = A.createVecs()
+        ctx.from_full(rhs, b)
+        ksp = PETSc.KSP().create(comm=grid.comm)
+        ksp.setOptionsPrefix(pb.prefix + "tangent_")
+        ksp.setType("gmres")
+        # a predictor and a stiffness for jump detection and load updates: 1e-2 is plenty
+        # (a jump is a force change larger than the predicted change itself; the predictor's
+        # error is the branch's curvature times the step squared; docs/performance.md)
+        ksp.setTolerances(rtol=1e-2, max_it=1000)
+        if pb.preconditioner == "none":
+            ksp.getPC().setType("none")
+        else:
+            ksp.getPC().setType("python")
+            ksp.getPC().setPythonType(ADHESIVE_PRECONDITIONERS[pb.preconditioner])
+        ksp.setOperators(A, A)
+        ksp.setFromOptions()
+        ksp.solve(b, t)
+        full = np.zeros_like(ctx.full_in)
+        ctx.to_full(t, full)
+        tv = pb.create_unknown()
+        pb.blocks(tv)[...] = full
+        ok = ksp.getConvergedReason() > 0
+        for obj in (ksp, b, t, A, iset):
+            obj.destroy()
+        area = grid.lengths[0] * grid.lengths[1]
+        stiffness = grid.mpi_comm.allreduce(float(full.sum())) / (grid.nx * grid.ny) * area if ok else float("nan")
+        return tv, stiffness
