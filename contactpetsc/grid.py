@@ -393,6 +393,17 @@ class SurfaceGrid:
         """
         if edge not in ("zero", "repeat"):
             raise ValueError(f"edge must be 'zero' or 'repeat', got {edge!r}")
+        if self.px == self.py == 1:
+            # one rank owns the whole grid: its own edges are the halo (the ghost exchange
+            # through two work Vecs costs as much as the multilevel smoother's arithmetic)
+            wrap = self.periodic
+            lo[...] = rows[-1] if wrap else (0.0 if edge == "zero" else rows[0])
+            hi[...] = rows[0] if wrap else (0.0 if edge == "zero" else rows[-1])
+            if left is not None:
+                left[...] = rows[:, -1] if wrap else (0.0 if edge == "zero" else rows[:, 0])
+            if right is not None:
+                right[...] = rows[:, 0] if wrap else (0.0 if edge == "zero" else rows[:, -1])
+            return lo, hi
         # the DMDA's own ghost exchange (periodic wrap-around included); its work Vecs are
         # made once per grid
         da = self.da

@@ -32,6 +32,28 @@ def test_vec_from_array_gather_round_trip(coll, periodic):
     assert (g.ys, g.ye) == g.y_ranges[coll.rank]
 
 
+@pytest.mark.parametrize("periodic", [True, False])
+@pytest.mark.parametrize("edge", ["zero", "repeat"])
+def test_halo_rows_are_the_neighbouring_rows_of_the_whole_array(coll, periodic, edge):
+    """halo_rows gives the rows ys - 1, ye and columns xs - 1, xe of the global array: the
+    wrap-around on a periodic cell, zeros or the edge repeated beyond an isolated one (the
+    truth: the global array padded by numpy), on any split."""
+    nx, ny = 11, 17
+    g = SurfaceGrid(nx, ny, 1.0, periodic=periodic)
+    full = np.random.default_rng(3).standard_normal((ny, nx))   # rows j, columns i
+    mode = "wrap" if periodic else ("constant" if edge == "zero" else "edge")
+    padded = np.pad(full, 1, mode=mode)
+    rows = full[g.ys:g.ye, g.xs:g.xe]
+    lo, hi = np.empty(g.nx_local), np.empty(g.nx_local)
+    left, right = np.empty(g.ny_local), np.empty(g.ny_local)
+    g.halo_rows(rows, lo, hi, edge=edge, left=left, right=right)
+    cols = slice(g.xs + 1, g.xe + 1)
+    inner = slice(g.ys + 1, g.ye + 1)
+    ok = (np.array_equal(lo, padded[g.ys, cols]) and np.array_equal(hi, padded[g.ye + 1, cols])
+          and np.array_equal(left, padded[inner, g.xs]) and np.array_equal(right, padded[inner, g.xe + 1]))
+    assert coll.all(ok)
+
+
 def test_coordinates_and_sizes(coll):
     """Node (i, j) sits at (i dx, j dy); the cell is nx dx x ny dy."""
     nx, ny, dx, dy = 9, 13, 0.3, 0.7

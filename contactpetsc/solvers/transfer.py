@@ -33,8 +33,12 @@ def halved(grid: SurfaceGrid) -> SurfaceGrid:
 
 def restrict(fine: np.ndarray) -> np.ndarray:
     """2 x 2 block means of a (ny_loc, nx) array (heights, gaps, residuals)."""
-    ny, nx = fine.shape
-    return fine.reshape(ny // 2, 2, nx // 2, 2).mean(axis=(1, 3))
+    # strided sums: numpy's mean over the two inner axes of the 4-d view is several times slower
+    out = fine[0::2, 0::2] + fine[1::2, 0::2]
+    out += fine[0::2, 1::2]
+    out += fine[1::2, 1::2]
+    out *= 0.25
+    return out
 
 
 def prolong_constant(coarse: np.ndarray) -> np.ndarray:
