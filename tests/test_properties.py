@@ -212,3 +212,33 @@ def test_operator_rank_count_independent(coll, nx, ny, dx, aspect, e_star, seed,
     (vw, iw), (vs, i_s) = res
     errs = [np.abs(vw - vs).max() / np.abs(vs).max(), np.abs(iw - i_s).max() / np.abs(i_s).max()]
     assert coll.max(errs) <= 1e-12
+
+
+# -- the VI's inactive set -------------------------------------------------------------------------
+@prop
+@given(n=st.integers(1, 60), seed=st.integers(0, 2 ** 16), tail=st.booleans())
+def test_inactive_set_copies_are_numpy_indexing(coll, n, seed, tail):
+    """The reduced-Vec copies of any sorted set of positions (with or without a trailing run of
+    consecutive ones, as a hard wall's adhesive block) equal numpy's indexed assignment and take."""
+    from contactpetsc.solvers.reduced import InactiveSet
+    rng = np.random.default_rng(seed)
+    mask = rng.random(n) < rng.random()
+    if tail:
+        mask[n // 2:] = True
+    idx = np.flatnonzero(mask)
+    offset = 3
+    iset = PETSc.IS().createGeneral((idx + offset).astype(PETSc.IntType), comm=PETSc.COMM_SELF)
+    inactive = InactiveSet(iset, offset, n)
+    x = PETSc.Vec().createSeq(idx.size, comm=PETSc.COMM_SELF)
+    x.setArray(rng.standard_normal(idx.size))
+    out, truth = np.full(n, np.nan), np.full(n, np.nan)
+    truth[idx] = x.getArray()
+    inactive.to_full(x, out)
+    full = rng.standard_normal(n)
+    y = x.duplicate()
+    inactive.from_full(full, y)
+    ok = (np.array_equal(out, truth, equal_nan=True) and np.array_equal(y.getArray(), full[idx])
+          and inactive.everything == (idx.size == n))
+    for obj in (iset, x, y):
+        obj.destroy()
+    assert coll.all(ok)

@@ -63,30 +63,34 @@ class ContactJacobian:
 
 class InactiveSet:
     """Local positions ``idx`` of a reduced Vec's entries in a full local array, with the
-    copies between the two.  When the set is the whole array (the full LJ curve: no
-    bounds, every unknown inactive) the copies are contiguous, much faster than an
-    indexed gather, once or twice per Krylov iteration."""
+    copies between the two, once or twice per Krylov iteration.  The set's trailing run of
+    consecutive positions is copied as a slice, much faster than an indexed gather: with a
+    hard wall every adhesive pressure is inactive (the whole second block), with the full LJ
+    curve every unknown."""
 
     def __init__(self, index_set: PETSc.IS, offset: int, full_size: int):
         self.idx = (index_set.getIndices() - offset).astype(np.intp)
-        self.n_local = self.idx.size
-        # the indices are sorted and unique (SNES VI's inactive set): all of them is arange
-        self.everything = self.n_local == full_size
+        self.n_local = n = self.idx.size
+        # the indices are sorted and unique (SNES VI's inactive set): the run is where
+        # consecutive indices stop differing by one, counted from the end
+        breaks = np.flatnonzero(np.diff(self.idx) != 1)
+        self.head = int(breaks[-1]) + 1 if breaks.size else 0
+        self.scattered = self.idx[:self.head]
+        self.run = slice(int(self.idx[self.head]), int(self.idx[-1]) + 1) if n else slice(0, 0)
+        self.everything = n == full_size   # (sorted and unique: the whole array, one run)
 
     def to_full(self, x: PETSc.Vec, out: np.ndarray) -> np.ndarray:
         """Scatter a reduced Vec into a full local array (entries outside the set untouched)."""
-        if self.everything:
-            np.copyto(out.reshape(-1), x.getArray(readonly=True))
-        else:
-            out.reshape(-1)[self.idx] = x.getArray(readonly=True)
+        flat, src = out.reshape(-1), x.getArray(readonly=True)
+        flat[self.scattered] = src[:self.head]
+        flat[self.run] = src[self.head:]
         return out
 
     def from_full(self, full: np.ndarray, y: PETSc.Vec) -> None:
         """Gather the set's entries of a full local array into a reduced Vec."""
-        if self.everything:
-            np.copyto(y.getArray(), full.reshape(-1))
-        else:
-            np.take(full.reshape(-1), self.idx, out=y.getArray())  # no temporary
+        flat, dst = full.reshape(-1), y.getArray()
+        np.take(flat, self.scattered, out=dst[:self.head])  # no temporary
+        dst[self.head:] = flat[self.run]
 
 
 def python_submatrix(ctx, mat: PETSc.Mat) -> PETSc.Mat:
