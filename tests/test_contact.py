@@ -242,6 +242,22 @@ def test_bilinear_prolongation(coll):
             assert abs(sf / 4 - sc) <= 1e-12 * sc
 
 
+def test_restriction_and_constant_prolongation(coll):
+    """Nested-iteration transfer: each coarse node is the mean of its 2 x 2 children (the truth:
+    the four strided sums), the copy to the children keeps every value, so restricting it gives
+    the coarse field back exactly, and both keep the cell's mean."""
+    from contactpetsc.solvers.transfer import prolong_constant, restrict
+    rng = np.random.default_rng(11 + coll.rank)
+    fine = rng.standard_normal((6, 10))
+    coarse = restrict(fine)
+    blocks = np.array([[fine[2 * j:2 * j + 2, 2 * i:2 * i + 2].mean() for i in range(5)] for j in range(3)])
+    up = prolong_constant(coarse)
+    ok = (np.allclose(coarse, blocks, rtol=0, atol=1e-15) and np.array_equal(restrict(up), coarse)
+          and np.array_equal(up[1::2, 0::2], coarse) and np.array_equal(up[0::2, 1::2], coarse)
+          and abs(up.mean() - fine.mean()) <= 1e-15 * max(1.0, abs(fine).max()) * 10)
+    assert coll.all(ok)
+
+
 def test_bilinear_nested_iteration_rank_independent(coll):
     """-contact_fmg_prolong bilinear: converges, 1 and N ranks equal to 1e-10."""
     kw = dict(tol=1e-12, load_tol=1e-12)

@@ -43,7 +43,11 @@ def restrict(fine: np.ndarray) -> np.ndarray:
 
 def prolong_constant(coarse: np.ndarray) -> np.ndarray:
     """Piecewise-constant copy to the 2 x 2 children (pressure is a density: the mean is kept)."""
-    return np.repeat(np.repeat(coarse, 2, axis=0), 2, axis=1)
+    ny, nx = coarse.shape
+    out = np.empty((2 * ny, 2 * nx))
+    # one broadcast copy: two np.repeat passes cost half as much again
+    out.reshape(ny, 2, nx, 2)[...] = coarse[:, None, :, None]
+    return out
 
 
 def prolong_bilinear(coarse: np.ndarray, grid: SurfaceGrid) -> np.ndarray:
