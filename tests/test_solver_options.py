@@ -58,7 +58,7 @@ def test_adhesive_options_applied_then_removed(coll, law):
     prefix = f"popt_{law.name.replace('-', '_')}_"
     pb = AdhesiveProblem(grid, h, 1.0, law, prefix=prefix, petsc_options={"tol": 1e-7, "stall_steps": 5})
     st = pb.solve(approach=0.2)
-    assert st.converged and pb.tol == 1e-7 and pb.stall_steps == 5
+    assert st.converged and pb.tol == 1e-7 and pb.newton.stall_steps == 5
     with pb.snapshot() as snap:
         assert snap.x.getSize() == pb.x.getSize() and snap.approach == pytest.approx(0.2)
     assert snap.x is None                         # freed by the context manager

@@ -48,33 +48,14 @@ from .descent import EnergyDescent, require_descent
 from .fallback import FallbackChain
 from .history import SolveHistory
 from .load_control import solve_force
-from .options import LINESEARCH_MAX_STEP, code_default, print_help
+from .newton import VINewton, newton_linesearch
+from .options import code_default, print_help
 from .pc_registry import ADHESIVE_PRECONDITIONERS, auto_adhesive_preconditioner
 from .predictor import TangentPredictor
 from .states import AdhesiveState
 from .tangent import TangentAndState, stability_mode
 
-__all__ = ["AdhesiveProblem", "AdhesiveSolveError", "AdhesiveState", "newton_ksp_type", "newton_linesearch"]
-
-def newton_linesearch(hard_wall: bool) -> str:
-    """The line search of the Newton steps (code default of ``-<prefix>snes_linesearch_type``).
-
-    Backtracking for hard-wall laws (contact-set changes need damping); full steps for the
-    full LJ curve, whose residual norm is dominated by the stiff repulsive rows and stalls
-    bt (docs/performance.md, "Adhesive rough contact").
-    """
-    return "bt" if hard_wall else "basic"
-
-
-def newton_ksp_type(hard_wall: bool) -> str:
-    """The Krylov method of the Newton and PTC steps (code default of ``-<prefix>ksp_type``).
-
-    Full LJ curve: BiCGStab, which keeps no Krylov basis (GMRES's Gram-Schmidt on the
-    whole grid costs as much as the FFTs; docs/performance.md, "Adhesive rough contact").
-    Hard-wall laws: GMRES.
-    """
-    return "gmres" if hard_wall else "bcgs"
-
+__all__ = ["AdhesiveProblem", "AdhesiveSolveError", "AdhesiveState"]
 
 class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProblem):
     """Adhesive contact of an elastic half-space with a rigid composite surface h.
@@ -139,7 +120,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self.set_control_node(centre)
         self.centre_owner = None        # set while central-gap control is active
         self.shift = 0.0                # pseudo-transient continuation shift (0: plain Newton)
-        self._stall_watch = False       # stop a stalled Newton (see -<prefix>stall_steps)
+        self.newton = None              # VI Newton (``VINewton``), made with the solvers
         self.check_time = 0.0          # stability check and tangent time of the current solve
         self.predictor = None           # the tangent predictor (``TangentPredictor``), made with the solvers
         self.stability_converged = None  # whether the last stability check settled
@@ -219,10 +200,6 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
             opts.getString("stability_check", str(self._default("stability_check"))),
             f"-{self.prefix}stability_check")
         self.stability_steps = opts.getInt("stability_steps", code_default("adhesion", "stability_steps"))
-        # Newton without a new smallest error for this many steps has stalled: full steps
-        # can cycle for good where a few nodes of one edge sit at their own fold; PTC then
-        # goes on from the best iterate (0: never; docs/formulation.md, "Adhesive contact: unknowns and Newton")
-        self.stall_steps = opts.getInt("stall_steps", code_default("adhesion", "stall_steps"))
         self.fallback = FallbackChain(self)
         self.strategy = opts.getString("strategy", code_default("adhesion", "strategy")).lower()
         if self.strategy not in ("newton", "descent"):
@@ -259,7 +236,6 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
                                                      self._jac, comm=self.grid.comm))
         J.setUp()
         self._x, self._f = self.create_unknown(), self.create_unknown()
-        self._x_best = self.create_unknown()
         self._x_solve_best = self.create_unknown()   # the iterate of smallest error of the running solve
         self._solve_best = (np.inf, "")
         lower, upper = self.create_unknown(), self.create_unknown()
@@ -269,37 +245,11 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
             self.blocks(lower)[0] = 0.0
         self._bounds = (lower, upper)
         self._J = J
-        self._snes = self._make_snes(self.prefix, newton_linesearch(self.hard_wall), self.max_it,
-                                     1000 if self.hard_wall else 30)
+        self.newton = VINewton(self, self.prefix, newton_linesearch(self.hard_wall), self.max_it,
+                               1000 if self.hard_wall else 30)
+        self._snes = self.newton.snes
         self.fallback.build()
         return self._snes
-
-    def _make_snes(self, prefix: str, linesearch: str, max_it: int, ksp_max_it: int) -> PETSc.SNES:
-        """A VI Newton SNES on the shared unknowns, Jacobian and bounds; options under ``prefix``."""
-        snes = self.make_vi_snes(prefix, self._bounds, max_it)
-        # an inexact step (Krylov limit reached) is still a step: let the line search judge it
-        # (petsc4py >= 3.20 names it setMaxKSPFailures)
-        (getattr(snes, "setMaxKSPFailures", None) or snes.setMaxLinearSolveFailures)(max_it)
-        if self.step_limit > 0:
-            snes.setLineSearchPreCheck(self._limit_step)
-        self.set_default("snes_linesearch_type", linesearch, prefix)
-        # PETSc's default (1e8) is in the unknowns' units, Pa here: it cut every Newton step
-        # of a stiff sphere (docs/formulation.md, "Adhesive contact: unknowns and Newton")
-        self.set_default(LINESEARCH_MAX_STEP, "1e300", prefix)
-        ksp = snes.getKSP()
-        ksp.setType(newton_ksp_type(self.hard_wall))
-        # with the full LJ curve an inexact step is cheaper than an exact one far from the
-        # solution (docs/performance.md, "Adhesive rough contact")
-        rtol = PETSc.Options(self.prefix).getReal("newton_ksp_rtol", code_default("adhesion", "newton_ksp_rtol"))
-        ksp.setTolerances(rtol=rtol, max_it=ksp_max_it)
-        pc = ksp.getPC()
-        if self.preconditioner == "none":
-            pc.setType("none")
-        else:
-            pc.setType("python")
-            pc.setPythonType(ADHESIVE_PRECONDITIONERS[self.preconditioner])
-        snes.setFromOptions()
-        return snes
 
     # -- public API --------------------------------------------------------------------------
     def solve_force(self, force: float, *, rel_tol: float = 1e-8, max_updates: int = 30,
@@ -383,10 +333,9 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
             self.predictor.predict(float(approach))
         check = self.stability_check if check_stability is None else check_stability
         # only where PTC or the descent would take over
-        self._stall_watch = (self.stall_steps > 0 and fallback and approach is not None
-                             and self.fallback.takes_over_stalls())
-        converged, reason, newton, linear = self._run_snes()
-        self._stall_watch = False
+        self.newton.watch_stalls = fallback and approach is not None and self.fallback.takes_over_stalls()
+        converged, reason, newton, linear = self.newton.run()
+        self.newton.watch_stalls = False
         solver = self.solver_name
         if descend:
             solver, newton, linear = "descent+" + solver, newton + d_newton, linear + d_linear

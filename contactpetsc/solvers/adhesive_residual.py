@@ -136,7 +136,7 @@ class AdhesiveCallbacks:
             complementarity_error=err_c, load_error=float("nan"), approach=self._approach,
             mean_pressure=mean_p, contact_fraction=frac, solver=self.solver_name,
             adhesive_error=err_a, pressure_error=err_p)
-        # the PTC shift and the stall watch follow the errors in z0 (their trend, not their size)
+        # the PTC shift and the stall watch (``newton.py``) follow the errors in z0 (their trend, not their size)
         err = max(err_c, err_a)
         self._last_error = err
         # converged: gaps right in z0 and pressures right on the law's scale, both to tol
@@ -145,15 +145,8 @@ class AdhesiveCallbacks:
             self._solve_best = (full, f"{'ptc' if self.shift else 'Newton'} iteration {it}")
             x.copy(self._x_solve_best)
         verdict = convergence_verdict(snes, it, full, self.tol)
-        if verdict == PETSc.SNES.ConvergedReason.ITERATING and self._stall_watch and not self.shift:
-            if it == 0 or err < self._best[0]:
-                self._best = (err, it)
-                x.copy(self._x_best)
-            elif it - self._best[1] >= self.stall_steps:
-                self._stalled = True
-                return PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT   # named STALLED by _run_snes
         if verdict == PETSc.SNES.ConvergedReason.ITERATING and self.out_of_time():
-            return PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT   # named WALL_TIME_BUDGET by _run_snes
+            return PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT   # named WALL_TIME_BUDGET by VINewton.run
         return verdict
 
     @property

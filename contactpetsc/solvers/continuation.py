@@ -10,7 +10,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .base import AdhesiveSolveError, ContactSolveError, reason_name
+from .base import AdhesiveSolveError, ContactSolveError
 from .problem import ContactProblem
 from .states import AdhesiveState
 
@@ -105,19 +105,6 @@ class Continuation:
             raise AdhesiveSolveError(f"adhesive solve did not converge while loading from rest to "
                                      f"{approach:.4e} m: {st.reason} at approach {st.approach:.4e} m")
         return st
-    def _run_snes(self, snes: PETSc.SNES | None = None):
-        snes = snes or self._snes
-        self._lin0 = self.history[-1].linear_iterations if len(self.history) else 0
-        self._stalled = False
-        snes.solve(None, self._x)
-        self._n_solves += 1
-        code = snes.getConvergedReason()
-        name = self.budget_reason if code < 0 and self.out_of_time() else reason_name(code)
-        if self._stalled:
-            name = (f"STALLED (no smaller error in {self.stall_steps} Newton steps; smallest "
-                    f"{self._best[0]:.3e} z0 at step {self._best[1]})")
-        return code > 0, name, snes.getIterationNumber(), snes.getLinearSolveIterations()
-
     def prepare(self, approach: float) -> None:
         """Make the SNES and a state to start from, and set displacement control at approach
         delta [m] (what an outside solver of this problem's unknowns, ``RelaxationSolver``,
@@ -147,6 +134,6 @@ class Continuation:
             self.predictor.drop()
         if self.fallback is not None:
             self.fallback.destroy()
-        if self._snes is not None:
-            self._snes.destroy()
-        self._snes = None
+        if self.newton is not None:
+            self.newton.destroy()
+        self._snes = self.newton = None

@@ -7,8 +7,9 @@ from petsc4py import PETSc
 from ..operators.elastic import half_space
 from ..operators.layer import Layer
 from ..physics.interactions import relaxation_laws
-from .adhesive import AdhesiveProblem, newton_ksp_type, newton_linesearch
+from .adhesive import AdhesiveProblem
 from .fallback import PTC_LINESEARCH
+from .newton import newton_ksp_type, newton_linesearch
 from .base import VI_SNES, VIProblem
 from .options import code_default
 from .pc_registry import ADHESIVE_PRECONDITIONERS, AUTO_MLMI_SNAP, PRECONDITIONERS, auto_adhesive_preconditioner

@@ -20,6 +20,7 @@ from __future__ import annotations
 from petsc4py import PETSc
 
 from .descent import EnergyDescent, descent_applies, require_descent
+from .newton import VINewton
 from .options import code_default
 from .relaxation import RelaxationSolver
 
@@ -66,7 +67,7 @@ class FallbackChain:
         if self.ptc is None:
             # pseudo-transient continuation takes inexact steps: a step of a path need not be
             # solved exactly (docs/formulation.md, "Adhesive contact: unknowns and Newton")
-            self.ptc = self.problem._make_snes(self.problem.prefix + "ptc_", PTC_LINESEARCH, self.ptc_max_it, 30)
+            self.ptc = VINewton(self.problem, self.problem.prefix + "ptc_", PTC_LINESEARCH, self.ptc_max_it, 30)
 
     def takes_over_stalls(self) -> bool:
         """Whether a method of the chain goes on from a stalled Newton (its stall watch)."""
@@ -78,12 +79,12 @@ class FallbackChain:
         checked, ``check`` false); returns (converged, reason, newton, linear, margin, solver).
         ``reason``: why Newton's state is not taken (kept where no method is left)."""
         pb = self.problem
-        stalled = pb._stalled
+        stalled = pb.newton.stalled
         ok, margin = False, float("nan")
         reason += " (no fallback method left)"
         for method in (m for m in self.methods if m not in skip):
             # a stalled Newton was near a state but for a few nodes: PTC from its best iterate
-            (pb._x_best if stalled and method == "ptc" else x_start).copy(pb._x)
+            (pb.newton.x_best if stalled and method == "ptc" else x_start).copy(pb._x)
             if method == "descent":
                 ok, reason, n2, l2 = EnergyDescent(pb).descend(approach, pb._x)
             elif method == "relaxation":
@@ -91,12 +92,12 @@ class FallbackChain:
                 ok, reason, n2, l2 = relax.relax(approach, polished=True)
             else:
                 pb.shift, pb._ptc_prev = self.ptc_shift, 0.0
-                ok, reason, n2, l2 = pb._run_snes(self.ptc)
+                ok, reason, n2, l2 = self.ptc.run()
                 pb.shift = 0.0
             if ok and method != "ptc":
                 # the polish: VI Newton at the approach itself (a hard wall's descent ends
                 # within offset_tol z0 of it; the relaxation stops at fallback_tol)
-                ok, reason, n3, l3 = pb._run_snes()
+                ok, reason, n3, l3 = pb.newton.run()
                 n2, l2 = n2 + n3, l2 + l3
             solver += "+" + method
             newton, linear = newton + n2, linear + l2

@@ -1,0 +1,122 @@
+"""VI Newton on ``AdhesiveProblem``'s unknowns: the strategy that reaches a state from a nearby
+start (docs/formulation.md, "Adhesive contact: unknowns and Newton").
+
+A ``vinewtonrsls`` SNES on the problem's residual, Jacobian, bounds and convergence test (its
+error measures, relative to the law's own scales), with
+
+* the line search and Krylov method of the law (``newton_linesearch``, ``newton_ksp_type``),
+  the problem's preconditioner, an inexact Krylov tolerance (``-<prefix>newton_ksp_rtol``)
+  and the step limit of the full LJ curve;
+* the stall watch (``-<prefix>stall_steps``): Newton without a new smallest error for this
+  many steps has stalled -- full steps can cycle for good where a few nodes of one edge sit
+  at their own fold -- and stops, its best iterate kept for a fallback to go on from.
+
+The same class makes the SNES of pseudo-transient continuation (``fallback.py``, options
+under ``<prefix>ptc_``), whose Jacobian carries the problem's shift.
+"""
+from __future__ import annotations
+
+from petsc4py import PETSc
+
+from ..collective import collective_guard
+from .base import reason_name
+from .options import LINESEARCH_MAX_STEP, code_default
+from .pc_registry import ADHESIVE_PRECONDITIONERS
+
+
+def newton_linesearch(hard_wall: bool) -> str:
+    """The line search of the Newton steps (code default of ``-<prefix>snes_linesearch_type``).
+
+    Backtracking for hard-wall laws (contact-set changes need damping); full steps for the
+    full LJ curve, whose residual norm is dominated by the stiff repulsive rows and stalls
+    bt (docs/performance.md, "Adhesive rough contact").
+    """
+    return "bt" if hard_wall else "basic"
+
+
+def newton_ksp_type(hard_wall: bool) -> str:
+    """The Krylov method of the Newton and PTC steps (code default of ``-<prefix>ksp_type``).
+
+    Full LJ curve: BiCGStab, which keeps no Krylov basis (GMRES's Gram-Schmidt on the
+    whole grid costs as much as the FFTs; docs/performance.md, "Adhesive rough contact").
+    Hard-wall laws: GMRES.
+    """
+    return "gmres" if hard_wall else "bcgs"
+
+
+class VINewton:
+    """A VI Newton SNES on ``problem``'s (an ``AdhesiveProblem``'s) shared unknowns, Jacobian and
+    bounds, options under ``prefix``; made inside the problem's ``inserted_options`` after
+    ``check_snes_options``."""
+
+    def __init__(self, problem, prefix: str, linesearch: str, max_it: int, ksp_max_it: int):
+        self.problem = pb = problem
+        self.prefix = prefix
+        self.stall_steps = PETSc.Options(pb.prefix).getInt("stall_steps", code_default("adhesion", "stall_steps"))
+        self.watch_stalls = False       # set per solve: only where a fallback goes on from a stall
+        self.stalled = False
+        self.best = (float("inf"), -1)  # (error [z0], step) of the watched run's best iterate
+        self.x_best = None              # its best iterate (made when first watched: PTC never is)
+        snes = self.snes = pb.make_vi_snes(prefix, pb._bounds, max_it)
+        snes.setConvergenceTest(self._converged)
+        # an inexact step (Krylov limit reached) is still a step: let the line search judge it
+        # (petsc4py >= 3.20 names it setMaxKSPFailures)
+        (getattr(snes, "setMaxKSPFailures", None) or snes.setMaxLinearSolveFailures)(max_it)
+        if pb.step_limit > 0:
+            snes.setLineSearchPreCheck(pb._limit_step)
+        pb.set_default("snes_linesearch_type", linesearch, prefix)
+        # PETSc's default (1e8) is in the unknowns' units, Pa here: it cut every Newton step
+        # of a stiff sphere (docs/formulation.md, "Adhesive contact: unknowns and Newton")
+        pb.set_default(LINESEARCH_MAX_STEP, "1e300", prefix)
+        ksp = snes.getKSP()
+        ksp.setType(newton_ksp_type(pb.hard_wall))
+        # with the full LJ curve an inexact step is cheaper than an exact one far from the
+        # solution (docs/performance.md, "Adhesive rough contact")
+        rtol = PETSc.Options(pb.prefix).getReal("newton_ksp_rtol", code_default("adhesion", "newton_ksp_rtol"))
+        ksp.setTolerances(rtol=rtol, max_it=ksp_max_it)
+        pc = ksp.getPC()
+        if pb.preconditioner == "none":
+            pc.setType("none")
+        else:
+            pc.setType("python")
+            pc.setPythonType(ADHESIVE_PRECONDITIONERS[pb.preconditioner])
+        snes.setFromOptions()
+
+    @collective_guard
+    def _converged(self, snes, it, norms):
+        """The problem's convergence test, then the stall watch (collective: the problem's
+        verdict and errors are reduced over the ranks)."""
+        pb = self.problem
+        verdict = pb._converged(snes, it, norms)
+        if verdict == PETSc.SNES.ConvergedReason.ITERATING and self.watch_stalls and self.stall_steps > 0:
+            err = pb._last_error
+            if it == 0 or err < self.best[0]:
+                self.best = (err, it)
+                if self.x_best is None:
+                    self.x_best = pb.create_unknown()
+                snes.getSolution().copy(self.x_best)
+            elif it - self.best[1] >= self.stall_steps:
+                self.stalled = True
+                return PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT   # named STALLED by run
+        return verdict
+
+    def run(self):
+        """Solve from the problem's unknowns in place; (converged, reason, Newton steps,
+        Krylov iterations)."""
+        pb = self.problem
+        pb._lin0 = pb.history[-1].linear_iterations if len(pb.history) else 0
+        self.stalled = False
+        self.snes.solve(None, pb._x)
+        pb.record_solve()
+        code = self.snes.getConvergedReason()
+        name = pb.budget_reason if code < 0 and pb.out_of_time() else reason_name(code)
+        if self.stalled:
+            name = (f"STALLED (no smaller error in {self.stall_steps} Newton steps; smallest "
+                    f"{self.best[0]:.3e} z0 at step {self.best[1]})")
+        return code > 0, name, self.snes.getIterationNumber(), self.snes.getLinearSolveIterations()
+
+    def destroy(self) -> None:
+        """Destroy the SNES (its callbacks hold the problem) and the best iterate."""
+        self.snes.destroy()
+        if self.x_best is not None:
+            self.x_best.destroy()
