@@ -33,12 +33,10 @@ def halved(grid: SurfaceGrid) -> SurfaceGrid:
 
 def restrict(fine: np.ndarray) -> np.ndarray:
     """2 x 2 block means of a (ny_loc, nx) array (heights, gaps, residuals)."""
-    # strided sums: numpy's mean over the two inner axes of the 4-d view is several times slower
-    out = fine[0::2, 0::2] + fine[1::2, 0::2]
-    out += fine[0::2, 1::2]
-    out += fine[1::2, 1::2]
-    out *= 0.25
-    return out
+    # numpy's mean of the 4-d view: strided sums are 5-7x faster per call, but their other
+    # summation order moved the full-LJ benchmark path to dearer states (docs/journal/performance.md)
+    ny, nx = fine.shape
+    return fine.reshape(ny // 2, 2, nx // 2, 2).mean(axis=(1, 3))
 
 
 def prolong_constant(coarse: np.ndarray) -> np.ndarray:
