@@ -20,6 +20,7 @@ together): a state it stops is reported as not converged (``WALL_TIME_BUDGET``).
 
     .venv/bin/python run_scripts/bench/bench_fallback.py --size 256 --law exponential
     .venv/bin/python run_scripts/bench/bench_fallback.py --size 512 --law lj --w 0.05
+    .venv/bin/python run_scripts/bench/bench_fallback.py --size 256 --law lj --w 0.2 --areas --chains default --perturb 1
 
 One rank.
 """
@@ -36,11 +37,14 @@ ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
 ap.add_argument("--size", type=int, default=256)
 ap.add_argument("--law", default="exponential", choices=["exponential", "hardwall-lj", "lj"])
 ap.add_argument("--w", type=float, default=0.05, help="work of adhesion / (E* dx)")
-ap.add_argument("--areas", type=float, nargs="+", default=[0.01, 0.02, 0.05, 0.10])
+ap.add_argument("--areas", type=float, nargs="*", default=[0.01, 0.02, 0.05, 0.10],
+                help="contact fractions of the cold states (none: the path only)")
 ap.add_argument("--states", type=int, default=10, help="states of the load-unload path (0: none)")
 ap.add_argument("--chains", nargs="+", default=None,
                 help="fallback chains (default: the code default, then the chain without descent)")
 ap.add_argument("--budget", type=float, default=300.0, help="wall-time budget of one problem [s]")
+ap.add_argument("--perturb", type=int, default=0,
+                help="seed of a round-off perturbation of the heights, h (1 + 1e-14 N(0, 1)) (0: none)")
 args, petsc_args = ap.parse_known_args()
 petsc4py.init([sys.argv[0]] + petsc_args)
 
@@ -77,12 +81,16 @@ def solve(pb, approach):
 def main():
     n = args.size
     grid, h, _ = rough_surface(n)
+    if args.perturb:
+        # how far a path's cost and states depend on round-off (docs/performance.md)
+        rows = grid.rows(h)
+        rows *= 1.0 + 1e-14 * np.random.default_rng(args.perturb).standard_normal(rows.shape)
     law = adhesive_law(grid, args.w, 1.0, name=args.law)
     z0 = law.length_scale()
     unit, cpu = non_adhesive_unit(grid, h)
     emit(n=n, case="non-adhesive", fft_pairs=unit, cpu=cpu)
     chains = args.chains or ["default", "relaxation,ptc" if law.hard_wall else "ptc"]
-    cold = calibrate(grid, h, law, args.areas, max_n=128)
+    cold = calibrate(grid, h, law, args.areas, max_n=128) if args.areas else []
     path = load_unload_path(grid, h, law, args.states) if args.states else []
     first = {}
     for c, chain in enumerate(chains):
