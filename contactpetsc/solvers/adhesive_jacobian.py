@@ -149,8 +149,12 @@ class AdhesivePC:
         masks = ctx.masks
         # gap-form rows w - G'(a) da: stiff like the a rows with da/dg = 1 / G'(a), but
         # already in K units (no scaling)
-        gap_rows = pb._gap_rows if pb._gap_rows is not None else np.zeros(d.shape, bool)
-        d_eff = np.where(gap_rows, 1.0 / np.where(gap_rows, pb._gap_slope, 1.0), d)
+        if pb._gap_rows is not None:
+            gap_rows = pb._gap_rows
+            d_eff = np.where(gap_rows, 1.0 / np.where(gap_rows, pb._gap_slope, 1.0), d)
+        else:
+            # (np.where with the absent slopes would build an array of Python objects)
+            gap_rows, d_eff = np.zeros(d.shape, bool), d
         stiff = masks[-1] & (-kappa * d_eff > 1.0)
         q_set = masks[0] if pb.hard_wall else np.zeros_like(stiff)
         stiff &= ~q_set

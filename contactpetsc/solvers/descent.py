@@ -347,7 +347,11 @@ class EnergyDescent:
         g, pressure, a = self.fields(u)[:3]
         xb = p.blocks(p._x)
         if p.hard_wall:
-            xb[0] = np.maximum(pressure - a, 0.0)
+            # the multiplier lives on the contact nodes, where u sits on its bound: elsewhere
+            # p - a is the descent's residual, ~1e-9 of the peak attraction, which the VI's
+            # Newton and the tangent would take for contact rows (q > 0)
+            at_bound = u <= self.delta - self.h
+            xb[0] = np.where(at_bound, np.maximum(pressure - a, 0.0), 0.0)
             xb[1] = a
         else:
             xb[0] = pressure
