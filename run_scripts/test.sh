@@ -52,7 +52,7 @@ one_rank() {   # the 1-rank pass on both cores: two pytest sessions side by side
         >"$tmp/mpirun.log" 2>&1 || sm=$?
     echo "-- group a (exit status $sa)"
     cat "$tmp/a.log"
-    echo "-- group b: the parallel-capable tests of tests/conftest.py GROUP_B_MODULES (exit status $sb)"
+    echo "-- group b: the modules of tests/conftest.py GROUP_B_MODULES (exit status $sb)"
     cat "$tmp/b.log"
     echo "-- the tests that launch mpirun jobs, alone (exit status $sm)"
     cat "$tmp/mpirun.log"

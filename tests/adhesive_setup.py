@@ -20,6 +20,17 @@ def sphere_problem(mu, law="hardwall-lj", n=64, dx=2.0, comm=None, radius=R, **k
                            make_law(law, work_of_adhesion=work_for(mu, radius), z0=1.0), **kw)
 
 
+#: the adhesive sphere example (examples/scenes/adhesive_sphere.toml) in these units: Tabor
+#: parameter 1, R = 100 z0 on 96 x 96 nodes of z0 (the window holds the LJ tail: a gap of 11.5 z0
+#: at its edge), and its loading in steps of z0 / 4 from -2.5 z0, past its jump-on, to 0
+EXAMPLE_RADIUS = 100.0
+EXAMPLE_LOADING = np.arange(-2.5, 0.01, 0.25)
+
+
+def example_sphere():
+    return sphere_problem(1.0, law="lj", n=96, dx=1.0, radius=EXAMPLE_RADIUS)
+
+
 def shifted_sphere_forces(radius, law, dx, n, element, path, shifts, prefix, raise_on_failure=True):
     """(forces [N], all converged) of an elastic sphere (E* = 1) whose apex sits (0.5 s, 0.37 s) dx
     off the grid's centre node, for each s in ``shifts``: a fresh problem per position, solved

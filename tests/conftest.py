@@ -3,9 +3,10 @@
 Every rank runs every test.  Assertions must therefore be collective: compute
 the error on each rank, reduce it over COMM_WORLD (``Collective.max``,
 ``Collective.all``) and assert the reduced value on every rank.  Tests that only
-make sense on one rank are marked ``@pytest.mark.serial`` and skipped under MPI; on more than
-two ranks the ``heavy`` tests and the modules of ``TWO_RANK_MODULES`` (scenes, paths, studies)
-are skipped too: that pass is for uneven grid splits.
+make sense on one rank, or whose MPI behaviour other tests check under mpirun, are marked
+``@pytest.mark.serial`` and skipped under MPI; on more than two ranks the ``heavy`` tests and
+the modules of ``TWO_RANK_MODULES`` (scenes, paths, studies) are skipped too: that pass is for
+uneven grid splits.
 A test that fails on some ranks only (a non-collective assertion or exception)
 leaves the others in a collective: the failed rank then aborts the job after
 ``CONTACTPETSC_LONE_FAILURE_WAIT`` seconds (default 120) with its failure printed,
@@ -44,7 +45,8 @@ if WORLD.Get_size() > 1:
 def pytest_configure(config):
     _session_config.append(config)
     config.addinivalue_line(
-        "markers", "serial: only meaningful on one MPI rank (skipped when COMM_WORLD has > 1 rank)")
+        "markers", "serial: only meaningful on one MPI rank, or its MPI behaviour is checked by other tests under "
+        "mpirun (its comment names them) (skipped when COMM_WORLD has > 1 rank)")
     config.addinivalue_line(
         "markers", "heavy: long adhesive paths and study runs, checked on 1 and 2 ranks (skipped on more, to keep the "
         "suite short; the 3-rank pass is for uneven splits, covered by the lighter tests)")
@@ -59,18 +61,19 @@ def pytest_configure(config):
 
 
 #: run_scripts/test.sh's 1-rank pass as two sessions side by side, one core each:
-#: ``CONTACTPETSC_TEST_GROUP=b`` keeps the parallel-capable tests of these modules (about half
-#: of that pass's time), ``a`` deselects them (and keeps everything else the markers select)
+#: ``CONTACTPETSC_TEST_GROUP=b`` keeps the tests of these modules (about half of that pass's
+#: time; whole modules, so that a fixture shared by a module's tests is computed in one session),
+#: ``a`` deselects them (and keeps everything else the markers select)
 GROUP_B_MODULES = {
-    "test_scenes", "test_studies", "test_stability_auto", "test_adhesive_paths", "test_adhesive_sphere",
+    "test_studies", "test_stability_auto", "test_adhesive_paths", "test_adhesive_sphere",
     "test_pull_off_and_jumps", "test_unit_scales", "test_plots_results", "test_robustness",
-    "test_axisymmetric_reference",
+    "test_axisymmetric_reference", "test_restart",
 }
 GROUP = os.environ.get("CONTACTPETSC_TEST_GROUP", "")
 
 
 def _in_group_b(item) -> bool:
-    return item.path.stem in GROUP_B_MODULES and "serial" not in item.keywords
+    return item.path.stem in GROUP_B_MODULES
 
 
 @pytest.hookimpl(trylast=True)   # after -m and -k have deselected theirs
@@ -230,3 +233,14 @@ def adhesive_sweep():
     step_together()
     if WORLD.Get_rank() == 0:
         shutil.rmtree(root, ignore_errors=True)
+
+
+@pytest.fixture(scope="session")
+def example_sphere_path():
+    """(problem, path): adhesive_setup's example sphere loaded along EXAMPLE_LOADING and unloaded
+    back (a jump-on, a jump-off), solved once on COMM_WORLD for the tests that read it
+    (test_adhesive_paths, test_axisymmetric_reference)."""
+    from contactpetsc.paths import sweep
+    from adhesive_setup import EXAMPLE_LOADING, example_sphere
+    pb = example_sphere()
+    return pb, sweep(pb, np.concatenate([EXAMPLE_LOADING, EXAMPLE_LOADING[-2::-1]]))

@@ -10,7 +10,7 @@ from petsc4py import PETSc
 from contactpetsc.paths import central_gap_path, edge_gap_path, sweep
 from contactpetsc.pull_off import refine_pull_off
 
-from adhesive_setup import work_for, sphere_problem
+from adhesive_setup import EXAMPLE_LOADING, EXAMPLE_RADIUS, example_sphere, work_for, sphere_problem
 
 
 def test_stiffness_is_the_force_slope_and_can_be_left_out(coll):
@@ -34,24 +34,12 @@ def test_stiffness_is_the_force_slope_and_can_be_left_out(coll):
         PETSc.Options().delValue("lazy_stiffness")
 
 
-R_TAIL = 100.0   # the window (96 z0) holds the LJ tail: gap 11.5 z0 at its edge
-LOADING = np.arange(-2.5, 0.01, 0.25)
-
-
-@pytest.fixture(scope="module")
-def loaded_and_unloaded():
-    """(problem, path): the mu = 1 full-LJ sphere (R = 100 z0 on 96 x 96 nodes) loaded along
-    LOADING and unloaded back, solved once for this module's tests (every rank alike)."""
-    pb = sphere_problem(1.0, law="lj", n=96, dx=1.0, radius=R_TAIL)
-    return pb, sweep(pb, np.concatenate([LOADING, np.arange(-0.25, -2.51, -0.25)]))
-
-
 @pytest.mark.heavy   # an adhesive path: 1 and 2 ranks (3 oversubscribed ranks spend minutes)
-def test_loading_unloading_hysteresis_and_jumps(coll, loaded_and_unloaded):
-    """mu = 1, full LJ: jump-on while loading, jump-off while unloading at a smaller
-    approach (hysteresis), pull-off between the JKR and DMT limits."""
-    r = R_TAIL
-    pb, path = loaded_and_unloaded
+def test_loading_unloading_hysteresis_and_jumps(coll, example_sphere_path):
+    """mu = 1, full LJ (conftest's example_sphere_path): jump-on while loading, jump-off while
+    unloading at a smaller approach (hysteresis), pull-off between the JKR and DMT limits."""
+    r = EXAMPLE_RADIUS
+    pb, path = example_sphere_path
     w = work_for(1.0, r)
     kinds = [j.kind for j in path.jumps]
     assert kinds == ["jump-on", "jump-off"]
@@ -140,19 +128,18 @@ def test_load_control_where_stable(coll):
 
 @pytest.mark.heavy   # an adhesive path: 1 and 2 ranks (3 oversubscribed ranks spend minutes)
 def test_a_budget_spent_while_a_jump_is_located_keeps_neither_step_nor_jump(coll, monkeypatch,
-                                                                            loaded_and_unloaded):
+                                                                            example_sphere_path):
     """The time budget runs out inside the jump's bisection: its solves were cut short, so the
     step is not kept (not converged, the budget's reason), no jump is recorded, and the
     problem is back at the last converged state -- the uninterrupted path's jump-on (that of
-    ``loaded_and_unloaded``, whose loading is this path) is found when the path goes on from
+    ``example_sphere_path``, whose loading is this path) is found when the path goes on from
     there."""
     from contactpetsc import paths
-    r = R_TAIL
-    approaches = LOADING
-    reference = loaded_and_unloaded[1]
+    approaches = EXAMPLE_LOADING
+    reference = example_sphere_path[1]
     on = reference.jumps[0]
     assert on.kind == "jump-on" and on.approach_before < approaches[-1]     # the one jump of the loading
-    pb = sphere_problem(1.0, law="lj", n=96, dx=1.0, radius=r)
+    pb = example_sphere()
     locate = paths._locate_jump
     spent = {"now": False}
 

@@ -12,7 +12,10 @@ from contactpetsc.solvers.problem import ContactProblem
 from adhesive_setup import R, work_for, sphere_problem
 
 
-@pytest.mark.heavy   # an adhesive path: 1 and 2 ranks (3 oversubscribed ranks spend minutes)
+# one rank: on two, the DMT pull-off of a path without jumps is test_studies'
+# test_smooth_sphere_small_tabor_is_dmt's, and a Signorini problem on the adhesive one's
+# operator test_vanishing_adhesion_gives_the_signorini_solution's
+@pytest.mark.serial
 def test_small_tabor_parameter_gives_dmt(coll):
     """mu = 0.02, hard-wall LJ: pull-off -2 pi R w within 2 %; in contact, the adhesive force
     is the DMT one (the law over the Hertz gap outside the contact, Muller et al.) within 2 %,

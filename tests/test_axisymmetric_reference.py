@@ -110,33 +110,27 @@ def test_ring_mesh_convergence_and_the_s_curve_folds():
 
 @pytest.mark.heavy
 @pytest.mark.filterwarnings("ignore::contactpetsc.physics.resolution.UnderResolvedWarning")
-def test_3d_sphere_matches_the_axisymmetric_solution(coll):
-    """mu = 1, 96^2 window of 96 z0 at dx = z0: load-approach points of loading and unloading,
-    the jumps and the pull-off against the axisymmetric solution (its load inside the same
-    square window).  Tolerances from the mesh-convergence study
-    (run_scripts/checks/axisymmetric_comparison.py, docs/validation.md): the 3-D pull-off moves
-    by 2.2e-4 between dx = z0 and z0/2 (this case: 1.6e-4 from the axisymmetric one), the
-    curve's largest difference halves from 8.8e-4 W* at dx = z0 (this case: 6.9e-4); the
-    jumps are bisected to 0.004 z0 and the folds move by ~0.002 z0 with the grid."""
-    from contactpetsc.geometry.surfaces import sphere
-    from contactpetsc.grid import SurfaceGrid
-    from contactpetsc.paths import good_state, sweep
-    from contactpetsc.physics.interactions import make_law
+def test_3d_sphere_matches_the_axisymmetric_solution(coll, example_sphere_path):
+    """mu = 1, 96^2 window of 96 z0 at dx = z0 (conftest's example_sphere_path, this module's R):
+    load-approach points of loading and unloading, the jumps and the pull-off against the
+    axisymmetric solution (its load inside the same square window).  Tolerances from the
+    mesh-convergence study (run_scripts/checks/axisymmetric_comparison.py, docs/validation.md):
+    the 3-D pull-off moves by 2.2e-4 between dx = z0 and z0/2 (this case: 1.6e-4 from the
+    axisymmetric one), the curve's largest difference halves from 8.8e-4 W* at dx = z0 (this
+    case: 6.9e-4); the jumps are bisected to 0.004 z0 and the folds move by ~0.002 z0 with the
+    grid."""
+    from contactpetsc.paths import good_state
     from contactpetsc.pull_off import refine_pull_off
-    from contactpetsc.solvers.adhesive import AdhesiveProblem
 
-    mu, n, dx = 1.0, 96, 1.0
+    mu = 1.0
     w = work(mu)
     ws = 2 * np.pi * R * w
-    half = n * dx / 2
+    problem, path = example_sphere_path
+    assert problem.law.work_of_adhesion == w and problem.e_star == 1.0    # this module's sphere
+    half = problem.grid.nx * problem.grid.dx / 2
     ref, sph, states = pull_off_star(mu)
     load = lambda st: sph.rings.load_in_square(st.pressure, half) / ws   # noqa: E731
-    grid = SurfaceGrid(n, n, dx, periodic=False)
-    problem = AdhesiveProblem(grid, sphere(grid, R), 1.0, make_law("lj", work_of_adhesion=w, z0=1.0),
-                              prefix="axiref_")
-    path = sweep(problem, np.concatenate([np.arange(-2.0, 0.01, 0.25), np.arange(-0.25, -2.26, -0.25)]))
     pull = refine_pull_off(problem, path, xtol=1e-3) / ws
-    problem.destroy()
     window_pull = load(sph.pull_off(states))
     assert coll.max(abs(pull / window_pull - 1.0)) < 5e-4, (pull, window_pull, ref)
 

@@ -95,7 +95,9 @@ def test_a_snap_in_is_a_descent_to_a_stable_state(coll):
     assert coll.max(np.abs(gaps[0] - gaps[1])) < 1e-7
 
 
-@pytest.mark.heavy
+# one rank: on more, the descent on a split grid is test_descent_reaches_newtons_state_on_any_rank_count's
+# and test_a_snap_in_is_a_descent_to_a_stable_state's
+@pytest.mark.serial
 @pytest.mark.parametrize("law_name", ["lj", "hardwall-lj"])
 def test_the_descent_strategy_follows_newtons_path(coll, law_name):
     """``-<prefix>strategy descent`` (every step a descent from the last state, then Newton)

@@ -241,7 +241,9 @@ def same_on_one_rank(coll, make, out, shared_tmp):
     assert coll.max(worst) <= 1e-6
 
 
-@pytest.mark.heavy   # an adhesive path: 1 and 2 ranks (3 oversubscribed ranks spend minutes)
+# one rank: every rank finds the missing file alike (the written steps); an adhesive sweep
+# restarted on two ranks to its refined pull-off is test_restart's killed adhesive sweep
+@pytest.mark.serial
 @pytest.mark.filterwarnings("ignore::contactpetsc.physics.resolution.UnderResolvedWarning")
 def test_restart_without_the_pull_off_state_file_goes_on(coll, shared_tmp, adhesive_sweep):
     """A sweep written without pull-off refinement every 4th step, restarted with the refinement

@@ -67,7 +67,9 @@ def test_far_sphere_has_no_jumps_and_no_pull_off(coll):
     assert np.isnan(refine_pull_off(problem, path, xtol=0.01 * z0))
 
 
-@pytest.mark.heavy   # an adhesive path: 1 and 2 ranks (3 oversubscribed ranks spend minutes)
+# one rank: on two, a path without jumps refined to its pull-off is the flat cells' here and the
+# DMT sphere's of test_studies
+@pytest.mark.serial
 def test_sphere_pull_off_does_not_depend_on_the_sampling(coll):
     """mu = 0.5, full LJ (no jumps): the refined pull-off of a coarse path (steps of 0.5 z0,
     the minimum between samples) is the fine path's (steps of 0.1 z0), and lies between the
@@ -174,7 +176,9 @@ def test_a_relaxation_sweep_whose_search_fails_keeps_the_sampled_pull_off(coll, 
     assert summary["pull_off_force_N"] == sampled_pull_off(out)
 
 
-@pytest.mark.heavy   # an adhesive path: 1 and 2 ranks (3 oversubscribed ranks spend minutes)
+# one rank: on two, a relaxation sweep refining its pull-off is the flat cells' here
+# (test_a_relaxation_sweep_refines_the_flat_cell_pull_off_to_the_law_peak)
+@pytest.mark.serial
 @pytest.mark.filterwarnings("ignore::contactpetsc.physics.resolution.UnderResolvedWarning")
 def test_a_relaxation_sweep_refines_its_pull_off_to_the_newton_sweeps(coll, shared_tmp):
     """solver.method = relaxation on a sphere (Tabor parameter 0.5, loaded to 0.3 nm and unloaded

@@ -42,7 +42,8 @@ def test_relaxation_equals_newton_on_a_sphere(coll, law):
     assert {"total_error", "rms_contact_residual"} <= set(header)
 
 
-@pytest.mark.heavy   # an adhesive path: 1 and 2 ranks (3 oversubscribed ranks spend minutes)
+# one rank: on more, eq. 8's relaxation is test_relaxation_equals_newton_on_a_sphere[lj]'s
+@pytest.mark.serial
 def test_eq8_relaxation_of_a_flat_punch_gives_the_lj_pressure(coll):
     """Periodic flat surface: g = -delta at every node, so the pressure must be p_LJ(z0 - delta),
     reached from the previous state on both branches (adhesive, repulsive) and back."""

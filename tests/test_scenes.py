@@ -217,10 +217,18 @@ def read_curve(out):
 #: example paths long enough to be checked on 1 and 2 ranks only (the suite's time on 3)
 # adhesive paths and the area-load search: checked on 1 and 2 ranks (heavy)
 LONG_EXAMPLES = ("rough_adhesive_cell.toml", "adhesive_sphere.toml", "atomic_tip.toml", "rough_area_load.toml")
+#: examples checked on one rank: on two, their scene (a self-affine elastic cell under mean pressures, the
+#: spectral preconditioner) is rough_periodic's, and rough_large_outputs' field files (float32, every k-th
+#: step, lengths in nm) are test_field_output's
+ONE_RANK_EXAMPLES = ("bench_rough.toml", "rough_large_outputs.toml")
 
 
-@pytest.mark.parametrize("path", [pytest.param(p, marks=pytest.mark.heavy) if p.endswith(LONG_EXAMPLES) else p
-                                  for p in EXAMPLES], ids=os.path.basename)
+def _marks(path):
+    return pytest.mark.heavy if path.endswith(LONG_EXAMPLES) else (
+        pytest.mark.serial if path.endswith(ONE_RANK_EXAMPLES) else ())
+
+
+@pytest.mark.parametrize("path", [pytest.param(p, marks=_marks(p)) for p in EXAMPLES], ids=os.path.basename)
 def test_example_scenes_run_at_reduced_size(coll, shared_tmp, path):
     """Every example scene, on a 32 x 32 grid of the same physical size with plots on, converges
     and writes its files: CSV columns, finite fields, HDF5 and XDMF readable, the plots; under

@@ -124,7 +124,10 @@ def auto_run():
         shutil.rmtree(out, ignore_errors=True)
 
 
-@pytest.mark.heavy   # an adhesive sweep: 1 and 2 ranks
+# one rank: on two, auto's decisions against the always-on check are the full LJ path's of
+# test_auto_finds_the_jumps_and_pull_off_of_the_always_on_check, and curve.csv's stable and
+# stability_checked those of test_a_stopped_sweep_restarts_to_the_uninterrupted_run
+@pytest.mark.serial
 def test_curve_says_per_state_whether_the_check_ran(shared_tmp, auto_run):
     """curve.csv: stable is True/False exactly where stability_checked is True, nan elsewhere;
     the states auto leaves out are stable in the always-on run, and the checked ones agree
@@ -218,7 +221,9 @@ def test_a_stopped_sweep_restarts_to_the_uninterrupted_run(coll, shared_tmp, aut
         assert float(levels["1"].attrs["approach"]) == float(ref[8]["approach_m"])
 
 
-@pytest.mark.heavy   # an adhesive sweep: 1 and 2 ranks
+# one rank: every rank reads a step file's coarse levels alike (collective_call); a restart on two
+# ranks is test_a_stopped_sweep_restarts_to_the_uninterrupted_run's
+@pytest.mark.serial
 def test_a_step_file_without_coarse_levels_still_restarts(coll, shared_tmp, capfd):
     """A step file of an older version, without the coarse levels: the sweep restarts from it
     (the next steps predicted without the coarse grids, as before) and the log says so."""

@@ -159,6 +159,10 @@ def test_smooth_sphere_small_tabor_is_dmt(coll):
     assert coll.max(abs(metrics.path_hysteresis(c["path"])) / (scale * 1.0)) < 1e-3
 
 
+# one rank: on two, the central-gap and edge-gap paths through the S-curve are
+# test_adhesive_paths', jumps and pull-off test_axisymmetric_reference's, and this study's
+# greenwood_case test_smooth_sphere_small_tabor_is_dmt's
+@pytest.mark.serial
 def test_smooth_sphere_higher_tabor_jumps_and_maugis_pull_off(coll):
     """mu = 1 (the example's Fig. 4c path at mu = 2 costs minutes), full LJ: jump-on first,
     jump-off last, ending at a smaller approach than the jump-on; pull-off within 8 % of
@@ -182,6 +186,10 @@ def test_smooth_sphere_higher_tabor_jumps_and_maugis_pull_off(coll):
     assert stable[0] and False in stable
 
 
+# one rank: on two, greenwood_case with the hard-wall law is test_smooth_sphere_small_tabor_is_dmt's,
+# jumps and pull-off test_axisymmetric_reference's, and the relaxation and PTC this path falls
+# back to at its jump-on test_relaxation's and test_adhesive_solvers'
+@pytest.mark.serial
 def test_smooth_sphere_hard_wall_law_at_higher_tabor(coll):
     """mu = 1, hard-wall law (the example's mu = 2 path costs minutes): every state converged,
     a jump-on and a later jump-off at a smaller approach, pull-off within 8 % of Maugis-Dugdale
@@ -217,6 +225,9 @@ def test_adhesion_ratios_of_smooth_spheres(coll):
 
 
 # -- rough spheres (Figs. 6-9) --------------------------------------------------------------------
+# one rank: on two, this study's rough sphere loaded to the load is test_case_run_records_every_state's
+# and test_same_tabor_parameter_same_gaps_at_the_same_approach's, and unloading is a sweep
+@pytest.mark.serial
 def test_rough_sphere_small(coll):
     """Rough sphere (mu = 1) at 32^2: the load is met, ratios in [0, 1], pull-off tensile and no
     stronger than the smooth sphere's JKR/DMT bound, hysteresis >= 0 within its sampling error
