@@ -13,7 +13,6 @@ import subprocess
 import sys
 import tempfile
 
-import h5py
 import numpy as np
 import pytest
 from petsc4py import PETSc
@@ -198,11 +197,11 @@ def test_a_stopped_sweep_restarts_to_the_uninterrupted_run(coll, shared_tmp, aut
     """The sweep stopped after 3, 6 and 9 of its 12 steps and restarted each time (a run of the
     first k values, then --restart with more): curve.csv has the uninterrupted run's Newton
     iterations, forces, ``stable`` and ``stability_checked`` at every step, and its jumps.  The
-    fold watch's record and the last stiffness are kept with each step file, and so are the
-    nested iteration's coarse levels, stepped along with the path: the first restarted step is
-    predicted from them as in the uninterrupted run (without them its Newton count differs, and
-    the fold watch decides from Newton counts)."""
-    scene, (full, ref), nx = SPHERE, auto_run, SPHERE["geometry"]["nx"]
+    fold watch's record and the last stiffness are kept with each step file; the nested
+    iteration's coarse levels are put at the fine state before every step, so the first
+    restarted step is predicted as in the uninterrupted run (the fold watch decides from Newton
+    counts)."""
+    scene, (full, ref) = SPHERE, auto_run
     out = shared_tmp / "stopped"
     values = scene["protocol"]["values"]
     for n, k in enumerate((3, 6, 9, len(values))):
@@ -213,30 +212,3 @@ def test_a_stopped_sweep_restarts_to_the_uninterrupted_run(coll, shared_tmp, aut
     assert any(r["stability_checked"] == "False" for r in ref[3:])
     with open(os.path.join(full, "jumps.csv")) as f, open(out / "jumps.csv") as g:
         assert [j["approach_before_m"] for j in csv.DictReader(f)] == [j["approach_before_m"] for j in csv.DictReader(g)]
-    with h5py.File(out / "step_0009.h5", "r") as f:
-        levels = f["coarse_levels"]
-        assert [levels[k]["adhesive_pressure"].shape for k in sorted(levels)] == \
-            [(nx >> k, nx >> k) for k in range(1, len(levels) + 1)]
-        assert f.attrs["coarse_levels"] == len(levels) == 1          # 64 -> 32, the floor of the nested iteration
-        assert float(levels["1"].attrs["approach"]) == float(ref[8]["approach_m"])
-
-
-# one rank: every rank reads a step file's coarse levels alike (collective_call); a restart on two
-# ranks is test_a_stopped_sweep_restarts_to_the_uninterrupted_run's
-@pytest.mark.serial
-def test_a_step_file_without_coarse_levels_still_restarts(coll, shared_tmp, capfd):
-    """A step file of an older version, without the coarse levels: the sweep restarts from it
-    (the next steps predicted without the coarse grids, as before) and the log says so."""
-    values = SPHERE["protocol"]["values"]
-    out = shared_tmp / "older"
-    _rows(dict(SPHERE, protocol=dict(SPHERE["protocol"], values=values[:3])), str(out))
-    if coll.rank == 0:
-        with h5py.File(out / "step_0003.h5", "a") as f:
-            del f.attrs["coarse_levels"], f["coarse_levels"]
-    coll.comm.Barrier()
-    capfd.readouterr()
-    got = _rows(dict(SPHERE, protocol=dict(SPHERE["protocol"], values=values[:5])), str(out), True)
-    log = capfd.readouterr().out
-    assert [r["converged"] for r in got] == ["True"] * 5
-    if coll.rank == 0:
-        assert "note: step 3's file has no coarse levels (an older version wrote it)" in log

@@ -8,8 +8,7 @@ first) shows x horizontally.  Files are written to a temporary name and
 renamed when complete: a reader never sees half a step, and an interrupted
 run keeps every finished step.  Masks are uint8, the other fields float64 or
 (``output.field_precision``) float32, except what a restart or a height
-reader needs (``RESTART_FIELDS``, heights), always float64; an adhesive sweep's file
-also holds the nested iteration's coarse levels (``COARSE_LEVELS``).  ``fields.xdmf``
+reader needs (``RESTART_FIELDS``, heights), always float64.  ``fields.xdmf``
 collects the written steps in one temporal collection.
 """
 from __future__ import annotations
@@ -39,8 +38,8 @@ FULL_PRECISION = ("heights",)
 #: geometry, the approach as time, and the length fields); the HDF5 data stay in metres
 LENGTH_UNITS = {"m": 1.0, "um": 1e6, "nm": 1e9}
 COLLECTION = "fields.xdmf"   #: the temporal collection of every written step
-#: an adhesive sweep's step file: the attribute (their number) and the group of the nested
-#: iteration's coarse levels (``write_state``), which predict the next step: a restart takes them up
+#: the group of the nested iteration's coarse levels in an adhesive sweep's step files of older
+#: versions (the levels now follow the fine state; a restart reads the step's own fields only)
 COARSE_LEVELS = "coarse_levels"
 _XDMF_TYPES = {"f8": ("Float", 8), "f4": ("Float", 4), "u1": ("UChar", 1)}
 
@@ -149,14 +148,11 @@ def _check_room(directory: str, final: str, comm, need: float) -> None:
 
 
 def write_state(directory: str, step: int, grid, heights, state, attrs: dict, *, types: dict | None = None,
-                length_unit: str = "m", levels: list | None = None) -> str:
+                length_unit: str = "m") -> str:
     """Write step ``step`` of ``state`` (a ContactState) to ``directory/step_NNNN.h5`` (+ ``.xdmf``).
 
     ``types``: {field: HDF5 type code} (``field_types``; default: every field of the state,
-    masks uint8, the rest float64).  ``levels``: the coarse levels a restarted sweep takes up,
-    finest first, (grid, {restart field: the rank's rows}, approach [m]) each, written float64
-    to the groups ``COARSE_LEVELS``/k (k = 1, 2, ...), their number to the file attribute
-    ``COARSE_LEVELS`` (0 too: a file without it is of an older version).  Collective over the
+    masks uint8, the rest float64).  Collective over the
     grid's communicator.  Returns the HDF5 path.  A failed write (a full disk) raises OSError
     naming the file on every rank and leaves no temporary file.
     """
@@ -187,16 +183,8 @@ def write_state(directory: str, step: int, grid, heights, state, attrs: dict, *,
             dset = _write_rows(f, field, grid, rows[field], code)
             if field in ("heights", "gap"):   # gaps (h, and g = h + v - delta): so read back as a height file
                 dset.attrs["heights_are"] = "gap"
-        if levels is not None:
-            f.attrs[COARSE_LEVELS] = len(levels)
-            for k, (level, fields, approach) in enumerate(levels, 1):
-                sub = f.create_group(f"{COARSE_LEVELS}/{k}")
-                sub.attrs["approach"], sub.attrs["dx"], sub.attrs["dy"] = approach, level.dx, level.dy
-                for field, data in fields.items():
-                    _write_rows(sub, field, level, data, "f8")
 
     need = step_file_bytes(types, grid.nx * grid.ny, sum(len(str(v)) for v in attrs.values()))
-    need += sum(8 * len(fields) * level.nx * level.ny for level, fields, _ in levels or ())
     _check_room(directory, final, comm, need)
     try:
         _write_h5(tmp, comm, fill)
@@ -235,28 +223,6 @@ def _write_rows(group, field: str, grid, data, code: str):
     return dset
 
 
-def coarse_level_approaches(path: str) -> list | None:
-    """The approaches [m] of the coarse levels stored in step file ``path`` (``write_state``),
-    finest first; None in files of older versions, written before the levels were."""
-    with h5py.File(path, "r") as f:
-        if COARSE_LEVELS not in f.attrs:
-            return None
-        return [float(f[f"{COARSE_LEVELS}/{k}"].attrs["approach"]) for k in range(1, int(f.attrs[COARSE_LEVELS]) + 1)]
-
-
-def read_coarse_level(path: str, k: int, grid, fields: tuple) -> np.ndarray:
-    """The rank's rows of coarse level ``k``'s ``fields`` (those it has, in that order) on the
-    level's ``grid``, stacked (n_fields, ny_local, nx); a dataset of another shape is refused."""
-    with h5py.File(path, "r") as f:
-        level = f[f"{COARSE_LEVELS}/{k}"]
-        names = [name for name in fields if name in level]
-        for name in names:
-            if level[name].shape != (grid.ny, grid.nx):
-                raise ValueError(f"coarse level {k}'s {name} has shape {level[name].shape}, its grid "
-                                 f"(ny, nx) = ({grid.ny}, {grid.nx})")
-        return np.stack([np.asarray(level[name][grid.ys:grid.ye, :], dtype=float) for name in names])
-
-
 def check_step_file(path: str, grid, fields: tuple) -> None:
     """A step file fit to restart from: complete, ``fields`` present, every dataset of the grid's
     (ny, nx) shape and axes "y,x"."""
@@ -280,7 +246,7 @@ def check_step_file(path: str, grid, fields: tuple) -> None:
                                  f"(ny, nx) = ({grid.ny}, {grid.nx})")
             if f[name].attrs.get("axes", AXES) != AXES:
                 raise ValueError(f"{path}: {name} has axes {f[name].attrs['axes']!r}; expected {AXES!r}")
-        sizes = []   # every dataset's, the coarse levels' too
+        sizes = []   # every dataset's, an older file's coarse levels' too
         f.visititems(lambda _, obj: sizes.append(obj.size * obj.dtype.itemsize)
                      if isinstance(obj, h5py.Dataset) else None)
         need = sum(sizes)

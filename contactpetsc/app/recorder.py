@@ -28,8 +28,8 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..collective import collective_call
-from .output import (COLLECTION, check_step_file, coarse_level_approaches, read_coarse_level, read_written_step,
-                     scene_field_types, write_collection, write_state, write_text_atomic)
+from .output import (COLLECTION, check_step_file, read_written_step, scene_field_types, write_collection,
+                     write_state, write_text_atomic)
 from .plots import is_number
 
 CURVE_COLUMNS = ["step", "branch", "approach_m", "force_N", "mean_pressure_Pa", "contact_fraction",
@@ -208,20 +208,6 @@ class StepRecorder:
             vecs.append(v)
         return vecs, approach
 
-    def coarse_levels(self, step: int, fields: tuple) -> list | None:
-        """The coarse levels stored with step ``step`` (``record``), finest first, each (approach
-        [m], read): ``read(grid)`` gives the rank's rows of the level's ``fields`` (those it has, in
-        that order) on the level's ``grid``, stacked; None in files of older versions."""
-        path = self.path(f"step_{step:04d}.h5")
-        message = f"cannot restart from {path}: {{error}}"
-
-        def reader(k):
-            return lambda grid: collective_call(grid.mpi_comm, RuntimeError, message, read_coarse_level, path, k,
-                                                grid, fields)
-
-        found = collective_call(self.grid.mpi_comm, RuntimeError, message, coarse_level_approaches, path)
-        return None if found is None else [(a, reader(k)) for k, a in enumerate(found, 1)]
-
     def path_state(self, step: int) -> dict:
         """The ``path_state`` stored with step ``step`` (``record``), {} in files of older versions."""
         import h5py
@@ -249,11 +235,10 @@ class StepRecorder:
         self.t_start = MPI.Wtime()
 
     def record(self, st, row: dict, problem, new_jumps=(), results: dict | None = None,
-               path_state: dict | None = None, levels: list | None = None) -> None:
+               path_state: dict | None = None) -> None:
         """Write step ``row['step']`` (state ``st``; ``row`` keyed by CURVE_COLUMNS; the jumps found
         reaching it; the path's ``results`` so far, for summary.json; ``path_state``: what the
-        path's next step decides by, stored in the step file for a restart, ``path_state``, with
-        the coarse ``levels`` that predict it, ``coarse_levels``) and print it."""
+        path's next step decides by, stored in the step file for a restart, ``path_state``) and print it."""
         step = row["step"]
         share = 0.0
         if not self.grid.periodic:
@@ -262,7 +247,7 @@ class StepRecorder:
         if self.types and self.writes_fields(row, new_jumps):
             attrs = self.provenance if path_state is None else dict(self.provenance, path_state=path_state)
             write_state(self.out_dir, step, self.grid, self.heights, st, attrs, types=self.types,
-                        length_unit=self.length_unit, levels=levels)
+                        length_unit=self.length_unit)
             self.written.append((step, st.approach, self.types))
             collective_call(self.grid.mpi_comm, OSError, f"cannot write {self.path(COLLECTION)}: {{error}}",
                             lambda: write_collection(self.out_dir, self.grid, self.written, self.length_unit)

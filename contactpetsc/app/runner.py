@@ -179,8 +179,7 @@ def _steps(scene: dict, stepper, recorder) -> list:
                    newton_iterations=st.newton_iterations, krylov_iterations=st.linear_iterations,
                    fft_pairs=st.fft_pairs, wall_time_s=st.wall_time)
         row.update(stepper.row(st))
-        recorder.record(st, row, stepper.problem, jumps, stepper.results(), stepper.path_state(),
-                        stepper.coarse_levels())
+        recorder.record(st, row, stepper.problem, jumps, stepper.results(), stepper.path_state())
     return states
 
 

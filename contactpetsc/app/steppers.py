@@ -91,9 +91,6 @@ class ContactSteps:
     def path_state(self) -> None:
         return None               # each step is solved on its own: nothing to carry
 
-    def coarse_levels(self) -> None:
-        return None
-
     def finish(self) -> dict:
         return {}
 
@@ -141,8 +138,6 @@ class AdhesiveSteps:
             self._restore_best(recorder)
         (q, a), approach = recorder.read_step(len(rows), self.fields)
         self.problem.warm_start(q, a, approach)
-        if self.sweeping:
-            self._resume_coarse(recorder, len(rows))
         last, saved = rows[-1], recorder.path_state(len(rows))
         self.prev = (float(last["approach_m"]), float(last["force_N"]), NAN if saved.get("stiffness") is None
                      else float(saved["stiffness"]))
@@ -159,27 +154,6 @@ class AdhesiveSteps:
         watch = self.path._watch
         return {"stiffness": self.prev[2] if np.isfinite(self.prev[2]) else None,
                 "fold_watch": None if watch is None else watch.state()}
-
-    def coarse_levels(self) -> list | None:
-        """The nested iteration's coarse levels that predict a sweep's next step, for its step
-        file (``problem.coarse_levels.state``: (grid, {restart field: the rank's rows}, approach) each)."""
-        if not self.sweeping:
-            return None
-        return [(grid, dict(zip(self.fields[-len(x):], x)), approach)
-                for grid, x, approach in self.problem.coarse_levels.state()]
-
-    def _resume_coarse(self, recorder, step: int) -> None:
-        """The coarse levels stored with step ``step`` taken up: the next step is predicted as in
-        the uninterrupted run.  Files of older versions have none: the coarse levels are left
-        out for the rest of the path (noted where there would be some)."""
-        levels = recorder.coarse_levels(step, self.fields)
-        if levels is not None:
-            self.problem.coarse_levels.warm_start(levels)
-        elif self.problem.coarse_levels.steps and self.problem.coarse_levels.available():
-            PETSc.Sys.Print(f"  note: step {step}'s file has no coarse levels (an older version wrote it): "
-                            "the restarted steps are predicted without the nested iteration's coarse grids, "
-                            "so their Newton iterations, and where the stability check runs, may differ "
-                            "from an uninterrupted run's")
 
     def _restore_best(self, recorder) -> None:
         """The pull-off search's start (``paths.keep_for_search``) on a restarted path: the most

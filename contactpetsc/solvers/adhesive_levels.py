@@ -4,13 +4,13 @@ coarser grids (docs/formulation.md, "Adhesive contact: unknowns and Newton").
 * The first state of a solve is the coarse problem's solution at the same approach,
   prolonged piecewise constant (pressures are densities), recursively down to
   ``min_size`` nodes.
-* Later steps (``steps``) are predicted from the coarse level stepped along with the fine
-  one: x + P (x_c(delta) - x_c(delta_prev)), P bilinear (a full-approximation predictor).
+* Later steps are predicted by the ``step_levels`` levels below, each put at the restricted
+  fine state with FAS's tau correction and stepped: x + P (x_c(delta) - x_c), P bilinear.
 * A level that fails (even with its fallback) is dropped for good: a grid that cannot
   follow the path gives no useful start and would cost a fallback run at every later step.
 
 Options, under ``<problem prefix>fmg_``: ``-<prefix>fmg`` (on/off), ``_min_size``, ``_tol`` (the
-levels' error measures, z0), ``_steps`` (the predictor) and ``_ksp_max_it``.
+levels' error measures, z0), ``_step_levels`` (the predictor) and ``_ksp_max_it``.
 """
 from __future__ import annotations
 
@@ -35,7 +35,8 @@ class CoarseLevels:
         self.enabled = PETSc.Options(problem.prefix).getBool("fmg", code_default("adhesion", "fmg"))
         self.min_size = opts.getInt("min_size", code_default("adhesion", "fmg_min_size"))
         self.tol = opts.getReal("tol", code_default("adhesion", "fmg_tol"))
-        self.steps = opts.getBool("steps", code_default("adhesion", "fmg_steps"))
+        # two: on the 256^2 rough benchmark a third level (32^2) cost more than it saved (docs/performance.md)
+        self.step_levels = opts.getInt("step_levels", code_default("adhesion", "fmg_step_levels"))
         # a level only predicts: an under-resolved level's Krylov solves that stagnate to the fine
         # grid's limit cost more than the fine solve (docs/performance.md, "Energy descent as the
         # fallback"); an inexact step is still judged by the line search, and the fallback follows
@@ -82,6 +83,7 @@ class CoarseLevels:
             # dropped rather than followed by thousands of relaxation cycles or PTC steps
             coarse.fallback.methods = ["descent"]
         coarse.predictor.predicts = coarse.predictor.wanted = False   # a level needs no tangent
+        coarse.coarse_levels.step_levels = self.step_levels - 1
         ksp = coarse._snes.getKSP()
         ksp.setTolerances(max_it=min(ksp.getTolerances()[3], self.ksp_max_it))
         self._coarse = coarse
@@ -104,27 +106,49 @@ class CoarseLevels:
         return True
 
     def predict(self, approach: float, previous: float | None) -> bool:
-        """Add the prolonged coarse step P (x_c(approach) - x_c(previous)) to the problem's
-        unknowns, the coarse level stepped along; False (unknowns untouched) where the level
-        is not at the previous approach ``previous`` [m] or its step failed."""
-        coarse = self._coarse
-        if not (coarse and self.steps and coarse._approach == previous):
+        """Add the prolonged coarse step P (x_c(approach) - x_c) to the problem's unknowns, the
+        coarse level put at the problem's state first; False (unknowns untouched) where no level
+        steps or its step failed.
+
+        FAS's tau correction, taken up by the coarse heights: the restricted gap g_c = R g (0
+        where the restricted contact pressure R q is positive) and the pressures
+        x_c = (R q, a_c(g_c)) are made the coarse equilibrium at ``previous`` [m] (the approach of
+        the problem's state) by the heights h_c = g_c - K_c p_c + delta.  The level follows the
+        fine state wherever it jumped, so it cannot fold apart from it, and it needs nothing
+        from earlier steps (a restarted path predicts as the uninterrupted one)."""
+        coarse = self.coarse() if self.step_levels > 0 and previous is not None else None
+        if coarse is None:
             return False
-        old = coarse._x.copy()
+        fine = self.problem
+        xf = fine.blocks(fine._x, readonly=True)
+        gf = fine.op.apply(xf.sum(axis=0) if fine.n_blocks > 1 else xf[0], np.empty(xf.shape[1:]))
+        gf += fine.grid.rows(fine.heights, readonly=True)
+        gf -= previous
+        gc = restrict(gf)
+        xc = coarse.blocks(coarse._x)
+        if fine.hard_wall:
+            xc[0] = restrict(xf[0])
+            gc[xc[0] > 0] = 0.0
+        coarse.traction.pressure(gc, out=xc[-1])
+        hc = coarse.grid.rows(coarse.heights)
+        coarse.op.apply(xc.sum(axis=0) if fine.n_blocks > 1 else xc[0], hc)
+        np.subtract(gc, hc, out=hc)
+        hc += previous
+        coarse._approach, coarse._started = float(previous), True
+        start = coarse._x.copy()
         st = coarse.solve(approach=approach, raise_on_failure=False, check_stability=False)
         if st.converged:
-            fine = self.problem
-            old.aypx(-1.0, coarse._x)
-            xb, dc = fine.blocks(fine._x), coarse.blocks(old, readonly=True)
+            start.aypx(-1.0, coarse._x)
+            xb, dc = fine.blocks(fine._x), coarse.blocks(start, readonly=True)
             # the increment is smoother than the state: bilinear (fewer FFT pairs than
             # piecewise constant; docs/formulation.md, "Adhesive contact: unknowns and Newton")
             for k in range(fine.n_blocks):
                 xb[k] += prolong_bilinear(dc[k], coarse.grid)
             if fine.hard_wall:
                 np.maximum(xb[0], 0.0, out=xb[0])
-        old.destroy()
-        if not st.converged:
+        else:
             self._drop()
+        start.destroy()
         return st.converged
 
     def _drop(self) -> None:
@@ -135,33 +159,6 @@ class CoarseLevels:
     def fft_pairs(self) -> float:
         """FFT pairs of the levels below, kept and dropped, in the problem's grid units."""
         return (self._coarse.fft_pairs() / 4.0 if self._coarse else 0.0) + self._dropped_pairs
-
-    def state(self) -> list:
-        """The levels that the next steps are predicted from, as they are now, finest first:
-        (grid, the rank's rows of its unknowns (n_blocks, ny_local, nx): [q,] a, approach [m])
-        each; [] where no level is stepped (``steps`` off, levels dropped).  What a restarted
-        path takes up (``warm_start``) to predict its next step as the uninterrupted one does."""
-        out, level = [], self._coarse if self.steps else None
-        while level and level._started:
-            out.append((level.grid, level.blocks(level._x, readonly=True), level._approach))
-            level = level.coarse_levels._coarse
-        return out
-
-    def warm_start(self, levels: list) -> None:
-        """Take up the levels of ``state`` after the problem's ``warm_start`` (a restart):
-        ``levels`` finest first, each (approach [m], read), ``read(grid)`` giving the rank's rows
-        of the level's unknowns on ``grid``.  The level below the last is off, as it was
-        (dropped, or none); levels this run's options do not make are left out."""
-        here = self
-        for approach, read in levels:
-            coarse = here.coarse()
-            if coarse is None:
-                return
-            coarse.blocks(coarse._x)[...] = read(coarse.grid)
-            coarse._approach, coarse._started = float(approach), True
-            here = coarse.coarse_levels
-        if here._coarse is None:
-            here._coarse = False
 
     def destroy(self) -> None:
         """Destroy the levels' solvers (their callbacks hold the coarse problems)."""

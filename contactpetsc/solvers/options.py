@@ -68,8 +68,9 @@ ADHESION = (
     Option(("ksp_max_it",), "30 (full LJ), 1000", "Krylov iterations per Newton step"),
     Option(("repulsive_rows",), ("gap",), "gap-form rows g - G(a) where g < 0 (full LJ, nodal), or pressure"),
     Option(("step_limit",), "0.5 (full LJ), 0", "largest fall of a gap below min(g, 0) per Newton step (z0)"),
-    Option(("fmg", "fmg_min_size", "fmg_tol", "fmg_steps"), (True, 32, 1e-3, True),
-           "nested iteration and the coarse-grid predictor"),
+    Option(("fmg", "fmg_min_size", "fmg_tol"), (True, 32, 1e-3), "nested iteration on the first solve"),
+    Option(("fmg_step_levels",), (2,), "coarse levels that predict a path's next step (FAS-corrected "
+           "coarse steps; 0: the tangent predictor)"),
     Option(("fmg_ksp_max_it",), (100,), "Krylov iterations per Newton step on the coarse levels (at most "
            "-<prefix>ksp_max_it): a level only predicts"),
     Option(("preconditioner",), ("auto",), "auto (from the snap number K_ii max da/dg: mlmi for 0.01-0.2 "
