@@ -105,25 +105,20 @@ class CoarseLevels:
             xb[k] = prolong_constant(xc[k])
         return True
 
-    def predict(self, approach: float, previous: float | None) -> bool:
-        """Add the prolonged coarse step P (x_c(approach) - x_c) to the problem's unknowns, the
-        coarse level put at the problem's state first; False (unknowns untouched) where no level
-        steps or its step failed.
-
-        FAS's tau correction, taken up by the coarse heights: the restricted gap g_c = R g (0
-        where the restricted contact pressure R q is positive) and the pressures
-        x_c = (R q, a_c(g_c)) are made the coarse equilibrium at ``previous`` [m] (the approach of
-        the problem's state) by the heights h_c = g_c - K_c p_c + delta.  The level follows the
-        fine state wherever it jumped, so it cannot fold apart from it, and it needs nothing
-        from earlier steps (a restarted path predicts as the uninterrupted one)."""
-        coarse = self.coarse() if self.step_levels > 0 and previous is not None else None
+    def anchor(self, approach: float):
+        """The coarse level put at the problem's state, which is at ``approach`` [m]: FAS's tau
+        correction, taken up by the coarse heights.  The restricted gap g_c = R g (0 where the
+        restricted contact pressure R q is positive) and the pressures x_c = (R q, a_c(g_c)) are
+        made the coarse equilibrium at ``approach`` by the heights h_c = g_c - K_c p_c + delta.
+        Returns the level (None where there is none)."""
+        coarse = self.coarse()
         if coarse is None:
-            return False
+            return None
         fine = self.problem
         xf = fine.blocks(fine._x, readonly=True)
         gf = fine.op.apply(xf.sum(axis=0) if fine.n_blocks > 1 else xf[0], np.empty(xf.shape[1:]))
         gf += fine.grid.rows(fine.heights, readonly=True)
-        gf -= previous
+        gf -= approach
         gc = restrict(gf)
         xc = coarse.blocks(coarse._x)
         if fine.hard_wall:
@@ -133,11 +128,23 @@ class CoarseLevels:
         hc = coarse.grid.rows(coarse.heights)
         coarse.op.apply(xc.sum(axis=0) if fine.n_blocks > 1 else xc[0], hc)
         np.subtract(gc, hc, out=hc)
-        hc += previous
-        coarse._approach, coarse._started = float(previous), True
+        hc += approach
+        coarse._approach, coarse._started = float(approach), True
+        return coarse
+
+    def predict(self, approach: float, previous: float | None) -> bool:
+        """Add the prolonged coarse step P (x_c(approach) - x_c) to the problem's unknowns, the
+        coarse level ``anchor``-ed at the problem's state (at ``previous`` [m]) first; False
+        (unknowns untouched) where no level steps or its step failed.  The level follows the
+        fine state wherever it jumped, so it cannot fold apart from it, and it needs nothing
+        from earlier steps (a restarted path predicts as the uninterrupted one)."""
+        coarse = self.anchor(previous) if self.step_levels > 0 and previous is not None else None
+        if coarse is None:
+            return False
         start = coarse._x.copy()
         st = coarse.solve(approach=approach, raise_on_failure=False, check_stability=False)
         if st.converged:
+            fine = self.problem
             start.aypx(-1.0, coarse._x)
             xb, dc = fine.blocks(fine._x), coarse.blocks(start, readonly=True)
             # the increment is smoother than the state: bilinear (fewer FFT pairs than
