@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .fold_watch import FoldWatch
+from .solvers.stability import leaves_checks_out
 
 
 @dataclass
@@ -219,7 +220,7 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps):
     shorter steps than its path gives (docs/studies.md).  Returns
     the state at ``target`` (or the failed one) with the cost of every try and sub-step in
     it, and the (approach, force, stiffness) of the last converged state."""
-    if path._watch is None and getattr(problem, "stability_auto", False):
+    if path._watch is None and leaves_checks_out(problem):
         # the check left out away from folds (-<prefix>stability_check auto; the problem
         # reads its options at its first solve)
         path._watch = FoldWatch(min([p.force for p in path.points if good_state(p)], default=np.inf),

@@ -13,6 +13,7 @@ import numpy as np
 
 from .fold_watch import MARGIN_FLOOR
 from .paths import Path, good_state
+from .solvers.stability import leaves_checks_out
 
 #: Newton iterations of a solve of the pull-off search (``refine_pull_off``)
 SEARCH_NEWTON_STEPS = 30
@@ -52,7 +53,7 @@ def refine_pull_off(problem, path: Path, xtol: float, max_solves: int = 40,
         # not converged in SEARCH_NEWTON_STEPS has left the branch (near its end, such solves ran
         # to the iteration limit and cost most of the search)
         snes.setTolerances(max_it=min(max_it, SEARCH_NEWTON_STEPS))
-    auto = getattr(problem, "stability_auto", False)
+    auto = leaves_checks_out(problem)
 
     def check(*ends):
         """The solves between path points ``ends`` leave the check out (False) under auto when
@@ -195,7 +196,7 @@ class RelaxedSearch:
     search: the later solves return that state without solving, and the caller keeps the
     sampled pull-off (``app.steppers.AdhesiveSteps.finish``).
     """
-    stability_auto = False        #: the relaxation checks every state it is asked to
+    # no ``stability_check``: the relaxation checks every state it is asked to
 
     def __init__(self, relax, stall: float = SEARCH_STALL):
         self.relax, self.problem, self.stall = relax, relax.problem, stall

@@ -102,12 +102,12 @@ def test_truncated_stability_check_says_so(coll):
     Ritz values only grow towards lambda_max(A S)."""
     pb = sphere_problem(1.0, law="lj", n=64, dx=1.0)
     pb.snes()
-    pb.stability_steps = 3
+    pb.stability_check.steps = 3
     st = pb.solve(approach=0.5)
     assert st.converged and st.stability_converged is False
-    pb.stability_steps = 60
-    full = pb.stability()
-    assert pb.stability_converged is True
+    pb.stability_check.steps = 60
+    full = pb.stability_check.margin()
+    assert pb.stability_check.settled is True
     assert full <= st.stability_margin + 1e-12
 
 

@@ -145,7 +145,7 @@ def leave_out(scene: dict) -> list[str]:
     stiffness); central-gap control reports every state's stability and steps without a tangent;
     the paper's relaxation labels every state and uses no tangent (its pull-off search predicts
     with the secant of the branch)."""
-    from ..solvers.tangent import stability_mode
+    from ..solvers.stability import stability_mode
     if not adhesive(scene):
         return ["  left out: the stability check and the tangent (no adhesion: a convex problem, one "
                 "state per load and no folds; curve.csv stable = True, stability_checked = False)"]

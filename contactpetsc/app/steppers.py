@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 from petsc4py import PETSc
 
+from ..solvers.stability import leaves_checks_out
 from .output import RESTART_FIELDS
 
 NAN = float("nan")
@@ -141,7 +142,7 @@ class AdhesiveSteps:
         last, saved = rows[-1], recorder.path_state(len(rows))
         self.prev = (float(last["approach_m"]), float(last["force_N"]), NAN if saved.get("stiffness") is None
                      else float(saved["stiffness"]))
-        if self.path is not None and saved.get("fold_watch") and getattr(self.problem, "stability_auto", False):
+        if self.path is not None and saved.get("fold_watch") and leaves_checks_out(self.problem):
             # where the uninterrupted run would leave the check out (fold_watch.py)
             from ..fold_watch import FoldWatch
             self.path._watch = FoldWatch.restored(saved["fold_watch"])

@@ -53,7 +53,8 @@ from .options import code_default, print_help
 from .pc_registry import ADHESIVE_PRECONDITIONERS, auto_adhesive_preconditioner
 from .predictor import TangentPredictor
 from .states import AdhesiveState
-from .tangent import TangentAndState, stability_mode
+from .stability import StabilityCheck
+from .tangent import TangentAndState
 
 __all__ = ["AdhesiveProblem", "AdhesiveSolveError", "AdhesiveState"]
 
@@ -123,7 +124,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self.newton = None              # VI Newton (``VINewton``), made with the solvers
         self.check_time = 0.0          # stability check and tangent time of the current solve
         self.predictor = None           # the tangent predictor (``TangentPredictor``), made with the solvers
-        self.stability_converged = None  # whether the last stability check settled
+        self.stability_check = None     # the stability check (``StabilityCheck``), made with the solvers
         self.history = SolveHistory()
         self._x = None
         self._started = False           # a state exists (solved, warm-started or restored)
@@ -196,10 +197,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self.tol = check_tolerance(opts.getReal("tol", self._default("tol")),
                                    f"tol (-{self.prefix}tol)")
         self.max_it = opts.getInt("max_it", code_default("adhesion", "max_it"))
-        self.stability_check, self.stability_auto = stability_mode(
-            opts.getString("stability_check", str(self._default("stability_check"))),
-            f"-{self.prefix}stability_check")
-        self.stability_steps = opts.getInt("stability_steps", code_default("adhesion", "stability_steps"))
+        self.stability_check = StabilityCheck(self, self._default("stability_check"))
         self.fallback = FallbackChain(self)
         self.strategy = opts.getString("strategy", code_default("adhesion", "strategy")).lower()
         if self.strategy not in ("newton", "descent"):
@@ -331,7 +329,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
                             and self.coarse_levels.predict(float(approach), self._prev_approach))
         if not (coarse_predicted or descend) and approach is not None:
             self.predictor.predict(float(approach))
-        check = self.stability_check if check_stability is None else check_stability
+        check = self.stability_check.by_default if check_stability is None else check_stability
         # only where PTC or the descent would take over
         self.newton.watch_stalls = fallback and approach is not None and self.fallback.takes_over_stalls()
         converged, reason, newton, linear = self.newton.run()
@@ -343,7 +341,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
                 reason += f" (after {d_reason})"
         if callable(check):
             check = not converged or bool(check(newton, self.net_force()))
-        margin = self.stability() if (converged and check) else float("nan")
+        margin = self.stability_check.margin() if (converged and check) else float("nan")
         if fallback and approach is not None and (not converged or margin <= 0) and not self.out_of_time():
             if converged:
                 reason = f"UNSTABLE (stability margin {margin:.3e})"

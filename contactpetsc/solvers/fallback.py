@@ -101,7 +101,7 @@ class FallbackChain:
                 n2, l2 = n2 + n3, l2 + l3
             solver += "+" + method
             newton, linear = newton + n2, linear + l2
-            margin = pb.stability() if (ok and check) else float("nan")
+            margin = pb.stability_check.margin() if (ok and check) else float("nan")
             if (ok and not margin <= 0) or pb.out_of_time():
                 break
         return ok, reason, newton, linear, margin, solver

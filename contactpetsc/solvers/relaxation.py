@@ -240,8 +240,8 @@ class RelaxationSolver:
         pairs0, t0 = pb.fft_pairs(), pb.history.elapsed()
         pb.check_time = 0.0
         converged, reason, cycles, inner = self.relax(approach)
-        check = pb.stability_check if check_stability is None else check_stability
-        margin = pb.stability() if (converged and check) else float("nan")
+        check = pb.stability_check.by_default if check_stability is None else check_stability
+        margin = pb.stability_check.margin() if (converged and check) else float("nan")
         state = pb.make_state(converged, reason, cycles, inner, pairs0, t0, margin,
                           self.solver_name, tangent=False)
         PETSc.garbage_cleanup(pb.grid.comm)

@@ -37,6 +37,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..lifetime import destroy_at_exit
+from .options import code_default
 from .pc_registry import PRECONDITIONERS
 
 
@@ -105,18 +106,17 @@ def stability_margin(problem, gap: np.ndarray, q_rows: np.ndarray | None, steps:
     (periodic grids only; stops at ``residual_tol``) or "lanczos" (stops at ``tol``) to
     compare them (``run_scripts/bench/bench_stability.py``).
 
-    Sets ``problem.stability_converged``: False when the iteration ran its ``steps`` without
+    Returns (margin, settled): settled False when the iteration ran its ``steps`` without
     settling.  The Ritz value only grows towards lambda_max, so an unsettled positive margin
     is an upper bound: the state may still be unstable (seen on rough surfaces, whose top of
     the pencil is a cluster of asperity modes)."""
-    problem.stability_converged = True
     grid = problem.grid
     comm = grid.mpi_comm
     d = problem.traction.nodal_derivative(gap)
     contact = (q_rows > 0) if q_rows is not None else np.zeros(gap.shape, bool)
     d = np.where(contact, 0.0, d)
     if comm.allreduce(float(d.max()), op=MPI.MAX) <= 0.0:
-        return 1.0   # A <= 0: no positive eigenvalue
+        return 1.0, True   # A <= 0: no positive eigenvalue
     # start: the positive part of A (the attractive zone beyond the force peak), varied
     # from node to node by a fixed hash of the global index (rank-count independent), so
     # that it has every Fourier mode: a uniform start is in the null space of the
@@ -131,8 +131,54 @@ def stability_margin(problem, gap: np.ndarray, q_rows: np.ndarray | None, steps:
         lam, settled = _lobpcg(problem.op, comm, d, contact, v, steps, residual_tol)
     else:
         lam, settled = _lanczos(problem, comm, d, contact, v, steps, tol)
-    problem.stability_converged = settled
-    return 1.0 - lam
+    return 1.0 - lam, settled
+
+
+def stability_mode(value: str, name: str) -> tuple[bool, bool]:
+    """(check by default, auto) of ``-<prefix>stability_check`` = true, false or auto: with
+    auto every solve checks unless its caller leaves the check out (``paths.sweep`` away from
+    folds, ``fold_watch.py``)."""
+    text = str(value).strip().lower()
+    if text in ("", "1", "true", "yes", "on"):
+        return True, False
+    if text in ("0", "false", "no", "off"):
+        return False, False
+    if text == "auto":
+        return True, True
+    raise ValueError(f"{name} = {value!r}: accepted values are true, false, auto")
+
+
+class StabilityCheck:
+    """The stability check of an ``AdhesiveProblem``, a strategy on it: ``-<prefix>stability_check``
+    (true, false or auto: ``by_default``, ``auto``) and ``-<prefix>stability_steps`` (``steps``),
+    read when made (inside the problem's ``inserted_options``); ``margin()`` at the problem's
+    state, with ``settled`` whether its estimate settled."""
+
+    def __init__(self, problem, default):
+        self.problem = problem
+        opts = PETSc.Options(problem.prefix)
+        self.by_default, self.auto = stability_mode(opts.getString("stability_check", str(default)),
+                                                    f"-{problem.prefix}stability_check")
+        self.steps = opts.getInt("stability_steps", code_default("adhesion", "stability_steps"))
+        self.settled = None   #: whether the last margin's estimate settled
+
+    def margin(self) -> float:
+        """1 - lambda_max(A S) at the problem's state (module doc); its time goes to the
+        problem's ``check_time``.  Collective."""
+        pb = self.problem
+        t0 = pb.history.elapsed()
+        xb = pb.blocks(pb._x, readonly=True)
+        gap = pb._gap(xb, pb._g)
+        margin, self.settled = stability_margin(pb, gap, q_rows=xb[0] if pb.hard_wall else None, steps=self.steps)
+        pb.check_time += pb.history.elapsed() - t0
+        return margin
+
+
+def leaves_checks_out(problem) -> bool:
+    """Whether ``problem``'s stability check is ``auto`` (a path may leave it out away from
+    folds); False for a problem without one (non-adhesive, a relaxation search) or before
+    its options are read."""
+    return bool(getattr(getattr(problem, "stability_check", None), "auto", False))
 
 
 def _lanczos(problem, comm, d, contact, v, steps, tol):

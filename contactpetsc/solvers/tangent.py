@@ -9,22 +9,7 @@ from petsc4py import PETSc
 
 from .base import with_options
 from .fallback import FALLBACKS
-from .stability import stability_margin
 from .states import AdhesiveState
-
-
-def stability_mode(value: str, name: str) -> tuple[bool, bool]:
-    """(check by default, auto) of ``-<prefix>stability_check`` = true, false or auto: with
-    auto every solve checks unless its caller leaves the check out (``paths.sweep`` away from
-    folds, ``fold_watch.py``)."""
-    text = str(value).strip().lower()
-    if text in ("", "1", "true", "yes", "on"):
-        return True, False
-    if text in ("0", "false", "no", "off"):
-        return False, False
-    if text == "auto":
-        return True, True
-    raise ValueError(f"{name} = {value!r}: accepted values are true, false, auto")
 
 
 class Snapshot:
@@ -80,16 +65,6 @@ class TangentAndState:
         p = self.blocks(self._x, readonly=True).sum(axis=0)
         return self.grid.mpi_comm.allreduce(float(p.sum())) * self.grid.element_area
 
-    def stability(self) -> float:
-        """1 - lambda_max(A S) at the current state (see ``stability.py``); collective."""
-        t0 = self.history.elapsed()
-        xb = self.blocks(self._x, readonly=True)
-        gap = self._gap(xb, self._g)
-        margin = stability_margin(self, gap, q_rows=xb[0] if self.hard_wall else None,
-                                  steps=self.stability_steps)
-        self.check_time += self.history.elapsed() - t0
-        return margin
-
     def make_state(self, converged, reason, newton, linear, pairs0, t0, margin, solver,
                    tangent=False) -> AdhesiveState:
         """The ``AdhesiveState`` of the present unknowns: fields, errors, the stability
@@ -137,7 +112,7 @@ class TangentAndState:
             reason=reason, newton_iterations=newton, linear_iterations=linear,
             fft_pairs=self.fft_pairs() - pairs0, wall_time=self.history.elapsed() - t0,
             check_time=self.check_time,
-            stability_converged=self.stability_converged if np.isfinite(margin) else None,
+            stability_converged=self.stability_check.settled if np.isfinite(margin) else None,
             solver=solver, fallback=solver.endswith(tuple("+" + m for m in FALLBACKS)), energy=energy)
 
     def total_error(self, a_rows: np.ndarray, gap_rows: np.ndarray) -> float:

@@ -58,8 +58,8 @@ def margin(pb, method, **kw):
     xb = pb.blocks(pb._x, readonly=True)
     gap = pb._gap(xb, pb._g)
     p0, t0 = pb.fft_pairs(), time.process_time()
-    m = stability_margin(pb, gap, xb[0] if pb.hard_wall else None, method=method, **kw)
-    return m, pb.stability_converged, pb.fft_pairs() - p0, time.process_time() - t0
+    m, settled = stability_margin(pb, gap, xb[0] if pb.hard_wall else None, method=method, **kw)
+    return m, settled, pb.fft_pairs() - p0, time.process_time() - t0
 
 
 def main():
