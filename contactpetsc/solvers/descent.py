@@ -19,8 +19,9 @@ mean pressure): zero where the state is an equilibrium.
   active set; the multiplier q = p - a(g) >= 0).  The mean of u is held by a penalty
   c/2 N mean(u)^2 + W N mean(u) (c the largest modal stiffness, W the mean-pressure
   multiplier): a state with mean(u) = m is exactly an equilibrium at approach delta - m.
-  W is updated to the measured mean pressure between rounds (Uzawa) until |m| is below
-  ``offset_tol`` z0; Newton then closes the last offset.
+  W is updated to the measured mean pressure between rounds (Uzawa; from the second round
+  on, by the secant of m(W)) until |m| is below ``offset_tol`` z0; Newton then closes the
+  last offset.
 
 Its stopping test is the problem's own error measures (``AdhesiveProblem._measures``) on
 the descent iterate, to ``-<prefix>descent_tol`` (default: the problem's ``tol``, half of it with a hard wall; Newton's
@@ -319,6 +320,7 @@ class EnergyDescent:
             pc.setPythonContext(_Compliance(self))
         self._lin0 = p.history[-1].linear_iterations if len(p.history) else 0
         iterations = linear = rounds = 0
+        last = None     # (W, mean u) of the round before
         self.last_error = np.inf
         try:
             while True:
@@ -329,7 +331,16 @@ class EnergyDescent:
                 mean_u = self.fields(grid.rows(x, readonly=True))[3]
                 if not p.hard_wall or code < 0 or rounds >= self.max_rounds or abs(mean_u) <= self.offset_tol * p.z0:
                     break
-                self.W += self.c * mean_u     # the measured mean pressure: the next round's multiplier
+                # the measured mean pressure, W + c m, is the next round's multiplier; from the
+                # second round on, the secant of m(W) where it falls as it should (slope below
+                # -1/c's sign): the offset then falls superlinearly instead of by k / (c + k)
+                step = self.c * mean_u
+                if last is not None and mean_u != last[1]:
+                    slope = (mean_u - last[1]) / (self.W - last[0])
+                    if slope < 0:
+                        step = -mean_u / slope
+                last = (self.W, mean_u)
+                self.W += step
                 self._fields = None
             linear = self.pc_applies
             converged = code > 0
