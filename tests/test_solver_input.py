@@ -40,6 +40,13 @@ def test_tolerance_option_outside_its_range_is_refused(coll, kind):
         opts.delValue(prefix + "tol")
 
 
+def test_negative_coarse_step_levels_are_refused(coll):
+    grid = SurfaceGrid(16, 16, 1.0, periodic=False)
+    problem = AdhesiveProblem(grid, sphere(grid, 100.0), 1.0, LJ, prefix="neg_levels_",
+                              petsc_options={"fmg_step_levels": -1})
+    coll.raises(ValueError, ["-neg_levels_fmg_step_levels", ">= 0", "-1"], problem.solve, approach=0.5)
+
+
 def test_subnormal_load_is_refused(coll):
     grid = SurfaceGrid(16, 16, 1e-9, periodic=False)
     h = sphere(grid, 100e-9)

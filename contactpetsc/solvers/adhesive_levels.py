@@ -37,6 +37,9 @@ class CoarseLevels:
         self.tol = opts.getReal("tol", code_default("adhesion", "fmg_tol"))
         # two: on the 256^2 rough benchmark a third level (32^2) cost more than it saved (docs/performance.md)
         self.step_levels = opts.getInt("step_levels", code_default("adhesion", "fmg_step_levels"))
+        if self.step_levels < 0:
+            raise ValueError(f"-{self.prefix}step_levels must be >= 0 (0: the tangent predictor), "
+                             f"got {self.step_levels}")
         # a level only predicts: an under-resolved level's Krylov solves that stagnate to the fine
         # grid's limit cost more than the fine solve (docs/performance.md, "Energy descent as the
         # fallback"); an inexact step is still judged by the line search, and the fallback follows
