@@ -47,6 +47,14 @@ def test_negative_coarse_step_levels_are_refused(coll):
     coll.raises(ValueError, ["-neg_levels_fmg_step_levels", ">= 0", "-1"], problem.solve, approach=0.5)
 
 
+@pytest.mark.parametrize("progress", [0.0, 1.5])
+def test_stall_progress_outside_its_range_is_refused(coll, progress):
+    grid = SurfaceGrid(16, 16, 1.0, periodic=False)
+    problem = AdhesiveProblem(grid, sphere(grid, 100.0), 1.0, LJ, prefix="stall_progress_",
+                              petsc_options={"stall_progress": progress})
+    coll.raises(ValueError, ["-stall_progress_stall_progress", "(0, 1]"], problem.solve, approach=0.5)
+
+
 def test_subnormal_load_is_refused(coll):
     grid = SurfaceGrid(16, 16, 1e-9, periodic=False)
     h = sphere(grid, 100e-9)
