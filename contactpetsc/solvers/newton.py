@@ -35,19 +35,6 @@ def newton_linesearch(hard_wall: bool) -> str:
     return "bt" if hard_wall else "basic"
 
 
-def stall_progress(hard_wall: bool) -> float:
-    """The stall watch's progress (code default of ``-<prefix>stall_progress``): the fraction of
-    the smallest error so far that a Newton step must reach to count as progress.
-
-    Hard-wall laws: half.  Their fallback, the energy descent, costs a few hundred FFT pairs,
-    and Newton's error can creep down for many steps without converging: counting only
-    halvings gave the rough benchmark paths 4-7 % fewer pairs in the same states.  Full LJ
-    curve: any smaller error.  Its descent costs thousands of pairs, and Newton converges
-    there after 15-20 slow steps (docs/performance.md, "Energy descent as the fallback").
-    """
-    return 0.5 if hard_wall else 1.0
-
-
 def newton_ksp_type(hard_wall: bool) -> str:
     """The Krylov method of the Newton and PTC steps (code default of ``-<prefix>ksp_type``).
 
@@ -68,7 +55,10 @@ class VINewton:
         self.prefix = prefix
         opts = PETSc.Options(pb.prefix)
         self.stall_steps = opts.getInt("stall_steps", code_default("adhesion", "stall_steps"))
-        self.stall_progress = opts.getReal("stall_progress", stall_progress(pb.hard_wall))
+        # 1 (any smaller error): 0.5 cut the rough hard-wall benchmark paths by 4-7 % but made
+        # the hard-wall spheres' paths dearer, their slow Newton runs sent to the fallback
+        # (docs/performance.md, "Energy descent as the fallback")
+        self.stall_progress = opts.getReal("stall_progress", code_default("adhesion", "stall_progress"))
         if not 0.0 < self.stall_progress <= 1.0:
             raise ValueError(f"-{pb.prefix}stall_progress must be in (0, 1], got {self.stall_progress!r}")
         self.watch_stalls = False       # set per solve: only where a fallback goes on from a stall
