@@ -23,6 +23,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..collective import collective_guard
+from .adhesive_residual import total_pressure
 from .reduced import InactiveSet, PreconditionerData, python_submatrix, view_context
 
 
@@ -43,8 +44,7 @@ class AdhesiveJacobian:
     def apply_full(self, blocks_in: np.ndarray, blocks_out: np.ndarray) -> np.ndarray:
         """J on (nb, ny_loc, nx) arrays."""
         pb = self.problem
-        p = blocks_in.sum(axis=0) if blocks_in.shape[0] > 1 else blocks_in[0]
-        w = self.op.apply(p, self.w)
+        w = self.op.apply(total_pressure(blocks_in), self.w)
         if pb.centre_owner is not None:
             w -= pb.centre_value(w)
         if pb.hard_wall:

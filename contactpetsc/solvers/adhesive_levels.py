@@ -20,6 +20,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from ..physics.resolution import UnderResolvedWarning
+from .adhesive_residual import total_pressure
 from .options import code_default
 from .transfer import can_halve, halved, prolong_bilinear, prolong_constant, restrict
 
@@ -119,7 +120,7 @@ class CoarseLevels:
             return None
         fine = self.problem
         xf = fine.blocks(fine._x, readonly=True)
-        gf = fine.op.apply(xf.sum(axis=0) if fine.n_blocks > 1 else xf[0], np.empty(xf.shape[1:]))
+        gf = fine.op.apply(total_pressure(xf), np.empty(xf.shape[1:]))
         gf += fine.grid.rows(fine.heights, readonly=True)
         gf -= approach
         gc = restrict(gf)
@@ -129,7 +130,7 @@ class CoarseLevels:
             gc[xc[0] > 0] = 0.0
         coarse.traction.pressure(gc, out=xc[-1])
         hc = coarse.grid.rows(coarse.heights)
-        coarse.op.apply(xc.sum(axis=0) if fine.n_blocks > 1 else xc[0], hc)
+        coarse.op.apply(total_pressure(xc), hc)
         np.subtract(gc, hc, out=hc)
         hc += approach
         coarse._approach, coarse._started = float(approach), True

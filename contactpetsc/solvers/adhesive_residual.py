@@ -10,13 +10,18 @@ from ..collective import collective_guard
 from .base import convergence_verdict
 
 
+def total_pressure(blocks: np.ndarray) -> np.ndarray:
+    """p = q + a [Pa] of unknowns ``blocks`` ((n_blocks, ny_loc, nx): [q,] a); with one block
+    (the full LJ curve) that block itself, not a copy."""
+    return blocks.sum(axis=0) if blocks.shape[0] > 1 else blocks[0]
+
+
 class AdhesiveCallbacks:
     """Mixin of ``AdhesiveProblem``: what the SNES calls back."""
 
     def _gap(self, blocks: np.ndarray, out: np.ndarray) -> np.ndarray:
         """The gap [m] (``VIProblem.gap``) of the unknowns ``blocks``; K p stays in ``_v``."""
-        p = blocks.sum(axis=0) if self.n_blocks > 1 else blocks[0]
-        return self.gap(p, out, displacement=self._v)
+        return self.gap(total_pressure(blocks), out, displacement=self._v)
 
     def control_approach(self, h_plus_v: np.ndarray) -> float:
         """delta [m]; under central-gap control the one that gives the control node its gap."""

@@ -19,12 +19,13 @@ made) minus the resident size before the problem, in doubles (8 B) per grid poin
 One rank (the memory figure is the process's).
 """
 import argparse
-import json
 import os
 import sys
 import time
 
 import petsc4py
+
+from bench_args import emit
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
@@ -57,10 +58,6 @@ def status_kb(field):
             if line.startswith(field + ":"):
                 return int(line.split()[1])
     raise KeyError(field)
-
-
-def emit(**row):
-    print(json.dumps(row), flush=True)
 
 
 def main():

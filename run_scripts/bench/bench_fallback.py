@@ -24,19 +24,16 @@ together): a state it stops is reported as not converged (``WALL_TIME_BUDGET``).
 
 One rank.
 """
-import argparse
-import json
 import os
 import sys
 import time
 
 import petsc4py
 
+from bench_args import emit, rough_parser
+
 HERE = os.path.dirname(os.path.abspath(__file__))
-ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-ap.add_argument("--size", type=int, default=256)
-ap.add_argument("--law", default="exponential", choices=["exponential", "hardwall-lj", "lj"])
-ap.add_argument("--w", type=float, default=0.05, help="work of adhesion / (E* dx)")
+ap = rough_parser(__doc__)
 ap.add_argument("--areas", type=float, nargs="*", default=[0.01, 0.02, 0.05, 0.10],
                 help="contact fractions of the cold states (none: the path only)")
 ap.add_argument("--states", type=int, default=10, help="states of the load-unload path (0: none)")
@@ -57,10 +54,6 @@ sys.path.insert(0, HERE)
 from rough_surface import adhesive_law, calibrate, load_unload_path, non_adhesive_unit, rough_surface  # noqa: E402
 
 assert PETSc.COMM_WORLD.getSize() == 1, "one rank"
-
-
-def emit(**row):
-    print(json.dumps(row), flush=True)
 
 
 def make_problem(grid, h, law, chain, tag):

@@ -49,10 +49,8 @@ PC side and norm.  One JSON line each:
 
 One rank.
 """
-import argparse
 import collections
 import gc
-import json
 import os
 import resource
 import statistics
@@ -62,11 +60,10 @@ import tracemalloc
 
 import petsc4py
 
+from bench_args import emit, rough_parser
+
 HERE = os.path.dirname(os.path.abspath(__file__))
-ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-ap.add_argument("--size", type=int, default=256)
-ap.add_argument("--law", default="exponential", choices=["exponential", "hardwall-lj", "lj"])
-ap.add_argument("--w", type=float, default=0.05, help="work of adhesion / (E* dx)")
+ap = rough_parser(__doc__)
 ap.add_argument("--area", type=float, default=0.05, help="contact fraction of the state")
 ap.add_argument("--pcs", nargs="+", default=["spectral", "mlmi"])
 ap.add_argument("--rtols", type=float, nargs="+", default=[1e-2, 1e-6])
@@ -91,10 +88,6 @@ from rough_surface import adhesive_law, calibrate, rough_surface  # noqa: E402
 assert PETSc.COMM_WORLD.getSize() == 1, "one rank"
 
 PREFIX = "pcc_"
-
-
-def emit(**row):
-    print(json.dumps(row), flush=True)
 
 
 def rss_bytes():

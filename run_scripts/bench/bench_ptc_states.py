@@ -25,11 +25,12 @@ docs/formulation.md, "Plans that repeat from run to run").
 One rank.
 """
 import argparse
-import json
 import os
 import sys
 
 import petsc4py
+
+from bench_args import emit
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
@@ -67,10 +68,6 @@ class Traced(AdhesiveProblem):
         super()._jacobian(snes, x, J, P)
         if self.shift and self.grid.nx == args.size:
             Traced.shifts.append(self.shift)
-
-
-def emit(**row):
-    print(json.dumps(row), flush=True)
 
 
 def solve_traced(pb, approach):

@@ -21,19 +21,16 @@ per state and method.
 
 One rank.
 """
-import argparse
-import json
 import os
 import sys
 import time
 
 import petsc4py
 
+from bench_args import emit, rough_parser
+
 HERE = os.path.dirname(os.path.abspath(__file__))
-ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-ap.add_argument("--size", type=int, default=256)
-ap.add_argument("--law", default="exponential", choices=["exponential", "hardwall-lj", "lj"])
-ap.add_argument("--w", type=float, default=0.05, help="work of adhesion / (E* dx)")
+ap = rough_parser(__doc__)
 ap.add_argument("--states", type=int, default=10, help="states of the load-unload path")
 args, petsc_args = ap.parse_known_args()
 petsc4py.init([sys.argv[0]] + petsc_args)
@@ -48,10 +45,6 @@ sys.path.insert(0, HERE)
 from rough_surface import adhesive_law, load_unload_path, non_adhesive_unit, rough_surface  # noqa: E402
 
 assert PETSc.COMM_WORLD.getSize() == 1, "one rank"
-
-
-def emit(**row):
-    print(json.dumps(row), flush=True)
 
 
 def margin(pb, method, **kw):

@@ -16,19 +16,16 @@ Per state one JSON line; pairs exact, CPU s one run (``process_time``).
 
 One rank.
 """
-import argparse
-import json
 import os
 import sys
 import time
 
 import petsc4py
 
+from bench_args import emit, rough_parser
+
 HERE = os.path.dirname(os.path.abspath(__file__))
-ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-ap.add_argument("--size", type=int, default=256)
-ap.add_argument("--law", default="lj", choices=["exponential", "hardwall-lj", "lj"])
-ap.add_argument("--w", type=float, default=0.05, help="work of adhesion / (E* dx)")
+ap = rough_parser(__doc__, law="lj")
 ap.add_argument("--states", type=int, default=10)
 ap.add_argument("--refine", type=int, nargs="+", default=[1, 4, 16])
 args, petsc_args = ap.parse_known_args()
@@ -43,10 +40,6 @@ sys.path.insert(0, HERE)
 from rough_surface import adhesive_law, load_unload_path, rough_surface  # noqa: E402
 
 assert PETSc.COMM_WORLD.getSize() == 1, "one rank"
-
-
-def emit(**row):
-    print(json.dumps(row), flush=True)
 
 
 def main():
