@@ -60,16 +60,13 @@ Mapping to Tamaas (checked against tamaas 2.9.0, see report / checks below)
 Output: one JSON line on stdout; fields p, gap, v, h, delta in ``--out``.
 """
 import json
-import os
-import re
 import sys
-import tempfile
-import time
 
 import numpy as np
 import tamaas as tm
 
 import signorini_cli
+from tamaas_log import solve_logged
 
 
 def _westergaard_np(p, length, estar):
@@ -99,25 +96,7 @@ def main(argv=None):
     solver = tm.PolonskyKeerRey(model, surface, args.tol)
     solver.max_iter = args.max_iter
 
-    # capture Tamaas' C++ log (fd 2) during the solve only
-    sys.stderr.flush()
-    saved = os.dup(2)
-    with tempfile.TemporaryFile(mode="w+b") as logf:
-        os.dup2(logf.fileno(), 2)
-        try:
-            t0 = time.perf_counter()
-            err = solver.solve(P)
-            t_solve = time.perf_counter() - t0
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
-        logf.seek(0)
-        log = logf.read().decode(errors="replace")
-    idx = [int(m.group(1)) for m in re.finditer(r"^\s*(\d+)\s+\S+\s+\S+\s*$", log, re.M)]
-    # loop is `do {...} while (err > tol && n++ < max_iter)`: the last logged
-    # index is the last iteration's index on convergence, and one past it
-    # when max_iter stops the loop (checked with the gdb FFT count).
-    iterations = (idx[-1] + (1 if err <= args.tol else 0)) if idx else None
+    err, iterations, t_solve, _, log = solve_logged(solver, P)
 
     p = np.array(model.traction, dtype=np.float64, copy=True).reshape(n, n)
     U = np.array(model.displacement, dtype=np.float64, copy=True).reshape(n, n)
