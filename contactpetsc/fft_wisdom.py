@@ -32,6 +32,10 @@ ENV = "CONTACTPETSC_FFTW_WISDOM"
 
 _known: tuple | None = None    # the wisdom this process last read or wrote
 _warned: set = set()           # wisdom paths already warned about (no regular file)
+#: the wisdom set aside while FFTW_ESTIMATE plans are made (None: it is in memory).  It is
+#: restored only when a measured plan is next made: a file of many sizes costs 10-20 ms to
+#: export or import, and a small adhesive problem plans a dozen coarse grids in a row
+_set_aside: tuple | None = None
 
 
 def cpu_model() -> str:
@@ -145,14 +149,16 @@ def save(comm: MPI.Comm) -> None:
 def planning(comm: MPI.Comm, planner: str):
     """Plans made inside repeat from run to run: measured ones from the stored wisdom (and new
     ones stored), estimated ones without any wisdom; collective on ``comm``."""
+    global _set_aside
     if planner == "estimate":
-        kept = pyfftw.export_wisdom()
-        pyfftw.forget_wisdom()
-        try:
-            yield
-        finally:
-            pyfftw.import_wisdom(kept)
+        if _set_aside is None:
+            _set_aside = pyfftw.export_wisdom()
+            pyfftw.forget_wisdom()
+        yield
         return
+    if _set_aside is not None:
+        pyfftw.import_wisdom(_set_aside)
+        _set_aside = None
     load(comm)
     yield
     save(comm)
