@@ -67,7 +67,7 @@ def pytest_configure(config):
 GROUP_B_MODULES = {
     "test_studies", "test_stability_auto", "test_adhesive_paths", "test_adhesive_sphere",
     "test_pull_off_and_jumps", "test_unit_scales", "test_plots_results", "test_robustness",
-    "test_axisymmetric_reference", "test_restart",
+    "test_axisymmetric_reference", "test_restart", "test_descent",
 }
 GROUP = os.environ.get("CONTACTPETSC_TEST_GROUP", "")
 
