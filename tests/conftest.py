@@ -67,7 +67,7 @@ def pytest_configure(config):
 GROUP_B_MODULES = {
     "test_studies", "test_stability_auto", "test_adhesive_paths", "test_adhesive_sphere",
     "test_pull_off_and_jumps", "test_unit_scales", "test_plots_results", "test_robustness",
-    "test_axisymmetric_reference", "test_restart",
+    "test_axisymmetric_reference", "test_restart", "test_descent",
 }
 GROUP = os.environ.get("CONTACTPETSC_TEST_GROUP", "")
 
@@ -100,15 +100,17 @@ def pytest_collection_modifyitems(config, items):
                 item.add_marker(skip_module)
 
 
-#: modules checked on 1 and 2 ranks only: scenes, command lines, plots, load paths and studies,
-#: whose parallel code (the grid split, the FFT, the solvers, parallel I/O) is that of the grid,
-#: operator, solver and output tests, which the pass on 3 ranks (every grid split unevenly) runs
+#: modules checked on 1 and 2 ranks only: scenes, command lines, plots, restarts, load paths and
+#: studies, whose parallel code (the grid split, the FFT, the solvers, parallel I/O) is that of the
+#: grid, operator, solver and output tests, which the pass on 3 ranks (every grid split unevenly)
+#: runs (a restart from the step files on an uneven split: test_field_output's
+#: test_restart_resumes_from_the_last_step_file)
 TWO_RANK_MODULES = {
     "test_adhesive_paths", "test_adhesive_sphere", "test_api_page", "test_axisymmetric_reference",
     "test_cli_options", "test_examples", "test_faults", "test_grid_biases", "test_interactions",
     "test_law_registry", "test_material_scenes", "test_output_directory", "test_plot_scales",
-    "test_plots_results", "test_pull_off_and_jumps", "test_robustness", "test_run_lock", "test_scenes",
-    "test_solver_input", "test_solver_options", "test_stability_auto", "test_studies",
+    "test_plots_results", "test_pull_off_and_jumps", "test_restart", "test_robustness", "test_run_lock",
+    "test_scenes", "test_solver_input", "test_solver_options", "test_stability_auto", "test_studies",
     "test_under_resolved_jump_in", "test_unit_scales",
 }
 
