@@ -24,9 +24,8 @@ At the approaches giving --areas contact (``rough_surface.calibrate``), two case
 
 Accuracy: ``error`` = max |g - g_ref| / range against our state polished to 1e-11 (a warm start
 from it).  A peer's state within 1e-3 range of the reference is the same equilibrium;
-otherwise it is reported as another state with its energy beside ours (approach control:
-the total energy at the same approach; Tamaas' state is at another approach, its distance is
-given instead).  Equal accuracy: each peer runs at the tolerances of --tamaas-tol /
+otherwise it is reported as another state with its energy beside ours (the total energy at
+the same approach: Tamaas' mean gap fixes it too, its difference to ours is reported).  Equal accuracy: each peer runs at the tolerances of --tamaas-tol /
 --cm-gtol in turn until its error is at most ours, or stops falling (then ours is the more
 accurate and the ratio favours the peer); every attempt is a line.  Times are CPU
 seconds (``process_time``) of the solve alone; one rank; the peers single-threaded.
@@ -134,7 +133,8 @@ def tamaas(tmp, n, dx, w, gaps, tol):
            "--mean-gaps", ",".join(repr(g) for g in gaps), "--tol", repr(tol), "--save-fields", tmp,
            "--max-iter", str(args.tamaas_max_iter)]
     rows = run(cmd)
-    return rows, [np.load(os.path.join(tmp, f"tamaas_{i}.npz"))["gap"] for i in range(len(rows))]
+    return rows, [(f["gap"], f["pressure"]) for f in (np.load(os.path.join(tmp, f"tamaas_{i}.npz"))
+                                                      for i in range(len(rows)))]
 
 
 def cm(tmp, n, dx, w, approaches, gtol, initial=None):
@@ -169,8 +169,11 @@ def compare(peer, n, grid, h, law, case, area, states, cpu, check, ref):
         for tol in (args.tamaas_tol if peer == "tamaas" else args.cm_gtol):
             if peer == "tamaas":
                 gaps = ([float(start["gap"].mean())] if start is not None else []) + [float(mine["gap"].mean())]
-                rows, g = tamaas(tmp, n, dx, law.work_of_adhesion, gaps, tol)
-                extra = dict(approach_difference=(rows[-1]["delta"] - st.approach) / dx)
+                rows, gp = tamaas(tmp, n, dx, law.work_of_adhesion, gaps, tol)
+                g = [f[0] for f in gp]
+                # the same mean gap is the same approach (v has zero mean): energies compare
+                extra = dict(approach_difference=(rows[-1]["delta"] - st.approach) / dx,
+                             energy=energy(law, hg, rows[-1]["delta"], gp[-1][0], gp[-1][1], dx * dx))
                 if start is not None:
                     extra["start_error"] = float(np.abs(g[0] - start["gap"]).max()) / dx
             else:
