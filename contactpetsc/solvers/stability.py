@@ -236,30 +236,42 @@ def _lobpcg(op, comm, d, contact, v, steps, residual_tol):
     a = d.reshape(-1)
 
     def on_w(x):
-        """x projected on W (orthogonally): zero on C, zero mean"""
+        """x projected on W (orthogonally): zero on C, zero mean; in place, no temporaries"""
         x *= free
-        x -= (comm.allreduce(float(x.sum())) / n_free) * free
+        x -= comm.allreduce(float(x.sum())) / n_free
+        x *= free
         return x
 
     def mult(f, x, out):
         f(x.reshape(shape), out.reshape(shape))
         return on_w(out)
 
-    # rows: the iterate x, the preconditioned residual w, the direction p; and M times each
-    basis, mbasis = np.zeros((3, a.size)), np.zeros((3, a.size))
+    def dots(pairs):
+        """<u, v> of each pair, one reduction (of an array: a list would be concatenated)"""
+        return comm.allreduce(np.array([u @ v for u, v in pairs]))
+
+    # rows: the iterate x, the preconditioned residual w, the direction p; M times each; and
+    # A times each (A diagonal), all three kept M-normalised so that the Gram matrices need
+    # only their off-diagonal M products and the A products
+    basis, mbasis, abasis = np.zeros((3, a.size)), np.zeros((3, a.size)), np.zeros((3, a.size))
     x, w, p = basis
     mx, mw, mp = mbasis
+    ax, aw, ap = abasis
     x[...] = on_w(v.reshape(-1).copy())
     mult(op.apply_inverse, x, mx)
     nrm = np.sqrt(comm.allreduce(float(x @ mx)))
     if not nrm > 0.0:
         return 0.0, True
-    basis[0] /= nrm
-    mbasis[0] /= nrm
-    theta = comm.allreduce(float(x @ (a * x)))
+    x /= nrm
+    mx /= nrm
+    np.multiply(a, x, out=ax)
+    theta = comm.allreduce(float(x @ ax))
+    r = np.empty_like(x)
     m = 2   # rows of the basis in use (p joins after the first step)
     for _ in range(steps):
-        r = on_w(a * x - theta * mx)
+        np.multiply(mx, -theta, out=r)
+        r += ax
+        on_w(r)
         mult(op.apply, r, w)
         res = np.sqrt(max(comm.allreduce(float(r @ w)), 0.0))
         if theta > 1.0 or res <= residual_tol * max(1.0, abs(theta)):
@@ -268,28 +280,37 @@ def _lobpcg(op, comm, d, contact, v, steps, residual_tol):
         nw = np.sqrt(comm.allreduce(float(w @ mw)))
         w /= nw
         mw /= nw
-        b, mb = basis[:m], mbasis[:m]
-        # einsum: faster than a (3, n) x (n, 3) matmul with a reference BLAS
-        ga, gm = comm.allreduce(np.stack([np.einsum("ai,bi->ab", b, a * b), np.einsum("ai,bi->ab", b, mb)]))
+        np.multiply(a, w, out=aw)
+        # Gram matrices of the M-normalised basis: A products in full, M products off the
+        # diagonal (ones on it)
+        ij = [(0, 1), (0, 2), (1, 2)][:1 if m == 2 else 3]
+        g = dots([(basis[i], abasis[i]) for i in range(m)] + [(basis[i], abasis[j]) for i, j in ij]
+                 + [(basis[i], mbasis[j]) for i, j in ij])
+        ga, gm = np.diag(g[:m]), np.eye(m)
+        for k, (i, j) in enumerate(ij):
+            ga[i, j] = ga[j, i] = g[m + k]
+            gm[i, j] = gm[j, i] = g[m + len(ij) + k]
         # Rayleigh-Ritz in an M-orthonormal basis of the span, dropping directions it has
         # (nearly) lost: p and w become parallel as the iteration converges
-        ev, vec = np.linalg.eigh(0.5 * (gm + gm.T))
+        ev, vec = np.linalg.eigh(gm)
         keep = ev > 1e-12 * ev.max()
         z = vec[:, keep] / np.sqrt(ev[keep])
-        th, y = np.linalg.eigh(z.T @ (0.5 * (ga + ga.T)) @ z)
+        th, y = np.linalg.eigh(z.T @ ga @ z)
         c = z @ y[:, -1]
         theta = float(th[-1])
-        new_p, new_mp = c[1:m] @ b[1:], c[1:m] @ mb[1:]
-        x *= c[0]
-        x += new_p
-        mx *= c[0]
-        mx += new_mp
+        new_p, new_mp, new_ap = (c[1:m] @ rows[1:m] for rows in (basis, mbasis, abasis))
+        for row, new in ((x, new_p), (mx, new_mp), (ax, new_ap)):
+            row *= c[0]
+            row += new
         nrm = np.sqrt(comm.allreduce(float(x @ mx)))
         x /= nrm
         mx /= nrm
+        ax /= nrm
         nrm = np.sqrt(comm.allreduce(float(new_p @ new_mp)))
         if nrm > 0.0:
-            p[...], mp[...] = new_p / nrm, new_mp / nrm
+            np.divide(new_p, nrm, out=p)
+            np.divide(new_mp, nrm, out=mp)
+            np.divide(new_ap, nrm, out=ap)
             m = 3
         else:
             m = 2
