@@ -251,8 +251,9 @@ def _lobpcg(op, comm, d, contact, v, steps, residual_tol):
         return comm.allreduce(np.array([u @ v for u, v in pairs]))
 
     # rows: the iterate x, the preconditioned residual w, the direction p; M times each; and
-    # A times each (A diagonal), all three kept M-normalised so that the Gram matrices need
-    # only their off-diagonal M products and the A products
+    # A times each (A diagonal: one product a row, cheaper than carrying it through the
+    # updates), all three kept M-normalised so that the Gram matrices need only their
+    # off-diagonal M products and the A products
     basis, mbasis, abasis = np.zeros((3, a.size)), np.zeros((3, a.size)), np.zeros((3, a.size))
     x, w, p = basis
     mx, mw, mp = mbasis
@@ -298,19 +299,19 @@ def _lobpcg(op, comm, d, contact, v, steps, residual_tol):
         th, y = np.linalg.eigh(z.T @ ga @ z)
         c = z @ y[:, -1]
         theta = float(th[-1])
-        new_p, new_mp, new_ap = (c[1:m] @ rows[1:m] for rows in (basis, mbasis, abasis))
-        for row, new in ((x, new_p), (mx, new_mp), (ax, new_ap)):
+        new_p, new_mp = c[1:m] @ basis[1:m], c[1:m] @ mbasis[1:m]
+        for row, new in ((x, new_p), (mx, new_mp)):
             row *= c[0]
             row += new
         nrm = np.sqrt(comm.allreduce(float(x @ mx)))
         x /= nrm
         mx /= nrm
-        ax /= nrm
+        np.multiply(a, x, out=ax)
         nrm = np.sqrt(comm.allreduce(float(new_p @ new_mp)))
         if nrm > 0.0:
             np.divide(new_p, nrm, out=p)
             np.divide(new_mp, nrm, out=mp)
-            np.divide(new_ap, nrm, out=ap)
+            np.multiply(a, p, out=ap)
             m = 3
         else:
             m = 2
