@@ -33,7 +33,6 @@ fallback ran).
 import argparse
 import json
 import os
-import subprocess
 import sys
 import tempfile
 import time
@@ -73,6 +72,7 @@ from contactpetsc.solvers.adhesive import AdhesiveProblem  # noqa: E402
 from contactpetsc.solvers.relaxation import RelaxationSolver  # noqa: E402
 from contactpetsc.geometry.surfaces import sphere  # noqa: E402
 
+from peer_runs import cm_adhesion_command, json_rows  # noqa: E402
 from rough_surface import ADHESIVE_W, ADHESIVE_Z0, adhesive_law, calibrate, rough_surface  # noqa: E402
 
 args.w, args.z0 = args.w or [ADHESIVE_W], args.z0 or [ADHESIVE_Z0]
@@ -133,18 +133,6 @@ def sphere_cases():
                      W_star=st.force / (2 * np.pi * R * w))
 
 
-def run_peer(heights_path, dx, w, z0, approaches, outdir):
-    cmd = [args.peer_python, os.path.join(HERE, os.pardir, "peers", "cm_adhesion.py"), "--surface", heights_path,
-           "--dx", repr(dx), "--e-star", "1.0", "--w", repr(w), "--z0", repr(z0),
-           "--potential", args.potential, "--offsets", ",".join(repr(a) for a in approaches),
-           "--maxiter", str(args.peer_maxiter), "--save-fields", outdir]
-    res = subprocess.run(cmd, capture_output=True, text=True)
-    rows = [json.loads(line) for line in res.stdout.splitlines() if line.startswith("{")]
-    if res.returncode != 0 and not rows:
-        return [], res.stderr[-2000:]
-    return rows, ""
-
-
 def rough_cases():
     comm = PETSc.COMM_WORLD.tompi4py()
     for n in args.sizes:
@@ -188,7 +176,8 @@ def rough_cases():
                     with tempfile.TemporaryDirectory() as tmp:
                         path = os.path.join(tmp, "heights.npy")
                         np.save(path, hg)
-                        rows, err = run_peer(path, dx, w, z0, approaches, tmp)
+                        rows, err = json_rows(cm_adhesion_command(args.peer_python, path, dx, w, z0, args.potential,
+                                                              approaches, tmp, args.peer_maxiter))
                         if err:
                             emit(case="rough", n=n, w=w_rel, z0=z0_rel, solver="contactmechanics+adhesion",
                                  converged=False, message=err)

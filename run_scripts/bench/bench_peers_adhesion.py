@@ -36,9 +36,7 @@ seconds (``process_time``) of the solve alone; one rank; the peers single-thread
 Peers: ``run_scripts/peers/setup_peers.sh`` (two venvs under ~/.cache/contactpetsc).
 """
 import argparse
-import json
 import os
-import subprocess
 import sys
 import tempfile
 import time
@@ -46,7 +44,6 @@ import time
 import petsc4py
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-PEERS = os.path.join(HERE, os.pardir, "peers")
 CACHE = os.path.expanduser("~/.cache/contactpetsc")
 ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
 ap.add_argument("--sizes", type=int, nargs="+", default=[1024])
@@ -75,6 +72,7 @@ from contactpetsc.solvers.adhesive import AdhesiveProblem  # noqa: E402
 
 sys.path.insert(0, HERE)
 from bench_args import emit  # noqa: E402
+from peer_runs import PEERS, cm_adhesion_command, json_rows  # noqa: E402
 from rough_surface import adhesive_law, calibrate, rough_surface  # noqa: E402
 
 assert PETSc.COMM_WORLD.getSize() == 1, "one rank"
@@ -120,10 +118,9 @@ def polished(grid, h, law, st):
 
 
 def run(cmd):
-    res = subprocess.run(cmd, capture_output=True, text=True)
-    rows = [json.loads(line) for line in res.stdout.splitlines() if line.startswith("{")]
+    rows, err = json_rows(cmd)
     if not rows:
-        raise RuntimeError(f"peer failed ({res.returncode}): {' '.join(cmd[:2])}\n{res.stderr[-2000:]}")
+        raise RuntimeError(f"peer failed: {' '.join(cmd[:2])}\n{err}")
     return rows
 
 
@@ -138,14 +135,12 @@ def tamaas(tmp, n, dx, w, gaps, tol):
 
 
 def cm(tmp, n, dx, w, approaches, gtol, initial=None):
-    cmd = [args.cm_python, os.path.join(PEERS, "cm_adhesion.py"), "--surface", os.path.join(tmp, "h.npy"),
-           "--dx", repr(dx), "--e-star", "1", "--w", repr(w), "--z0", repr(dx), "--potential", "vdw82",
-           "--offsets=" + ",".join(repr(a) for a in approaches), "--gtol", repr(gtol),
-           "--save-fields", tmp, "--maxiter", str(args.cm_maxiter)]
+    start = None
     if initial is not None:
-        np.save(os.path.join(tmp, "v0.npy"), initial)
-        cmd += ["--initial", os.path.join(tmp, "v0.npy")]
-    rows = run(cmd)
+        start = os.path.join(tmp, "v0.npy")
+        np.save(start, initial)
+    rows = run(cm_adhesion_command(args.cm_python, os.path.join(tmp, "h.npy"), dx, w, dx, "vdw82", approaches,
+                                   tmp, args.cm_maxiter, gtol=gtol, initial=start))
     return rows, [(np.load(os.path.join(tmp, f"cm_{a!r}_gap.npy")), np.load(os.path.join(tmp, f"cm_{a!r}_pressure.npy")))
                   for a in approaches]
 
