@@ -92,6 +92,21 @@ class ReducedAdhesiveJacobian:
     def from_full(self, full: np.ndarray, y: PETSc.Vec) -> None:
         self.set.from_full(full, y)
 
+    def full_arrays(self, x: PETSc.Vec, y: PETSc.Vec, full: np.ndarray, out: np.ndarray):
+        """(input, output) of a preconditioner as full local arrays: x and y's own arrays when
+        the set is everything (the reduced Vecs are the full arrays: no copies), else x
+        scattered into ``full`` (zero off the set) and ``out``, for ``finish``."""
+        if self.set.everything:
+            return x.getArray(readonly=True).reshape(full.shape), y.getArray().reshape(out.shape)
+        full[...] = 0.0
+        self.to_full(x, full)
+        return full, out
+
+    def finish(self, out: np.ndarray, y: PETSc.Vec) -> None:
+        """Gather ``full_arrays``' output into y (nothing to do when the set is everything)."""
+        if not self.set.everything:
+            self.from_full(out, y)
+
     @collective_guard
     def mult(self, mat, x, y):
         if self.set.everything:
@@ -184,14 +199,7 @@ class AdhesivePC:
     @collective_guard
     def apply(self, pc, x, y):
         ctx = self.ctx
-        if ctx.set.everything:
-            # the reduced Vecs are the full local arrays: no copies
-            full = x.getArray(readonly=True).reshape(self.full.shape)
-            out = y.getArray().reshape(self.out.shape)
-        else:
-            full, out = self.full, self.out
-            full[...] = 0.0
-            ctx.to_full(x, full)
+        full, out = ctx.full_arrays(x, y, self.full, self.out)
         a_in = full[-1]
         np.multiply(a_in, self.jacobi, out=out[-1])
         if self.inner_active:
@@ -203,8 +211,7 @@ class AdhesivePC:
             if ctx.problem.hard_wall:
                 out[0] = self.z * self.q_set
             np.copyto(out[-1], self.z, where=self.stiff)
-        if not ctx.set.everything:
-            ctx.from_full(out, y)
+        ctx.finish(out, y)
 
 
 def minloc(comm: MPI.Comm, value: float, index: int) -> tuple[float, int]:

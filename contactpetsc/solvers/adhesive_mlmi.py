@@ -53,7 +53,7 @@ from ..collective import collective_guard
 from ..log_events import log_event
 from .mlmi import build_levels
 from .reduced import view_context
-from .transfer import prolong_constant, restrict
+from .transfer import add_prolonged, children, restrict
 
 #: the coarsest grid is solved exactly when it has at most this many nodes, else smoothed
 DENSE_MAX = 1024
@@ -84,6 +84,7 @@ class _Level:
         shape = (self.grid.ny_local, self.grid.nx)
         self.x, self.r, self.ku = np.zeros(shape), np.zeros(shape), np.zeros(shape)
         self.s1, self.s2 = np.zeros(shape), np.zeros(shape)
+        self.t, self.dx = np.zeros(shape), np.zeros(shape)   # the smoother's scaled residual, correction
         self.dense = None           # (K_c as a dense matrix, lowest mode term) on the coarsest
         self.v = None               # the last power iteration's vector (unit norm)
 
@@ -110,7 +111,7 @@ class _Level:
             v /= np.sqrt(comm.allreduce(float(np.vdot(v, v))))
         rho = 0.0
         for _ in range(power_its if self.v is not None else FIRST_POWER_ITS * power_its):
-            w = self.correction(self.apply(v, self.ku).copy(), np.zeros_like(v))
+            w = self.correction(self.apply(v, self.ku), np.zeros_like(v))
             rho = np.sqrt(comm.allreduce(float(np.vdot(w, w))))
             if rho == 0:
                 break
@@ -128,19 +129,19 @@ class _Level:
 
     def correction(self, r: np.ndarray, out: np.ndarray) -> np.ndarray:
         """out = theta (S_dist + J_local) r: one smoothing step's correction from the residual r."""
-        t = r * self.scale
+        t = np.multiply(r, self.scale, out=self.t)
         sx, sy = self.base.neighbour_sums(t, self.s1, self.s2)
         sx += sy
         np.multiply(sx, -0.25, out=sx)
         sx += t
         np.multiply(sx, self.scale, out=out)
-        out += self.jac * r
+        out += np.multiply(self.jac, r, out=sy)
         out *= self.theta
         return out
 
     def smooth(self, b: np.ndarray, x: np.ndarray, zero_start: bool) -> None:
         r = b if zero_start else np.subtract(b, self.apply(x, self.ku), out=self.r)
-        x += self.correction(r, self.s1.copy())
+        x += self.correction(r, self.dx)
 
     # -- coarsest grid: exact solve ---------------------------------------------------
     def build_dense(self, lowest_stiffness: float) -> None:
@@ -229,17 +230,19 @@ class AdhesiveMLMIPC:
                 # a coarse node whose children mix K-dominated rows with local ones (or local
                 # rows of both signs: the attractive tail and the wall side) has no consistent
                 # mean row: the cycle leaves it out (no correction there)
-                blocks = kind.reshape(kind.shape[0] // 2, 2, kind.shape[1] // 2, 2)
-                same = (blocks.min(axis=(1, 3)) == blocks.max(axis=(1, 3)))
-                kind = np.where(same, blocks[:, 0, :, 0], 2)
+                k00, k01, k10, k11 = children(kind)
+                same = (k00 == k01) & (k00 == k10) & (k00 == k11)
+                kind = np.where(same, k00, 2)
                 c = np.where(same, restrict(c), C_CAP * lev.base.k0)
             lev.set_c(c, self.power_its, self.bound)
             lev.keep = kind != 2
         if self.levels[-1].dense is not None:
             self.levels[-1].factor()
         self.n_kdom = ctx.grid.mpi_comm.allreduce(int(self.levels[0].kdom.sum()))
+        self.not_q = ~self.q_set
         self.full = np.zeros_like(ctx.full_in)
         self.out = np.zeros_like(ctx.full_in)
+        self.f, self.da_c = np.zeros(d.shape), np.zeros(d.shape)
 
     def _cycle(self, l: int, b: np.ndarray) -> np.ndarray:
         lev = self.levels[l]
@@ -256,7 +259,11 @@ class AdhesiveMLMIPC:
             lev.smooth(b, x, zero_start=k == 0)
         r = np.subtract(b, lev.apply(x, lev.ku), out=lev.r) if self.pre else b
         coarse = self.levels[l + 1]
-        x += prolong_constant(self._cycle(l + 1, restrict(r) * coarse.keep) * coarse.keep)
+        bc = restrict(r)
+        bc *= coarse.keep
+        xc = self._cycle(l + 1, bc)
+        xc *= coarse.keep
+        add_prolonged(x, xc)
         for _ in range(self.post):
             lev.smooth(b, x, zero_start=False)
         return x
@@ -266,23 +273,23 @@ class AdhesiveMLMIPC:
         ev = log_event("CPMLMICycle")
         ev.begin()
         ctx = self.ctx
-        full, out = self.full, self.out
-        full[...] = 0.0
-        ctx.to_full(x, full)
+        full, out = ctx.full_arrays(x, y, self.full, self.out)
         r_a = full[-1]
         hard = ctx.problem.hard_wall
         # the right-hand side of (K + C) dp = f, row by row
-        f = r_a * self.inv_beta
+        f = np.multiply(r_a, self.inv_beta, out=self.f)
         if hard:
             np.copyto(f, full[0], where=self.q_set)
         dp = self._cycle(0, f)
-        out[...] = 0.0
+        # every block of out is written whole (q and a with a hard wall, else a)
+        np.copyto(out[-1], dp)
         if hard:
             # at a contact node the a row gives da from (K dp)_i = r_q,i
-            da_c = (r_a + self.a_gain * full[0]) / self.alpha
-            out[-1] = np.where(self.q_set, da_c, dp)
-            out[0] = np.where(self.q_set, dp - da_c, 0.0)
-        else:
-            out[-1] = dp
-        ctx.from_full(out, y)
+            da_c = np.multiply(self.a_gain, full[0], out=self.da_c)
+            da_c += r_a
+            da_c /= self.alpha
+            np.copyto(out[-1], da_c, where=self.q_set)
+            np.subtract(dp, da_c, out=out[0])
+            np.copyto(out[0], 0.0, where=self.not_q)
+        ctx.finish(out, y)
         ev.end()
