@@ -95,10 +95,10 @@ class ReducedAdhesiveJacobian:
     def full_arrays(self, x: PETSc.Vec, y: PETSc.Vec, full: np.ndarray, out: np.ndarray):
         """(input, output) of a preconditioner as full local arrays: x and y's own arrays when
         the set is everything (the reduced Vecs are the full arrays: no copies), else x
-        scattered into ``full`` (zero off the set) and ``out``, for ``finish``."""
+        scattered into ``full`` and ``out``, for ``finish``.  ``full`` is the preconditioner's,
+        made zero at its set-up for this set: the entries off the set are never written."""
         if self.set.everything:
             return x.getArray(readonly=True).reshape(full.shape), y.getArray().reshape(out.shape)
-        full[...] = 0.0
         self.to_full(x, full)
         return full, out
 
@@ -114,8 +114,7 @@ class ReducedAdhesiveJacobian:
             shape = self.full_in.shape
             self.parent.apply_full(x.getArray(readonly=True).reshape(shape), y.getArray().reshape(shape))
             return
-        self.full_in[...] = 0.0   # entries off the set are zero in the step
-        self.to_full(x, self.full_in)
+        self.to_full(x, self.full_in)   # entries off the set stay zero: full_in is made per set
         self.parent.apply_full(self.full_in, self.full_out)
         self.from_full(self.full_out, y)
 
