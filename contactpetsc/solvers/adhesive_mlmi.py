@@ -84,7 +84,6 @@ class _Level:
         shape = (self.grid.ny_local, self.grid.nx)
         self.x, self.r, self.ku = np.zeros(shape), np.zeros(shape), np.zeros(shape)
         self.s1, self.s2 = np.zeros(shape), np.zeros(shape)
-        self.t, self.dx = np.zeros(shape), np.zeros(shape)   # the smoother's scaled residual, correction
         self.dense = None           # (K_c as a dense matrix, lowest mode term) on the coarsest
         self.v = None               # the last power iteration's vector (unit norm)
 
@@ -111,7 +110,7 @@ class _Level:
             v /= np.sqrt(comm.allreduce(float(np.vdot(v, v))))
         rho = 0.0
         for _ in range(power_its if self.v is not None else FIRST_POWER_ITS * power_its):
-            w = self.correction(self.apply(v, self.ku), np.zeros_like(v))
+            w = self.correction(self.apply(v, self.r), np.zeros_like(v))
             rho = np.sqrt(comm.allreduce(float(np.vdot(w, w))))
             if rho == 0:
                 break
@@ -128,8 +127,9 @@ class _Level:
         return out
 
     def correction(self, r: np.ndarray, out: np.ndarray) -> np.ndarray:
-        """out = theta (S_dist + J_local) r: one smoothing step's correction from the residual r."""
-        t = np.multiply(r, self.scale, out=self.t)
+        """out = theta (S_dist + J_local) r: one smoothing step's correction from the residual r
+        (out may be ``s1``; r not ``ku``, which holds the scaled residual)."""
+        t = np.multiply(r, self.scale, out=self.ku)
         sx, sy = self.base.neighbour_sums(t, self.s1, self.s2)
         sx += sy
         np.multiply(sx, -0.25, out=sx)
@@ -141,7 +141,7 @@ class _Level:
 
     def smooth(self, b: np.ndarray, x: np.ndarray, zero_start: bool) -> None:
         r = b if zero_start else np.subtract(b, self.apply(x, self.ku), out=self.r)
-        x += self.correction(r, self.dx)
+        x += self.correction(r, self.s1)
 
     # -- coarsest grid: exact solve ---------------------------------------------------
     def build_dense(self, lowest_stiffness: float) -> None:
@@ -242,7 +242,6 @@ class AdhesiveMLMIPC:
         self.not_q = ~self.q_set
         self.full = np.zeros_like(ctx.full_in)
         self.out = np.zeros_like(ctx.full_in)
-        self.f, self.da_c = np.zeros(d.shape), np.zeros(d.shape)
 
     def _cycle(self, l: int, b: np.ndarray) -> np.ndarray:
         lev = self.levels[l]
@@ -276,20 +275,22 @@ class AdhesiveMLMIPC:
         full, out = ctx.full_arrays(x, y, self.full, self.out)
         r_a = full[-1]
         hard = ctx.problem.hard_wall
-        # the right-hand side of (K + C) dp = f, row by row
-        f = np.multiply(r_a, self.inv_beta, out=self.f)
+        # the right-hand side of (K + C) dp = f, row by row, in the a block of out until the
+        # cycle is done; every block of out is then written whole (q and a with a hard wall)
+        f = np.multiply(r_a, self.inv_beta, out=out[-1])
         if hard:
             np.copyto(f, full[0], where=self.q_set)
         dp = self._cycle(0, f)
-        # every block of out is written whole (q and a with a hard wall, else a)
-        np.copyto(out[-1], dp)
         if hard:
             # at a contact node the a row gives da from (K dp)_i = r_q,i
-            da_c = np.multiply(self.a_gain, full[0], out=self.da_c)
+            da_c = np.multiply(self.a_gain, full[0], out=out[0])
             da_c += r_a
             da_c /= self.alpha
+            np.copyto(out[-1], dp)
             np.copyto(out[-1], da_c, where=self.q_set)
             np.subtract(dp, da_c, out=out[0])
             np.copyto(out[0], 0.0, where=self.not_q)
+        else:
+            np.copyto(out[-1], dp)
         ctx.finish(out, y)
         ev.end()
