@@ -33,7 +33,7 @@ def halved(grid: SurfaceGrid) -> SurfaceGrid:
 
 def restrict(fine: np.ndarray) -> np.ndarray:
     """2 x 2 block means of a (ny_loc, nx) array (heights, gaps, residuals)."""
-    # strided sums, 4x faster than numpy's mean of the 4-d view, in the order that mean takes
+    # strided sums, much faster than numpy's mean of the 4-d view, in the order that mean takes
     # (each row's pair first; bit for bit where nx >= 4): the full-LJ benchmark path depends on
     # round-off, and strided sums in another order had moved it to dearer states
     # (docs/journal/performance.md)
