@@ -93,10 +93,11 @@ class ReducedAdhesiveJacobian:
         self.set.from_full(full, y)
 
     def full_arrays(self, x: PETSc.Vec, y: PETSc.Vec, full: np.ndarray, out: np.ndarray):
-        """(input, output) of a preconditioner as full local arrays: x and y's own arrays when
-        the set is everything (the reduced Vecs are the full arrays: no copies), else x
-        scattered into ``full`` and ``out``, for ``finish``.  ``full`` is the preconditioner's,
-        made zero at its set-up for this set: the entries off the set are never written."""
+        """(input, output) of a product or a preconditioner as full local arrays: x and y's own
+        arrays when the set is everything (the reduced Vecs are the full arrays: no copies), else
+        x scattered into ``full`` and ``out``, for ``finish``.  ``full`` is made zero for this set
+        (with this context, or at the preconditioner's set-up): the entries off the set are never
+        written."""
         if self.set.everything:
             return x.getArray(readonly=True).reshape(full.shape), y.getArray().reshape(out.shape)
         self.to_full(x, full)
@@ -109,14 +110,9 @@ class ReducedAdhesiveJacobian:
 
     @collective_guard
     def mult(self, mat, x, y):
-        if self.set.everything:
-            # the reduced Vecs are the full local arrays: no copies
-            shape = self.full_in.shape
-            self.parent.apply_full(x.getArray(readonly=True).reshape(shape), y.getArray().reshape(shape))
-            return
-        self.to_full(x, self.full_in)   # entries off the set stay zero: full_in is made per set
-        self.parent.apply_full(self.full_in, self.full_out)
-        self.from_full(self.full_out, y)
+        full, out = self.full_arrays(x, y, self.full_in, self.full_out)
+        self.parent.apply_full(full, out)
+        self.finish(out, y)
 
 
 class _SetView:

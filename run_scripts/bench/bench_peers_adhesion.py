@@ -25,9 +25,10 @@ At the approaches giving --areas contact (``rough_surface.calibrate``), two case
 Accuracy: ``error`` = max |g - g_ref| / range against our state polished to 1e-11 (a warm start
 from it).  A peer's state within 1e-3 range of the reference is the same equilibrium;
 otherwise it is reported as another state with its energy beside ours (the total energy at
-the same approach: Tamaas' mean gap fixes it too, its difference to ours is reported).  Equal accuracy: each peer runs at the tolerances of --tamaas-tol /
---cm-gtol in turn until its error is at most ours, or stops falling (then ours is the more
-accurate and the ratio favours the peer); every attempt is a line.  Times are CPU
+the same approach: Tamaas' mean gap fixes it too, its difference to ours is reported).  Equal
+accuracy: each peer runs at the tolerances of --tamaas-tol / --cm-gtol in turn until its error
+is at most ours, or stops falling (then ours is the more accurate and the ratio favours the
+peer), or stops at its iteration cap (the ratio a lower bound); every attempt is a line.  Times are CPU
 seconds (``process_time``) of the solve alone; one rank; the peers single-threaded.
 
     .venv/bin/python run_scripts/bench/bench_peers_adhesion.py --sizes 1024 --peers tamaas cm
