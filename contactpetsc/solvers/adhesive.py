@@ -279,7 +279,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         for name, v in (("approach", approach), ("central_gap", central_gap)):
             if v is not None and not np.isfinite(v):
                 raise ValueError(f"{name} must be finite, got {v!r}")
-        snes = self._build()
+        self._build()
         # the first state (coarse grids, Signorini) is part of this solve's cost
         pairs0, t0 = self.fft_pairs(), self.history.elapsed()
         if self.out_of_time():
@@ -371,7 +371,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self.centre_owner = None
         PETSc.garbage_cleanup(self.grid.comm)
         if not converged and raise_on_failure:
-            ksp_reason = reason_name(snes.getKSP().getConvergedReason(), PETSc.KSP.ConvergedReason)
+            ksp_reason = reason_name(self.newton.last_ksp_reason, PETSc.KSP.ConvergedReason)
             raise AdhesiveSolveError(
                 f"adhesive solve did not converge: {reason} after {newton} Newton iterations "
                 f"(last KSP: {ksp_reason}); complementarity error {state.complementarity_error:.3e}, "

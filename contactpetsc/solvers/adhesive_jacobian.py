@@ -81,9 +81,8 @@ class ReducedAdhesiveJacobian:
         nb = pb.n_blocks
         self.set = InactiveSet(index_set, pb.offset, nb * g.ny_local * g.nx)
         self.n_local = self.set.n_local
-        self.full_in = np.zeros((nb, g.ny_local, g.nx))
-        self.full_out = np.zeros_like(self.full_in)
-        self.masks = np.zeros((nb, g.ny_local, g.nx), bool)
+        self.shape = (nb, g.ny_local, g.nx)
+        self.masks = np.zeros(self.shape, bool)
         self.masks.reshape(-1)[self.set.idx] = True
 
     def to_full(self, x: PETSc.Vec, out: np.ndarray) -> np.ndarray:
@@ -92,14 +91,14 @@ class ReducedAdhesiveJacobian:
     def from_full(self, full: np.ndarray, y: PETSc.Vec) -> None:
         self.set.from_full(full, y)
 
-    def full_arrays(self, x: PETSc.Vec, y: PETSc.Vec, full: np.ndarray, out: np.ndarray):
+    def full_arrays(self, x: PETSc.Vec, y: PETSc.Vec):
         """(input, output) of a product or a preconditioner as full local arrays: x and y's own
         arrays when the set is everything (the reduced Vecs are the full arrays: no copies), else
-        x scattered into ``full`` and ``out``, for ``finish``.  ``full`` is made zero for this set
-        (with this context, or at the preconditioner's set-up): the entries off the set are never
-        written."""
+        x scattered into the problem's shared pair (``PreconditionerData.claim_full_arrays``,
+        the input zero off this set) for ``finish``."""
         if self.set.everything:
-            return x.getArray(readonly=True).reshape(full.shape), y.getArray().reshape(out.shape)
+            return x.getArray(readonly=True).reshape(self.shape), y.getArray().reshape(self.shape)
+        full, out = self.parent.pc_data.claim_full_arrays(self, self.shape)
         self.to_full(x, full)
         return full, out
 
@@ -110,7 +109,7 @@ class ReducedAdhesiveJacobian:
 
     @collective_guard
     def mult(self, mat, x, y):
-        full, out = self.full_arrays(x, y, self.full_in, self.full_out)
+        full, out = self.full_arrays(x, y)
         self.parent.apply_full(full, out)
         self.finish(out, y)
 
@@ -188,13 +187,16 @@ class AdhesivePC:
             self.inner_active = False
         self.f = np.zeros(self.union.shape)
         self.z = np.zeros(self.union.shape)
-        self.full = np.zeros_like(ctx.full_in)
-        self.out = np.zeros_like(ctx.full_in)
+
+    def reset(self, pc):
+        """Free the set-up's arrays between solves (see ``AdhesiveMLMIPC.reset``)."""
+        self.ctx = self.q_set = self.stiff = self.union = self.inv_scale = self.jacobi = None
+        self.f = self.z = None
 
     @collective_guard
     def apply(self, pc, x, y):
         ctx = self.ctx
-        full, out = ctx.full_arrays(x, y, self.full, self.out)
+        full, out = ctx.full_arrays(x, y)
         a_in = full[-1]
         np.multiply(a_in, self.jacobi, out=out[-1])
         if self.inner_active:

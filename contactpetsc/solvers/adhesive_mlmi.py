@@ -78,14 +78,18 @@ def distributive(c: np.ndarray, k_ii: float) -> np.ndarray:
 class _Level:
     """One grid's share of the cycle: c, the smoother's scalings, work arrays."""
 
-    def __init__(self, base):
+    def __init__(self, base, work):
         self.base = base            # mlmi.Level: operator, influence coefficients, halos
         self.op, self.grid = base.op, base.grid
-        shape = (self.grid.ny_local, self.grid.nx)
-        self.x, self.r, self.ku = np.zeros(shape), np.zeros(shape), np.zeros(shape)
-        self.s1, self.s2 = np.zeros(shape), np.zeros(shape)
+        # the cycle's work arrays, shared by the problem's cycles (Newton, tangent, PTC):
+        # none outlives an application or a set-up
+        self.x, self.r, self.ku, self.s1, self.s2 = work
         self.dense = None           # (K_c as a dense matrix, lowest mode term) on the coarsest
         self.v = None               # the last power iteration's vector (unit norm)
+
+    def release(self) -> None:
+        """Drop the set-up's arrays (not the power iteration's vector, the next set-up's start)."""
+        self.c = self.kdom = self.scale = self.jac = self.keep = self.inverse = None
 
     def set_c(self, c: np.ndarray, power_its: int, bound: float) -> None:
         """c on this level; the smoother's split, scalings and damping."""
@@ -187,7 +191,11 @@ class AdhesiveMLMIPC:
         if data.mlmi_levels is None:
             data.mlmi_levels = build_levels(ctx.parent.op, opts.getInt("mlmi_levels", 8),
                                             opts.getInt("mlmi_min_size", 8))
-        self.levels = [_Level(b) for b in data.mlmi_levels]
+        if data.mlmi_work is None:
+            # three are the hierarchy's own (the pressure-space cycle's; no two cycles overlap)
+            data.mlmi_work = [(b.work, b.work2, b.ku, np.zeros_like(b.ku), np.zeros_like(b.ku))
+                              for b in data.mlmi_levels]
+        self.levels = [_Level(b, w) for b, w in zip(data.mlmi_levels, data.mlmi_work)]
         self.power_its = opts.getInt("mlmi_power_its", 2)
         self.bound = opts.getReal("mlmi_rho_bound", 1.6)
         self.coarse_sweeps = opts.getInt("mlmi_coarse_sweeps", 4)
@@ -240,8 +248,13 @@ class AdhesiveMLMIPC:
             self.levels[-1].factor()
         self.n_kdom = ctx.grid.mpi_comm.allreduce(int(self.levels[0].kdom.sum()))
         self.not_q = ~self.q_set
-        self.full = np.zeros_like(ctx.full_in)
-        self.out = np.zeros_like(ctx.full_in)
+
+    def reset(self, pc):
+        """Free the set-up's arrays between solves (the Newton solver resets its Krylov solver
+        then; SNES VI also does where the inactive set changes, a set-up follows)."""
+        self.ctx = self.q_set = self.not_q = self.alpha = self.inv_beta = self.a_gain = None
+        for lev in getattr(self, "levels", ()):
+            lev.release()
 
     def _cycle(self, l: int, b: np.ndarray) -> np.ndarray:
         lev = self.levels[l]
@@ -272,7 +285,7 @@ class AdhesiveMLMIPC:
         ev = log_event("CPMLMICycle")
         ev.begin()
         ctx = self.ctx
-        full, out = ctx.full_arrays(x, y, self.full, self.out)
+        full, out = ctx.full_arrays(x, y)
         r_a = full[-1]
         hard = ctx.problem.hard_wall
         # the right-hand side of (K + C) dp = f, row by row, in the a block of out until the

@@ -66,6 +66,7 @@ class VINewton:
         self.best = (float("inf"), -1)  # (error [z0], step) of the watched run's best iterate
         self.progress = self.best       # (error [z0], step) of its last progress (``stall_progress``)
         self.x_best = None              # its best iterate (made when first watched: PTC never is)
+        self.last_ksp_reason = 0        # the last solve's last Krylov reason (its KSP is reset)
         snes = self.snes = pb.make_vi_snes(prefix, pb._bounds, max_it)
         snes.setConvergenceTest(self._converged)
         # an inexact step (Krylov limit reached) is still a step: let the line search judge it
@@ -119,6 +120,11 @@ class VINewton:
         self.stalled = False
         self.snes.solve(None, pb._x)
         pb.record_solve()
+        # the Krylov basis (GMRES: up to restart + 2 inactive-set vectors, ~30 doubles per grid
+        # point) is freed between solves, as SNES VI frees it whenever the inactive set changes
+        ksp = self.snes.getKSP()
+        self.last_ksp_reason = ksp.getConvergedReason()
+        ksp.reset()
         code = self.snes.getConvergedReason()
         name = pb.budget_reason if code < 0 and pb.out_of_time() else reason_name(code)
         if self.stalled:

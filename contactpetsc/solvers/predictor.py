@@ -96,7 +96,7 @@ class TangentPredictor:
         J = pb._snes.getJacobian()[0]
         A = J.createSubMatrix(iset, iset)
         ctx = A.getPythonContext()
-        rhs = np.zeros_like(ctx.full_in)
+        rhs = np.zeros(ctx.shape)
         ones = np.ones((grid.ny_local, grid.nx))
         if pb.hard_wall:
             rhs[0] = 1.0
@@ -121,7 +121,7 @@ class TangentPredictor:
         ksp.setOperators(A, A)
         ksp.setFromOptions()
         ksp.solve(b, t)
-        full = np.zeros_like(ctx.full_in)
+        full = np.zeros(ctx.shape)
         ctx.to_full(t, full)
         tv = pb.create_unknown()
         pb.blocks(tv)[...] = full
