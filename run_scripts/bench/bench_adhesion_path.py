@@ -2,19 +2,21 @@
 """Benchmark: an adhesive load-unload path on the rough benchmark surface at one grid size.
 
 The case is the rough case of ``bench_adhesion.py``, the surface and the law of
-``rough_surface.py`` (the full LJ curve ``lj``, z0 = dx, w = 0.05 E* dx), one solver with warm
+``rough_surface.py`` (the full LJ curve ``lj``, z0 = dx, w = 0.05 E* dx; ``--law exponential``:
+a hard wall with exponential attraction, rho = dx), one solver with warm
 starts along the path and ``-path_stiffness false`` unless given.  The approach rises in equal steps from the one
 giving ``--areas[0]`` contact area (p > 0) to the one giving ``--areas[1]`` and falls back
 (``--states`` in all, half up and half down), approaches interpolated on a loading sweep of
 the heights averaged to ``--calibrate-max-n`` (untimed).  One JSON line per state (approach,
-time, FFT pairs, Newton and Krylov counts, contact fraction, converged, stable), then a
+time, FFT pairs, Newton and Krylov counts, contact fraction, converged, stable, resident size
+over the one before the problem in doubles per grid point), then a
 summary: total time, FFT pairs per state (median, largest), the time of one FFT pair of the
 half-space operator at this size (``--pair-reps`` bare applies), and the memory per grid
 point: the high-water mark (VmHWM, reset through /proc/self/clear_refs after the surface is
 made) minus the resident size before the problem, in doubles (8 B) per grid point.
 
     .venv/bin/python run_scripts/bench/bench_adhesion_path.py --size 1024 [--states 10]
-        [--areas 0.01 0.10] [-path_<option> ...]
+        [--areas 0.01 0.10] [--law lj|exponential] [-path_<option> ...]
 
 One rank (the memory figure is the process's).
 """
@@ -33,6 +35,8 @@ ap.add_argument("--size", type=int, default=1024)
 ap.add_argument("--states", type=int, default=10, help="states on the path (>= 2), half loading, half unloading")
 ap.add_argument("--areas", type=float, nargs=2, default=[0.01, 0.10],
                 help="contact areas at the path's ends (start and turning point)")
+ap.add_argument("--law", default="lj", choices=("lj", "exponential"),
+                help="the full LJ curve, or a hard wall with exponential attraction (range rho = dx)")
 ap.add_argument("--calibrate-max-n", type=int, default=256)
 ap.add_argument("--pair-reps", type=int, default=5, help="bare operator applies timed for the pair time")
 args, petsc_args = ap.parse_known_args()
@@ -63,7 +67,7 @@ def status_kb(field):
 def main():
     n = args.size
     grid, h, _ = rough_surface(n)
-    law = adhesive_law(grid)
+    law = adhesive_law(grid, name=args.law)
     t = time.perf_counter()
     ends = calibrate(grid, h, law, args.areas, max_n=args.calibrate_max_n)
     if ends is None:
@@ -86,7 +90,7 @@ def main():
         row = dict(n=n, state=k, approach=float(d), time=time.perf_counter() - t, fft_pairs=st.fft_pairs,
                    newton=st.newton_iterations, krylov=st.linear_iterations, check_time=st.check_time,
                    contact_fraction=st.contact_fraction, converged=st.converged, stable=st.stable,
-                   solver=st.solver)
+                   solver=st.solver, rss_doubles_per_point=(status_kb("VmRSS") - base) * 1024.0 / (8.0 * n * n))
         rows.append(row)
         emit(**row)
     total = time.perf_counter() - t_path
@@ -100,7 +104,7 @@ def main():
         pb.op.apply(p, out)
     pair = (time.perf_counter() - t) / args.pair_reps
     pairs = [r["fft_pairs"] for r in rows]
-    emit(n=n, summary=True, states=len(rows), converged=sum(r["converged"] for r in rows), total_time=total,
+    emit(n=n, law=args.law, summary=True, states=len(rows), converged=sum(r["converged"] for r in rows), total_time=total,
          fft_pairs_total=float(sum(pairs)), fft_pairs_median=float(np.median(pairs)),
          fft_pairs_max=float(max(pairs)), max_over_median=float(max(pairs) / np.median(pairs)),
          pair_time=pair, time_per_pair=total / sum(pairs), peak_mb=peak / 1024.0,
