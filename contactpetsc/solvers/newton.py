@@ -55,10 +55,14 @@ class VINewton:
         self.prefix = prefix
         opts = PETSc.Options(pb.prefix)
         self.stall_steps = opts.getInt("stall_steps", code_default("adhesion", "stall_steps"))
-        # 1 (any smaller error): 0.5 cut the rough hard-wall benchmark paths by 4-7 % but made
-        # the hard-wall spheres' paths dearer, their slow Newton runs sent to the fallback
+        # 0.5 (an error that does not halve is no progress) where a hard-wall law's fallback
+        # chain starts with the descent: a Newton creeping on damped steps hands over to it
+        # sooner (the cold 2048^2 rough state 30 % fewer pairs, the same state); else 1 (any
+        # smaller error): the full LJ curve's slow Newton runs converge where its descent costs
+        # thousands of pairs, and PTC after an early stall cost the rough path up to 4x a state
         # (docs/performance.md, "Energy descent as the fallback")
-        self.stall_progress = opts.getReal("stall_progress", code_default("adhesion", "stall_progress"))
+        descent_next = pb.fallback is not None and pb.fallback.methods[:1] == ["descent"]
+        self.stall_progress = opts.getReal("stall_progress", 0.5 if pb.hard_wall and descent_next else 1.0)
         if not 0.0 < self.stall_progress <= 1.0:
             raise ValueError(f"-{pb.prefix}stall_progress must be in (0, 1], got {self.stall_progress!r}")
         self.watch_stalls = False       # set per solve: only where a fallback goes on from a stall

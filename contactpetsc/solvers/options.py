@@ -100,7 +100,7 @@ ADHESION = (
     Option(("stall_steps",), (8,),
            "Newton without a smaller error in this many steps has stalled (`STALLED`): PTC goes on from its "
            "best iterate, where PTC is a fallback (0: never)"),
-    Option(("stall_progress",), (1.0,),
+    Option(("stall_progress",), "0.5 (hard-wall laws whose fallback starts with the descent) or 1",
            "the stall watch counts an error as smaller only below this fraction of the smallest so far"),
     Option(("time_budget",), (0.0,),
            "wall time [s] for all of the problem's solves (0: none); then `WALL_TIME_BUDGET`"),
