@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 from petsc4py import PETSc
 
+from .newton import newton_ksp_type
 from .options import code_default
 from .pc_registry import ADHESIVE_PRECONDITIONERS
 
@@ -108,7 +109,10 @@ class TangentPredictor:
         ctx.from_full(rhs, b)
         ksp = PETSc.KSP().create(comm=grid.comm)
         ksp.setOptionsPrefix(pb.prefix + "tangent_")
-        ksp.setType("gmres")
+        # the Newton steps' Krylov method: with the full LJ curve BiCGStab keeps 7 vectors where
+        # GMRES's basis grew to 25 in the tangent's 15-19 iterations, the path's peak memory
+        # (docs/performance.md, "Memory of an adhesive path")
+        ksp.setType(newton_ksp_type(pb.hard_wall))
         # a predictor and a stiffness for jump detection and load updates: 1e-2 is plenty
         # (a jump is a force change larger than the predicted change itself; the predictor's
         # error is the branch's curvature times the step squared; docs/performance.md)
