@@ -57,10 +57,9 @@ class VINewton:
         self.stall_steps = opts.getInt("stall_steps", code_default("adhesion", "stall_steps"))
         # 0.5 (an error that does not halve is no progress) where a hard-wall law's fallback
         # chain starts with the descent: a Newton creeping on damped steps hands over to it
-        # sooner (the cold 2048^2 rough state 30 % fewer pairs, the same state); else 1 (any
-        # smaller error): the full LJ curve's slow Newton runs converge where its descent costs
-        # thousands of pairs, and PTC after an early stall cost the rough path up to 4x a state
-        # (docs/performance.md, "Energy descent as the fallback")
+        # sooner, for the same state; else 1 (any smaller error): the full LJ curve's slow
+        # Newton runs converge where its descent is dear, and PTC after an early stall is
+        # dearer than the slow Newton (docs/performance.md, "Energy descent as the fallback")
         descent_next = pb.fallback is not None and pb.fallback.methods[:1] == ["descent"]
         self.stall_progress = opts.getReal("stall_progress", 0.5 if pb.hard_wall and descent_next else 1.0)
         if not 0.0 < self.stall_progress <= 1.0:
@@ -124,8 +123,9 @@ class VINewton:
         self.stalled = False
         self.snes.solve(None, pb._x)
         pb.record_solve()
-        # the Krylov basis (GMRES: up to restart + 2 inactive-set vectors, ~30 doubles per grid
-        # point) is freed between solves, as SNES VI frees it whenever the inactive set changes
+        # the Krylov basis (GMRES: up to restart + 2 inactive-set vectors, the largest item of a
+        # state's memory) is freed between solves, as SNES VI frees it whenever the inactive
+        # set changes (docs/performance.md, "Memory of an adhesive path")
         ksp = self.snes.getKSP()
         self.last_ksp_reason = ksp.getConvergedReason()
         ksp.reset()

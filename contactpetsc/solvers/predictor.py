@@ -109,9 +109,9 @@ class TangentPredictor:
         ctx.from_full(rhs, b)
         ksp = PETSc.KSP().create(comm=grid.comm)
         ksp.setOptionsPrefix(pb.prefix + "tangent_")
-        # the Newton steps' Krylov method: with the full LJ curve BiCGStab keeps 7 vectors where
-        # GMRES's basis grew to 25 in the tangent's 15-19 iterations, the path's peak memory
-        # (docs/performance.md, "Memory of an adhesive path")
+        # the Newton steps' Krylov method: with the full LJ curve BiCGStab keeps a fixed handful
+        # of vectors where GMRES's basis grew with the tangent's iterations into a path's peak
+        # memory (docs/performance.md, "Memory of an adhesive path")
         ksp.setType(newton_ksp_type(pb.hard_wall))
         # a predictor and a stiffness for jump detection and load updates: 1e-2 is plenty
         # (a jump is a force change larger than the predicted change itself; the predictor's

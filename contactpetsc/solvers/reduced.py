@@ -26,7 +26,7 @@ class PreconditionerData:
         self.mlmi_levels = None          #: the MLMI hierarchy (grids and operators)
         self.mlmi_mean_stiffness = None  #: stiffness of the lowest mode [Pa/m]
         self.reduced_buffers = None      #: (mask, full_in, full_out) of the reduced Jacobians
-        self.full_arrays = None          #: (input, output) of the reduced adhesive Jacobians and their PCs
+        self.full_pair = None            #: (input, output) of the reduced adhesive Jacobians and their PCs
         self.full_owner = None           #: (weak reference to) the reduced context whose set the input is zero off
         self.mlmi_work = None            #: the adhesive cycle's work arrays, per level
 
@@ -36,12 +36,12 @@ class PreconditionerData:
         context used it last, or made).  SNES VI makes a reduced Mat at every Newton step, the
         tangent and PTC solves their own, and a Mat mult or PC apply never overlaps another
         one: one pair serves all of them."""
-        if self.full_arrays is None or self.full_arrays[0].shape != shape:
-            self.full_arrays, self.full_owner = (np.zeros(shape), np.zeros(shape)), None
+        if self.full_pair is None or self.full_pair[0].shape != shape:
+            self.full_pair, self.full_owner = (np.zeros(shape), np.zeros(shape)), None
         if self.full_owner is None or self.full_owner() is not owner:
-            self.full_arrays[0].fill(0.0)
+            self.full_pair[0].fill(0.0)
             self.full_owner = weakref.ref(owner)
-        return self.full_arrays
+        return self.full_pair
 
 
 def view_context(viewer, lines) -> None:
