@@ -24,7 +24,7 @@ from petsc4py import PETSc
 
 from ..collective import collective_guard
 from .adhesive_residual import total_pressure
-from .reduced import InactiveSet, PreconditionerData, python_submatrix, view_context
+from .reduced import InactiveSet, PreconditionerData, ReducedContext, python_submatrix, view_context
 
 
 class AdhesiveJacobian:
@@ -71,7 +71,7 @@ class AdhesiveJacobian:
         return python_submatrix(ReducedAdhesiveJacobian(self, isrow), mat)
 
 
-class ReducedAdhesiveJacobian:
+class ReducedAdhesiveJacobian(ReducedContext):
     """J restricted to the VI's inactive set (q at contact nodes, every a)."""
 
     def __init__(self, parent: AdhesiveJacobian, index_set: PETSc.IS):
@@ -85,28 +85,6 @@ class ReducedAdhesiveJacobian:
         self.masks = np.zeros(self.shape, bool)
         self.masks.reshape(-1)[self.set.idx] = True
 
-    def to_full(self, x: PETSc.Vec, out: np.ndarray) -> np.ndarray:
-        return self.set.to_full(x, out)
-
-    def from_full(self, full: np.ndarray, y: PETSc.Vec) -> None:
-        self.set.from_full(full, y)
-
-    def full_arrays(self, x: PETSc.Vec, y: PETSc.Vec):
-        """(input, output) of a product or a preconditioner as full local arrays: x and y's own
-        arrays when the set is everything (the reduced Vecs are the full arrays: no copies), else
-        x scattered into the problem's shared pair (``PreconditionerData.claim_full_arrays``,
-        the input zero off this set) for ``finish``."""
-        if self.set.everything:
-            return x.getArray(readonly=True).reshape(self.shape), y.getArray().reshape(self.shape)
-        full, out = self.parent.pc_data.claim_full_arrays(self, self.shape)
-        self.to_full(x, full)
-        return full, out
-
-    def finish(self, out: np.ndarray, y: PETSc.Vec) -> None:
-        """Gather ``full_arrays``' output into y (nothing to do when the set is everything)."""
-        if not self.set.everything:
-            self.from_full(out, y)
-
     @collective_guard
     def mult(self, mat, x, y):
         full, out = self.full_arrays(x, y)
@@ -119,7 +97,6 @@ class _SetView:
 
     def __init__(self, parent: AdhesiveJacobian, mask: np.ndarray):
         self.parent, self.op, self.grid, self.mask = parent, parent.op, parent.grid, mask
-        self.full_in = np.zeros(mask.shape)
 
 
 class AdhesivePC:

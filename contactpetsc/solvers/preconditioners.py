@@ -17,9 +17,9 @@ from .reduced import view_context
 class ReducedPreconditioner:
     """Base class: subclasses implement ``prepare(ctx)`` and ``inner(f, out)`` (M on full arrays).
 
-    The full arrays are the reduced operator's own (``ctx.full_in``, zero
-    outside I, and ``ctx.full_out``): a Mat mult and a PC apply never overlap,
-    so the set-up of each Newton step allocates no grid-sized buffer.
+    The full arrays are those of the reduced operator's products (``ctx.full_arrays``: the
+    problem's shared pair, or the reduced Vecs' own arrays where I is everything), so the
+    set-up of each Newton step allocates no grid-sized buffer.
     """
 
     _data = None   # the PreconditionerData this PC was initialised with
@@ -30,7 +30,6 @@ class ReducedPreconditioner:
         ctx = P.getPythonContext()
         self.ctx = ctx
         self.prepare(ctx)
-        self.f, self.z = ctx.full_in, ctx.full_out
 
     def prepare(self, ctx) -> None:
         """``initialize`` once per problem, then ``update`` to the operator's set (also what an
@@ -45,9 +44,9 @@ class ReducedPreconditioner:
 
     @collective_guard
     def apply(self, pc, x, y):
-        self.ctx.to_full(x, self.f)
-        self.inner(self.f, self.z)
-        self.ctx.from_full(self.z, y)
+        f, z = self.ctx.full_arrays(x, y)
+        self.inner(f, z)
+        self.ctx.finish(z, y)
 
     # -- to implement ----------------------------------------------------------
     def initialize(self, ctx) -> None:

@@ -25,8 +25,7 @@ class PreconditionerData:
         self.spectral_pairs = None       #: the spectral PC's kernel in the operator's pair layout
         self.mlmi_levels = None          #: the MLMI hierarchy (grids and operators)
         self.mlmi_mean_stiffness = None  #: stiffness of the lowest mode [Pa/m]
-        self.reduced_buffers = None      #: (mask, full_in, full_out) of the reduced Jacobians
-        self.full_pair = None            #: (input, output) of the reduced adhesive Jacobians and their PCs
+        self.full_pair = None            #: (input, output) of the reduced Jacobians and their PCs
         self.full_owner = None           #: (weak reference to) the reduced context whose set the input is zero off
         self.mlmi_work = None            #: the adhesive cycle's work arrays, per level
 
@@ -34,8 +33,8 @@ class PreconditionerData:
         """The full (input, output) arrays of one problem's reduced products and
         preconditioners, its input zero off ``owner``'s set (zeroed when another reduced
         context used it last, or made).  SNES VI makes a reduced Mat at every Newton step, the
-        tangent and PTC solves their own, and a Mat mult or PC apply never overlaps another
-        one: one pair serves all of them."""
+        tangent, load-control and PTC solves their own, and a Mat mult or PC apply never
+        overlaps another one: one pair serves all of them."""
         if self.full_pair is None or self.full_pair[0].shape != shape:
             self.full_pair, self.full_owner = (np.zeros(shape), np.zeros(shape)), None
         if self.full_owner is None or self.full_owner() is not owner:
@@ -120,7 +119,38 @@ def python_submatrix(ctx, mat: PETSc.Mat) -> PETSc.Mat:
     return destroy_at_exit(sub)
 
 
-class ReducedJacobian:
+class ReducedContext:
+    """What a reduced (inactive-set) Mat context shares with its preconditioners: the set
+    (``set``, an ``InactiveSet``) in full local arrays of ``shape``, and the problem's shared
+    pair of them (``parent.pc_data``).  Subclasses set ``parent``, ``set``, ``n_local`` and
+    ``shape``."""
+
+    def to_full(self, x: PETSc.Vec, out: np.ndarray) -> np.ndarray:
+        """Scatter a reduced Vec into a full local array (entries outside the set untouched)."""
+        return self.set.to_full(x, out)
+
+    def from_full(self, full: np.ndarray, y: PETSc.Vec) -> None:
+        """Gather the set's entries of a full local array into a reduced Vec."""
+        self.set.from_full(full, y)
+
+    def full_arrays(self, x: PETSc.Vec, y: PETSc.Vec):
+        """(input, output) of a product or a preconditioner as full local arrays: x and y's own
+        arrays when the set is everything (the reduced Vecs are the full arrays: no copies), else
+        x scattered into the problem's shared pair (``PreconditionerData.claim_full_arrays``,
+        the input zero off this set) for ``finish``."""
+        if self.set.everything:
+            return x.getArray(readonly=True).reshape(self.shape), y.getArray().reshape(self.shape)
+        full, out = self.parent.pc_data.claim_full_arrays(self, self.shape)
+        self.to_full(x, full)
+        return full, out
+
+    def finish(self, out: np.ndarray, y: PETSc.Vec) -> None:
+        """Gather ``full_arrays``' output into y (nothing to do when the set is everything)."""
+        if not self.set.everything:
+            self.from_full(out, y)
+
+
+class ReducedJacobian(ReducedContext):
     """K restricted to an index set I (the VI's inactive set): K_II."""
 
     def __init__(self, parent: ContactJacobian, index_set: PETSc.IS):
@@ -129,16 +159,9 @@ class ReducedJacobian:
         g = self.grid = self.op.grid
         self.set = InactiveSet(index_set, g.offset, g.n_local)
         self.n_local = self.set.n_local
-        # SNES VI asks for a new sub-matrix at every Newton step: the grid-sized work
-        # arrays are the parent's (one reduced Mat is in use at a time)
-        buffers = parent.pc_data.reduced_buffers
-        if buffers is None:
-            shape = g.local_shape
-            buffers = parent.pc_data.reduced_buffers = (np.empty(shape, bool), np.empty(shape), np.empty(shape))
-        self.mask, self.full_in, self.full_out = buffers
-        self.mask.fill(False)
+        self.shape = g.local_shape
+        self.mask = np.zeros(self.shape, bool)
         self.mask.reshape(-1)[self.set.idx] = True
-        self.full_in.fill(0.0)
         n_set = g.mpi_comm.allreduce(self.n_local)
         # On a periodic cell K has no mean mode: with every node inactive K_II = K is
         # singular and the Newton system inconsistent (mean gap = mean h - delta).  There,
@@ -153,22 +176,15 @@ class ReducedJacobian:
         view_context(viewer, [f"contactpetsc ReducedJacobian: K_II on {n} inactive nodes of "
                               f"{self.grid.nx * self.grid.ny}"])
 
-    def to_full(self, x: PETSc.Vec, out: np.ndarray) -> np.ndarray:
-        """Scatter a reduced Vec into a full (ny_loc, nx) array (entries outside I untouched)."""
-        return self.set.to_full(x, out)
-
-    def from_full(self, full: np.ndarray, y: PETSc.Vec) -> None:
-        self.set.from_full(full, y)
-
     @collective_guard
     def mult(self, mat, x, y):
-        self.to_full(x, self.full_in)
-        self.op.apply(self.full_in, self.full_out)
+        full, out = self.full_arrays(x, y)
+        self.op.apply(full, out)
         if self.mean_compliance:
             grid = self.grid
-            total = grid.mpi_comm.allreduce(float(self.full_in.sum()))
-            self.full_out += self.mean_compliance * total / (grid.nx * grid.ny)
-        self.from_full(self.full_out, y)
+            total = grid.mpi_comm.allreduce(float(full.sum()))
+            out += self.mean_compliance * total / (grid.nx * grid.ny)
+        self.finish(out, y)
 
     @collective_guard
     def getDiagonal(self, mat, d):
