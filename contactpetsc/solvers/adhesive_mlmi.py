@@ -171,31 +171,32 @@ class _Level:
         x[...] = sol[start:start + b.size].reshape(b.shape)
 
 
-class AdhesiveMLMIPC:
-    """V-cycle on (K + C) in the total-pressure correction (see module doc)."""
+def law_rows(alpha: np.ndarray, beta: np.ndarray, k_ii: float) -> tuple[np.ndarray, np.ndarray]:
+    """(c, 1 / beta) of the rows alpha dp + beta (K dp) = r divided by beta: c = alpha / beta,
+    with beta floored where the law is flat (beta ~ 0: the row is alpha dp = r, c large, the
+    smoother exact there)."""
+    floor = np.abs(alpha) / (C_CAP * k_ii)
+    beta = np.where(np.abs(beta) < floor, np.where(beta < 0, -floor, floor), beta)
+    return alpha / beta, 1.0 / beta
 
-    _data = None
 
-    def view(self, pc, viewer=None):
-        sizes = ", ".join(f"{lev.grid.nx}x{lev.grid.ny}" for lev in self.levels)
-        coarse = "dense solve" if self.levels[-1].dense is not None else f"{self.coarse_sweeps} sweeps"
-        view_context(viewer, [
-            "contactpetsc AdhesiveMLMIPC: V-cycle on K + diag(alpha / beta), the whole reduced adhesive Jacobian",
-            f"  {len(self.levels)} levels ({sizes}); coarsest: {coarse}; "
-            f"K-dominated rows: {getattr(self, 'n_kdom', 0)} of {self.levels[0].grid.nx * self.levels[0].grid.ny}"])
+class AdhesiveCycle:
+    """The V-cycle on K + diag(c) (module doc) over a problem's MLMI hierarchy, built once per
+    problem in its ``PreconditionerData`` ``data`` for the operator ``op``; options (``mlmi_*``)
+    under ``prefix``.  ``set_rows(c)`` sets it up, ``solve(f)`` applies it (the returned array
+    is the finest level's work array, valid until the next cycle), ``release()`` frees the
+    set-up.  Used by the Newton steps' preconditioner and by the stability check's."""
 
-    def _initialize(self, ctx):
-        data = ctx.parent.pc_data
-        prefix = ctx.parent.prefix
+    def __init__(self, op, data, prefix: str):
         opts = PETSc.Options(prefix)
         if data.mlmi_levels is None:
-            data.mlmi_levels = build_levels(ctx.parent.op, opts.getInt("mlmi_levels", 8),
-                                            opts.getInt("mlmi_min_size", 8))
+            data.mlmi_levels = build_levels(op, opts.getInt("mlmi_levels", 8), opts.getInt("mlmi_min_size", 8))
         if data.mlmi_work is None:
             # three are the hierarchy's own (the pressure-space cycle's; no two cycles overlap)
             data.mlmi_work = [(b.work, b.work2, b.ku, np.zeros_like(b.ku), np.zeros_like(b.ku))
                               for b in data.mlmi_levels]
         self.levels = [_Level(b, w) for b, w in zip(data.mlmi_levels, data.mlmi_work)]
+        self.grid = op.grid
         self.power_its = opts.getInt("mlmi_power_its", 2)
         self.bound = opts.getReal("mlmi_rho_bound", 1.6)
         self.coarse_sweeps = opts.getInt("mlmi_coarse_sweeps", 4)
@@ -203,35 +204,18 @@ class AdhesiveMLMIPC:
         self.post = opts.getInt("mlmi_post", 1)
         last = self.levels[-1]
         if last.grid.nx * last.grid.ny <= DENSE_MAX:
-            last.build_dense(ctx.parent.op.lowest_mode_stiffness())
+            last.build_dense(op.lowest_mode_stiffness())
+        self.n_kdom = 0
 
-    @collective_guard
-    def setUp(self, pc):
-        _, P = pc.getOperators()
-        ctx = self.ctx = P.getPythonContext()
-        if self._data is not ctx.parent.pc_data:
-            self._data = ctx.parent.pc_data
-            self._initialize(ctx)
-        pb = ctx.problem
-        kappa = pb.kappa
-        d = pb.traction.diagonal
-        masks = ctx.masks
-        self.q_set = masks[0] if pb.hard_wall else np.zeros(d.shape, bool)
-        free = masks[-1] | self.q_set
-        alpha = np.full(d.shape, kappa * (1.0 + pb.shift))
-        beta = -kappa * d
-        if pb._gap_rows is not None:
-            alpha = np.where(pb._gap_rows, pb.shift * kappa - pb._gap_slope, alpha)
-            beta = np.where(pb._gap_rows, 1.0, beta)
-        self.alpha = alpha
-        k_ii = self.levels[0].base.k0
-        # where the law is flat (beta ~ 0) the row is alpha dp = r: c large, the smoother exact there
-        floor = np.abs(alpha) / (C_CAP * k_ii)
-        beta = np.where(np.abs(beta) < floor, np.where(beta < 0, -floor, floor), beta)
-        c = np.where(self.q_set, 0.0, alpha / beta)
-        c = np.where(free, c, C_CAP * k_ii)   # unknowns held at a bound: dp = 0
-        self.inv_beta = np.where(self.q_set, 1.0, np.where(free, 1.0 / beta, 0.0))
-        self.a_gain = kappa * d
+    @property
+    def k_ii(self) -> float:
+        """The fine grid's self-influence K_ii [m/Pa]."""
+        return self.levels[0].base.k0
+
+    def set_rows(self, c: np.ndarray) -> None:
+        """Set up the cycle for the fine grid's c [m/Pa] (ny_loc, nx): the levels' c, smoothers
+        and damping, the coarsest grid's factorisation.  Collective."""
+        k_ii = self.k_ii
         kind = np.where(distributive(c, k_ii), 0, np.sign(c))   # distributive 0, local rows by the sign of c
         for l, lev in enumerate(self.levels):
             if l:
@@ -246,15 +230,24 @@ class AdhesiveMLMIPC:
             lev.keep = kind != 2
         if self.levels[-1].dense is not None:
             self.levels[-1].factor()
-        self.n_kdom = ctx.grid.mpi_comm.allreduce(int(self.levels[0].kdom.sum()))
-        self.not_q = ~self.q_set
+        self.n_kdom = self.grid.mpi_comm.allreduce(int(self.levels[0].kdom.sum()))
 
-    def reset(self, pc):
-        """Free the set-up's arrays between solves (the Newton solver resets its Krylov solver
-        then; SNES VI also does where the inactive set changes, a set-up follows)."""
-        self.ctx = self.q_set = self.not_q = self.alpha = self.inv_beta = self.a_gain = None
-        for lev in getattr(self, "levels", ()):
+    def release(self) -> None:
+        for lev in self.levels:
             lev.release()
+
+    def solve(self, f: np.ndarray) -> np.ndarray:
+        """dp with (K + C) dp ~ f: one cycle from zero."""
+        ev = log_event("CPMLMICycle")
+        ev.begin()
+        dp = self._cycle(0, f)
+        ev.end()
+        return dp
+
+    def describe(self) -> str:
+        sizes = ", ".join(f"{lev.grid.nx}x{lev.grid.ny}" for lev in self.levels)
+        coarse = "dense solve" if self.levels[-1].dense is not None else f"{self.coarse_sweeps} sweeps"
+        return f"{len(self.levels)} levels ({sizes}); coarsest: {coarse}"
 
     def _cycle(self, l: int, b: np.ndarray) -> np.ndarray:
         lev = self.levels[l]
@@ -280,10 +273,55 @@ class AdhesiveMLMIPC:
             lev.smooth(b, x, zero_start=False)
         return x
 
+
+class AdhesiveMLMIPC:
+    """V-cycle on (K + C) in the total-pressure correction (see module doc)."""
+
+    _data = None
+
+    def view(self, pc, viewer=None):
+        cyc = self.cycle
+        view_context(viewer, [
+            "contactpetsc AdhesiveMLMIPC: V-cycle on K + diag(alpha / beta), the whole reduced adhesive Jacobian",
+            f"  {cyc.describe()}; K-dominated rows: {cyc.n_kdom} of {self.cycle.grid.nx * self.cycle.grid.ny}"])
+
+    @collective_guard
+    def setUp(self, pc):
+        _, P = pc.getOperators()
+        ctx = self.ctx = P.getPythonContext()
+        if self._data is not ctx.parent.pc_data:
+            self._data = ctx.parent.pc_data
+            self.cycle = AdhesiveCycle(ctx.parent.op, self._data, ctx.parent.prefix)
+        pb = ctx.problem
+        kappa = pb.kappa
+        d = pb.traction.diagonal
+        masks = ctx.masks
+        self.q_set = masks[0] if pb.hard_wall else np.zeros(d.shape, bool)
+        free = masks[-1] | self.q_set
+        alpha = np.full(d.shape, kappa * (1.0 + pb.shift))
+        beta = -kappa * d
+        if pb._gap_rows is not None:
+            alpha = np.where(pb._gap_rows, pb.shift * kappa - pb._gap_slope, alpha)
+            beta = np.where(pb._gap_rows, 1.0, beta)
+        self.alpha = alpha
+        k_ii = self.cycle.k_ii
+        c, inv_beta = law_rows(alpha, beta, k_ii)
+        c = np.where(self.q_set, 0.0, c)
+        c = np.where(free, c, C_CAP * k_ii)   # unknowns held at a bound: dp = 0
+        self.inv_beta = np.where(self.q_set, 1.0, np.where(free, inv_beta, 0.0))
+        self.a_gain = kappa * d
+        self.cycle.set_rows(c)
+        self.not_q = ~self.q_set
+
+    def reset(self, pc):
+        """Free the set-up's arrays between solves (the Newton solver resets its Krylov solver
+        then; SNES VI also does where the inactive set changes, a set-up follows)."""
+        self.ctx = self.q_set = self.not_q = self.alpha = self.inv_beta = self.a_gain = None
+        if getattr(self, "cycle", None) is not None:
+            self.cycle.release()
+
     @collective_guard
     def apply(self, pc, x, y):
-        ev = log_event("CPMLMICycle")
-        ev.begin()
         ctx = self.ctx
         full, out = ctx.full_arrays(x, y)
         r_a = full[-1]
@@ -293,7 +331,7 @@ class AdhesiveMLMIPC:
         f = np.multiply(r_a, self.inv_beta, out=out[-1])
         if hard:
             np.copyto(f, full[0], where=self.q_set)
-        dp = self._cycle(0, f)
+        dp = self.cycle.solve(f)
         if hard:
             # at a contact node the a row gives da from (K dp)_i = r_q,i
             da_c = np.multiply(self.a_gain, full[0], out=out[0])
@@ -306,4 +344,3 @@ class AdhesiveMLMIPC:
         else:
             np.copyto(out[-1], dp)
         ctx.finish(out, y)
-        ev.end()

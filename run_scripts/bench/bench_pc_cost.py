@@ -179,10 +179,11 @@ def make_ksp(pb, A, name):
 
 def mlmi_breakdown(pcctx, x_full, repeats):
     """CPU s of the cycle's pieces per application, level by level (the same calls as
-    ``AdhesiveMLMIPC._cycle`` with V(0, 1), on arrays of the right sizes)."""
+    ``AdhesiveCycle._cycle`` with V(0, 1), on arrays of the right sizes)."""
     rows = []
     b = x_full[-1] * pcctx.inv_beta
-    for l, lev in enumerate(pcctx.levels):
+    cycle = pcctx.cycle
+    for l, lev in enumerate(cycle.levels):
         r = b if l == 0 else restrict(r) * lev.keep
         n = lev.grid.nx * lev.grid.ny
         # the cycle's own state on this level: the coarse nodes it keeps (children of one kind),
@@ -202,12 +203,12 @@ def mlmi_breakdown(pcctx, x_full, repeats):
             row.update(mode_on_distributive=float(w2[lev.kdom].sum()),
                        mode_on_tail=float(w2[~lev.kdom & (lev.c <= -lev.base.k0)].sum()),
                        mode_on_local=float(w2[~lev.kdom & (lev.c > -lev.base.k0)].sum()))
-        if l == len(pcctx.levels) - 1:
+        if l == len(cycle.levels) - 1:
             if lev.dense is not None:
                 row["coarse_solve"] = median_cpu(lambda: lev.solve(r, lev.x), repeats)
             else:
                 row["coarse_solve"] = median_cpu(
-                    lambda: [lev.smooth(r, lev.x, zero_start=k == 0) for k in range(pcctx.coarse_sweeps)], repeats)
+                    lambda: [lev.smooth(r, lev.x, zero_start=k == 0) for k in range(cycle.coarse_sweeps)], repeats)
         else:
             xl = np.zeros_like(r)
             row["apply_k_plus_c"] = median_cpu(lambda: lev.apply(xl, lev.ku), repeats)
@@ -327,7 +328,7 @@ def main():
         p0 = pb.fft_pairs()
         cpu_apply = median_cpu(lambda: pc.apply(x, y), args.repeats)
         pairs_apply = (pb.fft_pairs() - p0) / (args.repeats + 2)
-        levels = getattr(pcctx, "levels", None)
+        levels = pcctx.cycle.levels if hasattr(pcctx, "cycle") else None
         emit(kind="apply", n=n, law=args.law, w=args.w, pc=name, pairs_apply=pairs_apply,
              cpu_apply=cpu_apply, cpu_pair=cpu_pair, apply_over_pair=cpu_apply / cpu_pair,
              cpu_jmult=cpu_jmult, jmult_over_pair=cpu_jmult / cpu_pair,
@@ -345,7 +346,7 @@ def main():
                         if k in ("apply_k_plus_c", "smoother", "transfers", "residual_update", "coarse_solve"))
             f0 = full[-1] * pcctx.inv_beta
             # the rest of an application: the reduced <-> full copies and the contact rows' da
-            cpu_cycle = median_cpu(lambda: pcctx._cycle(0, f0), args.repeats)
+            cpu_cycle = median_cpu(lambda: pcctx.cycle._cycle(0, f0), args.repeats)
             emit(kind="breakdown", n=n, law=args.law, w=args.w, pc=name, levels=parts,
                  sum_parts=total, cpu_cycle=cpu_cycle, cpu_apply=cpu_apply, cpu_pair=cpu_pair)
         for kind in args.rhs:
