@@ -6,8 +6,10 @@ numpy, K^-1 assembled column by column (the periodic Fourier inverse, or the inv
 isolated window's dense K).  The margin is 1 - lambda_max.  Each case is set at a stable and an
 unstable scale of the work of adhesion (A is proportional to w): the estimate has the sign of the
 truth, and equals it where stable; an unstable estimate may stop at the first Ritz value above
-one, which is an upper bound of the margin.  Covered: LOBPCG (periodic, contact nodes), Lanczos
-on A S (periodic without contact; isolated window with contact, S through a CG on K_CC).
+one, which is an upper bound of the margin.  Covered: LOBPCG (periodic, contact nodes) with either
+preconditioner (the compliance K; the adhesive cycle on the Hessian, which ``auto`` takes for the
+exponential law, A >= 0), Lanczos on A S (periodic without contact; isolated window with contact,
+S through a CG on K_CC).
 """
 import numpy as np
 import pytest
@@ -51,15 +53,16 @@ def _dense_margin(kinv, d, contact, periodic):
     return 1.0 - np.linalg.eigvalsh(li @ a @ li.T)[-1]
 
 
-@pytest.mark.parametrize("periodic,contact,law", [(True, True, "hardwall-lj"), (True, False, "lj"),
-                                                  (False, True, "exponential")])
-def test_margin_is_the_dense_pencil_s(coll, periodic, contact, law):
+@pytest.mark.parametrize("periodic,contact,law,preconditioner", [
+    (True, True, "hardwall-lj", "auto"), (True, True, "exponential", "auto"),
+    (True, True, "exponential", "compliance"), (True, False, "lj", "auto"), (False, True, "exponential", "auto")])
+def test_margin_is_the_dense_pencil_s(coll, periodic, contact, law, preconditioner):
     grid = SurfaceGrid(N, N, 1.0, periodic=periodic)
     h = grid.create_vec(0.0)
     length = {"rho" if law == "exponential" else "z0": 1.0}
     gap_all = _gap_field(grid, contact)
     gap = gap_all[grid.ys:grid.ye].copy()
-    tag = f"stab_{int(periodic)}{int(contact)}_"
+    tag = f"stab_{int(periodic)}{int(contact)}{law[:3]}{preconditioner[:3]}_"
     truth = {}
     for w in (0.05, None, None):
         if w is None:   # the scales of w putting lambda_max at 0.5 and at 2
@@ -74,7 +77,7 @@ def test_margin_is_the_dense_pencil_s(coll, periodic, contact, law):
         if len(truth) == 1:
             assert truth[w] < 1.0   # the attractive zone has a positive top eigenvalue to scale
             continue
-        margin, settled = stability_margin(pb, gap, q, steps=200)
+        margin, settled = stability_margin(pb, gap, q, steps=200, preconditioner=preconditioner)
         assert coll.all(settled)
         if truth[w] > 0:
             assert coll.max(abs(margin - truth[w])) < 1e-4

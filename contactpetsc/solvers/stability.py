@@ -15,10 +15,26 @@ where A > 0, the well separated top of the pencil.
 
 Two ways to lambda_max, each where it is cheap:
 
-* Periodic grids with contact nodes: LOBPCG on the pencil itself, preconditioned
-  by the compliance K restricted to W.  K^-1 is diagonal in Fourier space there,
-  so an iteration costs two FFT pairs (one K^-1, one K).  It stops when the
-  preconditioned residual of the top Ritz pair is below ``RESIDUAL_TOL``.
+* Periodic grids with contact nodes: LOBPCG on the pencil itself.  K^-1 is
+  diagonal in Fourier space there.  It stops when the K-norm of the top Ritz
+  pair's residual is below ``RESIDUAL_TOL``.  Preconditioned
+  (``-<prefix>stability_preconditioner``) by
+
+  - ``compliance``: K restricted to W; an iteration costs two FFT pairs (one
+    K^-1, one K).  The iteration is then a power iteration in effect: slow
+    where the top of the pencil is a cluster of asperity modes.
+  - ``mlmi``: an approximate H^-1, one adhesive multilevel cycle
+    (``adhesive_mlmi.AdhesiveCycle``) on the Hessian's pressure form.  With
+    u = K p the rows H u = r on N read p - A K p = r, and u = 0 on C reads
+    (K p)_C = 0.  That is (K + diag(c)) p = f with c = -1/A and f = -r/A on N,
+    and c = f = 0 on C: the operator the Newton steps' cycle solves.  T r = K p.
+    An iteration costs the cycle and three pairs, but the iteration converges
+    like inverse iteration near the top of the pencil.  Only where A >= 0 on N
+    (a purely attractive law, the exponential one): where A changes sign (the
+    hard-wall LJ law's wall side) the cycle's coarse levels leave the mixed
+    zones out, it amplifies smooth residuals, and LOBPCG stalls far from
+    lambda_max.
+  - ``auto`` (the default): ``mlmi`` where A >= 0 on N, else ``compliance``.
 * Otherwise (no contact nodes, or an isolated window whose K^-1 is not
   diagonal): Lanczos on A S, S = ((K^-1)_NN)^-1 = K_NN - K_NC K_CC^-1 K_CN the
   compliance of N with C clamped, self-adjoint in the S inner product.  S is one
@@ -97,14 +113,19 @@ class _Compliance:
 #: plateau short of lambda_max
 RESIDUAL_TOL = 1e-3
 
+#: LOBPCG's preconditioners (``-<prefix>stability_preconditioner``; module doc)
+PRECONDITIONER_CHOICES = ("auto", "compliance", "mlmi")
+
 
 def stability_margin(problem, gap: np.ndarray, q_rows: np.ndarray | None, steps: int = 60,
-                     tol: float = 1e-4, method: str = "auto", residual_tol: float = RESIDUAL_TOL) -> float:
+                     tol: float = 1e-4, method: str = "auto", residual_tol: float = RESIDUAL_TOL,
+                     preconditioner: str = "auto") -> float:
     """1 - lambda_max of the pencil (module doc) at the rank's gap rows ``gap`` [m] (ny_loc, nx)
     of the problem's state, contact pressures ``q_rows`` [Pa] (hard wall) or None; at most
     ``steps`` iterations; collective.  ``method``: "auto" (as in the module doc), or "lobpcg"
     (periodic grids only; stops at ``residual_tol``) or "lanczos" (stops at ``tol``) to
-    compare them (``run_scripts/bench/bench_stability.py``).
+    compare them (``run_scripts/bench/bench_stability.py``).  ``preconditioner``: LOBPCG's,
+    "auto", "compliance" or "mlmi" (module doc; ``bench_stability.py --methods``).
 
     Returns (margin, settled): settled False when the iteration ran its ``steps`` without
     settling.  The Ritz value only grows towards lambda_max, so an unsettled positive margin
@@ -128,7 +149,21 @@ def stability_margin(problem, gap: np.ndarray, q_rows: np.ndarray | None, steps:
     if method == "lobpcg":
         if not grid.periodic:
             raise ValueError("stability method 'lobpcg' needs a periodic grid (K^-1 diagonal in Fourier space)")
-        lam, settled = _lobpcg(problem.op, comm, d, contact, v, steps, residual_tol)
+        if preconditioner not in PRECONDITIONER_CHOICES:
+            raise ValueError(f"stability preconditioner {preconditioner!r}: accepted values are "
+                             + ", ".join(PRECONDITIONER_CHOICES))
+        if preconditioner == "auto":
+            attractive = comm.allreduce(float(d[~contact].min(initial=0.0)), op=MPI.MIN) >= 0.0
+            preconditioner = "mlmi" if attractive else "compliance"
+        hessian = None
+        if preconditioner == "mlmi":
+            hessian = HessianPreconditioner(problem)
+            hessian.set(d, contact)
+        try:
+            lam, settled = _lobpcg(problem.op, comm, d, contact, v, steps, residual_tol, precondition=hessian)
+        finally:
+            if hessian is not None:
+                hessian.release()
     else:
         lam, settled = _lanczos(problem, comm, d, contact, v, steps, tol)
     return 1.0 - lam, settled
@@ -150,9 +185,10 @@ def stability_mode(value: str, name: str) -> tuple[bool, bool]:
 
 class StabilityCheck:
     """The stability check of an ``AdhesiveProblem``, a strategy on it: ``-<prefix>stability_check``
-    (true, false or auto: ``by_default``, ``auto``) and ``-<prefix>stability_steps`` (``steps``),
-    read when made (inside the problem's ``inserted_options``); ``margin()`` at the problem's
-    state, with ``settled`` whether its estimate settled."""
+    (true, false or auto: ``by_default``, ``auto``), ``-<prefix>stability_steps`` (``steps``) and
+    ``-<prefix>stability_preconditioner`` (``preconditioner``, LOBPCG's), read when made (inside
+    the problem's ``inserted_options``); ``margin()`` at the problem's state, with ``settled``
+    whether its estimate settled."""
 
     def __init__(self, problem, default):
         self.problem = problem
@@ -160,6 +196,11 @@ class StabilityCheck:
         self.by_default, self.auto = stability_mode(opts.getString("stability_check", str(default)),
                                                     f"-{problem.prefix}stability_check")
         self.steps = opts.getInt("stability_steps", code_default("adhesion", "stability_steps"))
+        self.preconditioner = opts.getString("stability_preconditioner",
+                                             code_default("adhesion", "stability_preconditioner")).strip().lower()
+        if self.preconditioner not in PRECONDITIONER_CHOICES:
+            raise ValueError(f"-{problem.prefix}stability_preconditioner = {self.preconditioner!r}: accepted values "
+                             f"are {', '.join(PRECONDITIONER_CHOICES)}")
         self.settled = None   #: whether the last margin's estimate settled
 
     def margin(self) -> float:
@@ -169,9 +210,44 @@ class StabilityCheck:
         t0 = pb.history.elapsed()
         xb = pb.blocks(pb._x, readonly=True)
         gap = pb._gap(xb, pb._g)
-        margin, self.settled = stability_margin(pb, gap, q_rows=xb[0] if pb.hard_wall else None, steps=self.steps)
+        margin, self.settled = stability_margin(pb, gap, q_rows=xb[0] if pb.hard_wall else None, steps=self.steps,
+                                                preconditioner=self.preconditioner)
         pb.check_time += pb.history.elapsed() - t0
         return margin
+
+
+class HessianPreconditioner:
+    """The ``mlmi`` preconditioner of the LOBPCG check (module doc): T r = K p, p one adhesive
+    cycle on (K + diag(c)) p = f, c = -1/A and f = -r/A off the contact set C, c = f = 0 on
+    it.  The cycle is the problem's own (its hierarchy and work arrays, ``AdhesiveCycle``),
+    made once per problem and kept between checks in its ``PreconditionerData``
+    (``stability_cycle``), so that a check's power iterations start from the last check's
+    vectors; ``set(d, contact)`` sets it up at a state, ``release()`` frees that."""
+
+    def __init__(self, problem):
+        from .adhesive_mlmi import AdhesiveCycle
+        data = problem.jacobian_context.pc_data
+        if data.stability_cycle is None:
+            data.stability_cycle = AdhesiveCycle(problem.op, data, problem.prefix)
+        self.cycle = data.stability_cycle
+        self.op = problem.op
+        self.inv_beta = None
+
+    def set(self, d: np.ndarray, contact: np.ndarray) -> None:
+        """Set up at the law's derivative d = da/dg [Pa/m] and the contact nodes (collective)."""
+        from .adhesive_mlmi import law_rows
+        c, inv_beta = law_rows(np.ones_like(d), -d, self.cycle.k_ii)
+        self.cycle.set_rows(np.where(contact, 0.0, c))
+        self.inv_beta = np.where(contact, 0.0, inv_beta)
+
+    def __call__(self, r: np.ndarray, out: np.ndarray) -> np.ndarray:
+        # out holds f through the cycle (the cycle's own arrays are its work), then K p
+        p = self.cycle.solve(np.multiply(r, self.inv_beta, out=out))
+        return self.op.apply(p, out)
+
+    def release(self) -> None:
+        self.cycle.release()
+        self.inv_beta = None
 
 
 def leaves_checks_out(problem) -> bool:
@@ -225,11 +301,13 @@ def _lanczos(problem, comm, d, contact, v, steps, tol):
     return lam, settled
 
 
-def _lobpcg(op, comm, d, contact, v, steps, residual_tol):
+def _lobpcg(op, comm, d, contact, v, steps, residual_tol, precondition=None):
     """(lambda_max estimate, settled) of the pencil A x = lambda (K^-1)_NN x on W by LOBPCG
     (Knyazev's locally optimal block preconditioned CG, block size one) from ``v``,
-    preconditioned by K on W.  Each Rayleigh-Ritz step is on span{x, w, p} (iterate,
-    preconditioned residual, previous direction), so the top Ritz value never decreases."""
+    preconditioned by K on W, or by ``precondition(r, out)`` (full (ny_loc, nx) arrays; the
+    result is projected on W).  Each Rayleigh-Ritz step is on span{x, w, p} (iterate,
+    preconditioned residual, previous direction), so the top Ritz value never decreases
+    whatever the preconditioner; the stopping test is the K-norm of the residual in both."""
     shape = v.shape
     free = np.where(contact, 0.0, 1.0).reshape(-1)   # a mask by multiplication: indexing copies
     n_free = comm.allreduce(float(free.sum()))
@@ -277,8 +355,16 @@ def _lobpcg(op, comm, d, contact, v, steps, residual_tol):
         res = np.sqrt(max(comm.allreduce(float(r @ w)), 0.0))
         if theta > 1.0 or res <= residual_tol * max(1.0, abs(theta)):
             return theta, True
+        if precondition is not None:
+            precondition(r.reshape(shape), w.reshape(shape))
+            on_w(w)
         mult(op.apply_inverse, w, mw)
         nw = np.sqrt(comm.allreduce(float(w @ mw)))
+        if precondition is not None and not (np.isfinite(nw) and nw > 0.0):
+            # the cycle failed on this residual (an indefinite H off the stable states): K r
+            mult(op.apply, r, w)
+            mult(op.apply_inverse, w, mw)
+            nw = np.sqrt(comm.allreduce(float(w @ mw)))
         w /= nw
         mw /= nw
         np.multiply(a, w, out=aw)

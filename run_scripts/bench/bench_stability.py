@@ -1,15 +1,19 @@
 #!/usr/bin/env python3
-"""Benchmark: the stability check's two methods on the states of the rough benchmark's path.
+"""Benchmark: the stability check's methods on the states of the rough benchmark's path.
 
 The rough benchmark heights (``rough_surface.py``, periodic, E* = 1), a law with w = --w E* dx and
 range dx, the 10-state load-unload path of ``bench_fallback.py`` (approaches from 1 % to 10 %
 contact and back), solved once with warm starts and the check off.  At each state the margin
 1 - lambda_max of the stability pencil (``solvers/stability.py``) by
 
-* ``lobpcg``: LOBPCG on the pencil A x = lambda (K^-1)_NN x, preconditioned by K (periodic grids);
+* ``lobpcg``: LOBPCG on the pencil A x = lambda (K^-1)_NN x, preconditioned by K (periodic grids;
+  ``-<prefix>stability_preconditioner compliance``);
+* ``lobpcg-mlmi``: the same, preconditioned by an adhesive multilevel cycle on the Hessian
+  (``-<prefix>stability_preconditioner mlmi``, where ``auto`` takes it: the exponential law);
 * ``lanczos``: Lanczos on A S, S the clamped compliance (a CG on the contact set per step where
   there are contact nodes);
-* ``reference``: LOBPCG to a residual of 1e-7 (at most 3000 iterations);
+* ``reference``: LOBPCG to a residual of 1e-7 (at most 3000 iterations; preconditioned by
+  ``--reference``, K unless given);
 
 each at the code's default steps, with its FFT pairs (exact), CPU s (``process_time``), whether
 it settled, and its margin's difference to the reference.  First line: the non-adhesive solve on
@@ -18,6 +22,8 @@ per state and method.
 
     .venv/bin/python run_scripts/bench/bench_stability.py --size 256 --law exponential
     .venv/bin/python run_scripts/bench/bench_stability.py --size 256 --law lj --w 0.2
+    .venv/bin/python run_scripts/bench/bench_stability.py --size 1024 --law exponential \
+        --methods lobpcg lobpcg-mlmi --reference mlmi
 
 One rank.
 """
@@ -32,6 +38,10 @@ from bench_args import emit, rough_parser
 HERE = os.path.dirname(os.path.abspath(__file__))
 ap = rough_parser(__doc__)
 ap.add_argument("--states", type=int, default=10, help="states of the load-unload path")
+ap.add_argument("--methods", nargs="+", default=["lobpcg", "lobpcg-mlmi", "lanczos"],
+                choices=["lobpcg", "lobpcg-mlmi", "lanczos"])
+ap.add_argument("--reference", default="compliance", choices=["compliance", "mlmi"],
+                help="the reference LOBPCG's preconditioner")
 args, petsc_args = ap.parse_known_args()
 petsc4py.init([sys.argv[0]] + petsc_args)
 
@@ -51,6 +61,8 @@ def margin(pb, method, **kw):
     xb = pb.blocks(pb._x, readonly=True)
     gap = pb._gap(xb, pb._g)
     p0, t0 = pb.fft_pairs(), time.process_time()
+    if method.startswith("lobpcg"):
+        method, kw = "lobpcg", dict({"preconditioner": "mlmi" if method == "lobpcg-mlmi" else "compliance"}, **kw)
     m, settled = stability_margin(pb, gap, xb[0] if pb.hard_wall else None, method=method, **kw)
     return m, settled, pb.fft_pairs() - p0, time.process_time() - t0
 
@@ -64,8 +76,8 @@ def main():
     steps = code_default("adhesion", "stability_steps")
     for k, a in enumerate(load_unload_path(grid, h, law, args.states)):
         st = pb.solve(approach=a, raise_on_failure=False)
-        ref = margin(pb, "lobpcg", steps=3000, residual_tol=1e-7)
-        for method in ("lobpcg", "lanczos"):
+        ref = margin(pb, "lobpcg", steps=3000, residual_tol=1e-7, preconditioner=args.reference)
+        for method in args.methods:
             m, settled, pairs, cpu = margin(pb, method, steps=steps)
             emit(kind="state", law=args.law, w=args.w, size=args.size, state=k, approach=a,
                  converged=st.converged, contact_fraction=st.contact_fraction, method=method,
