@@ -128,7 +128,8 @@ def auto_run():
 # stability_checked those of test_a_stopped_sweep_restarts_to_the_uninterrupted_run
 @pytest.mark.serial
 def test_curve_says_per_state_whether_the_check_ran(shared_tmp, auto_run):
-    """curve.csv: stable is True/False exactly where stability_checked is True, nan elsewhere;
+    """curve.csv: stable is True/False exactly where stability_checked is True, nan elsewhere,
+    and the margin has the verdict's sign there (nan elsewhere);
     the states auto leaves out are stable in the always-on run, and the checked ones agree
     with it; the jumps are the same.  A non-adhesive scene runs no check."""
     out = str(shared_tmp)
@@ -136,6 +137,13 @@ def test_curve_says_per_state_whether_the_check_ran(shared_tmp, auto_run):
     forced = dict(SPHERE, solver=dict(options=dict(stability_check="true")))
     on = _rows(forced, os.path.join(out, "on"))
     assert all(r["stability_checked"] == "True" and r["stable"] in ("True", "False") for r in on)
+    for r in on + auto:
+        # the margin's sign is the verdict where the check ran; nothing where it did not
+        if r["stability_checked"] == "True":
+            assert (float(r["stability_margin"]) > 0.0) == (r["stable"] == "True")
+            assert r["stability_settled"] in ("True", "False")
+        else:
+            assert r["stability_margin"] == "nan" and r["stability_settled"] == "nan"
     for a, b in zip(auto, on):
         assert a["stability_checked"] in ("True", "False")
         if a["stability_checked"] == "True":
@@ -150,6 +158,7 @@ def test_curve_says_per_state_whether_the_check_ran(shared_tmp, auto_run):
                  protocol=dict(values=[0.5e-9, 1e-9]), output=dict(fields=False))
     rows = _rows(hertz, os.path.join(out, "hertz"))
     assert all(r["stability_checked"] == "False" and r["stable"] == "True" for r in rows)
+    assert all(r["stability_margin"] == "nan" and r["stability_settled"] == "nan" for r in rows)
 
 
 def _plan(scene):

@@ -38,7 +38,8 @@ CURVE_COLUMNS = ["step", "branch", "approach_m", "force_N", "mean_pressure_Pa", 
                  "load_error", "converged", "reason", "solver", "newton_iterations",
                  "krylov_iterations", "fft_pairs", "wall_time_s", "window_reach", "pressure_error",
                  "interference_error", "plastic_fraction", "plastic_volume_m3", "max_plastic_displacement_m",
-                 "mean_gap_m", "mean_gap_error_m", "stability_checked", "energy_J"]
+                 "mean_gap_m", "mean_gap_error_m", "stability_checked", "energy_J", "stability_margin",
+                 "stability_settled"]
 JUMP_COLUMNS = ["step", "kind", "approach_before_m", "approach_after_m", "force_before_N", "force_after_N"]
 ATOM_COLUMNS = ["step", "approach_m", "atom", "x_m", "y_m", "radius_m", "force_N"]
 NAN = float("nan")

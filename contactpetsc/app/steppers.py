@@ -221,7 +221,9 @@ class AdhesiveSteps:
         return dict(adhesive_force_N=st.adhesive_force, adhesive_load_ratio=load_ratio,
                     adhesive_area_ratio=area_ratio, alpha_star=a_star, W_star=w_star,
                     central_gap_m=st.central_gap, stable=NAN if st.stable is None else st.stable,
-                    stability_checked=st.stable is not None, adhesive_error=st.adhesive_error,
+                    stability_checked=st.stable is not None, stability_margin=st.stability_margin,
+                    stability_settled=NAN if st.stability_converged is None else st.stability_converged,
+                    adhesive_error=st.adhesive_error,
                     total_error=st.total_error, pressure_error=st.pressure_error, solver=st.solver,
                     energy_J=st.energy, **mean_gap(self.grid, st, self.z0 * np.nanmax([st.complementarity_error, st.adhesive_error,
                                                                    st.total_error])))
