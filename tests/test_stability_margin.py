@@ -6,10 +6,10 @@ numpy, K^-1 assembled column by column (the periodic Fourier inverse, or the inv
 isolated window's dense K).  The margin is 1 - lambda_max.  Each case is set at a stable and an
 unstable scale of the work of adhesion (A is proportional to w): the estimate has the sign of the
 truth, and equals it where stable; an unstable estimate may stop at the first Ritz value above
-one, which is an upper bound of the margin.  Covered: LOBPCG (periodic, contact nodes) with either
-preconditioner (the compliance K; the adhesive cycle on the Hessian, which ``auto`` takes for the
-exponential law, A >= 0), Lanczos on A S (periodic without contact; isolated window with contact,
-S through a CG on K_CC).
+one, which is an upper bound of the margin.  Covered: LOBPCG (periodic, with and without contact
+nodes) with each preconditioner (the compliance K; the adhesive cycle on the Hessian's pressure
+form, which ``auto`` takes for the exponential law, A >= 0; the displacement-form cycle, which it
+takes for the LJ laws), Lanczos on A S (isolated window with contact, S through a CG on K_CC).
 """
 import numpy as np
 import pytest
@@ -54,8 +54,8 @@ def _dense_margin(kinv, d, contact, periodic):
 
 
 @pytest.mark.parametrize("periodic,contact,law,preconditioner", [
-    (True, True, "hardwall-lj", "auto"), (True, True, "exponential", "auto"),
-    (True, True, "exponential", "compliance"), (True, False, "lj", "auto"), (False, True, "exponential", "auto")])
+    (True, True, "hardwall-lj", "auto"), (True, True, "hardwall-lj", "compliance"), (True, True, "exponential", "auto"),
+    (True, True, "exponential", "multigrid"), (True, False, "lj", "auto"), (False, True, "exponential", "auto")])
 def test_margin_is_the_dense_pencil_s(coll, periodic, contact, law, preconditioner):
     grid = SurfaceGrid(N, N, 1.0, periodic=periodic)
     h = grid.create_vec(0.0)

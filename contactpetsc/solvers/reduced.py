@@ -28,7 +28,7 @@ class PreconditionerData:
         self.full_pair = None            #: (input, output) of the reduced Jacobians and their PCs
         self.full_owner = None           #: (weak reference to) the reduced context whose set the input is zero off
         self.mlmi_work = None            #: the adhesive cycle's work arrays, per level
-        self.stability_cycle = None      #: the stability check's adhesive cycle (``stability.HessianPreconditioner``)
+        self.stability_cycle = None      #: the stability check's adhesive cycle (``stability_pc.AdhesiveCyclePreconditioner``)
 
     def claim_full_arrays(self, owner, shape) -> tuple[np.ndarray, np.ndarray]:
         """The full (input, output) arrays of one problem's reduced products and

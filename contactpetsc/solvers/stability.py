@@ -13,33 +13,26 @@ margin is 1 - lambda_max: positive = stable, negative = unstable.  An
 instability is a smooth mode over the attractive zone beyond the force peak,
 where A > 0, the well separated top of the pencil.
 
-Two ways to lambda_max, each where it is cheap:
+Two ways to lambda_max:
 
-* Periodic grids with contact nodes: LOBPCG on the pencil itself.  K^-1 is
-  diagonal in Fourier space there.  It stops when the K-norm of the top Ritz
-  pair's residual is below ``RESIDUAL_TOL``.  Preconditioned
-  (``-<prefix>stability_preconditioner``) by
+* Periodic grids: LOBPCG on the pencil itself (K^-1 is diagonal in Fourier space
+  there).  It stops when the K-norm of the top Ritz pair's residual is below
+  ``RESIDUAL_TOL``.  Preconditioned (``-<prefix>stability_preconditioner``) by
 
   - ``compliance``: K restricted to W; an iteration costs two FFT pairs (one
-    K^-1, one K).  The iteration is then a power iteration in effect: slow
-    where the top of the pencil is a cluster of asperity modes.
-  - ``mlmi``: an approximate H^-1, one adhesive multilevel cycle
-    (``adhesive_mlmi.AdhesiveCycle``) on the Hessian's pressure form.  With
-    u = K p the rows H u = r on N read p - A K p = r, and u = 0 on C reads
-    (K p)_C = 0.  That is (K + diag(c)) p = f with c = -1/A and f = -r/A on N,
-    and c = f = 0 on C: the operator the Newton steps' cycle solves.  T r = K p.
-    An iteration costs the cycle and three pairs, but the iteration converges
-    like inverse iteration near the top of the pencil.  Only where A >= 0 on N
-    (a purely attractive law, the exponential one): where A changes sign (the
-    hard-wall LJ law's wall side) the cycle's coarse levels leave the mixed
-    zones out, it amplifies smooth residuals, and LOBPCG stalls far from
-    lambda_max.
-  - ``auto`` (the default): ``mlmi`` where A >= 0 on N, else ``compliance``.
-* Otherwise (no contact nodes, or an isolated window whose K^-1 is not
-  diagonal): Lanczos on A S, S = ((K^-1)_NN)^-1 = K_NN - K_NC K_CC^-1 K_CN the
-  compliance of N with C clamped, self-adjoint in the S inner product.  S is one
-  FFT pair, plus (with contact nodes) a CG solve on K_CC preconditioned by the
-  Fourier inverse.  It stops when the Ritz value changes by less than ``tol``.
+    K^-1, one K).  In effect a power iteration: it stalls where the top of the
+    pencil is a cluster of asperity modes (rough surfaces at 1024^2 and up).
+  - ``mlmi`` or ``multigrid``: an approximate H^-1 (``stability_pc.py``), with
+    which the iteration converges like inverse iteration near the top of the
+    pencil: the adhesive multilevel cycle on H's pressure form (where A >= 0 on
+    N: the exponential law), or a displacement-form V-cycle on H (any sign of A:
+    the LJ laws).
+  - ``auto`` (the default): ``mlmi`` where A >= 0 on N, else ``multigrid``.
+* Isolated windows (K^-1 not diagonal): Lanczos on A S, S = ((K^-1)_NN)^-1 =
+  K_NN - K_NC K_CC^-1 K_CN the compliance of N with C clamped, self-adjoint in
+  the S inner product.  S is one FFT pair, plus (with contact nodes) a CG solve
+  on K_CC preconditioned by the Fourier inverse.  It stops when the Ritz value
+  changes by less than ``tol``.
 
 In both the top Ritz value grows monotonically towards lambda_max (a Ritz value
 above one proves instability), and an unsettled positive margin is an upper
@@ -114,7 +107,7 @@ class _Compliance:
 RESIDUAL_TOL = 1e-3
 
 #: LOBPCG's preconditioners (``-<prefix>stability_preconditioner``; module doc)
-PRECONDITIONER_CHOICES = ("auto", "compliance", "mlmi")
+PRECONDITIONER_CHOICES = ("auto", "compliance", "mlmi", "multigrid")
 
 
 def stability_margin(problem, gap: np.ndarray, q_rows: np.ndarray | None, steps: int = 60,
@@ -125,7 +118,7 @@ def stability_margin(problem, gap: np.ndarray, q_rows: np.ndarray | None, steps:
     ``steps`` iterations; collective.  ``method``: "auto" (as in the module doc), or "lobpcg"
     (periodic grids only; stops at ``residual_tol``) or "lanczos" (stops at ``tol``) to
     compare them (``run_scripts/bench/bench_stability.py``).  ``preconditioner``: LOBPCG's,
-    "auto", "compliance" or "mlmi" (module doc; ``bench_stability.py --methods``).
+    "auto", "compliance", "mlmi" or "multigrid" (module doc; ``bench_stability.py --methods``).
 
     Returns (margin, settled): settled False when the iteration ran its ``steps`` without
     settling.  The Ritz value only grows towards lambda_max, so an unsettled positive margin
@@ -145,7 +138,7 @@ def stability_margin(problem, gap: np.ndarray, q_rows: np.ndarray | None, steps:
     index = (np.arange(grid.ys, grid.ye)[:, None] * grid.nx + np.arange(grid.nx)[None, :]).astype(float)
     v = np.maximum(d, 0.0) * (1.0 + 0.5 * np.modf(np.abs(np.sin(index * 12.9898)) * 43758.5453)[0])
     if method == "auto":
-        method = "lobpcg" if grid.periodic and comm.allreduce(int(contact.sum())) else "lanczos"
+        method = "lobpcg" if grid.periodic else "lanczos"
     if method == "lobpcg":
         if not grid.periodic:
             raise ValueError("stability method 'lobpcg' needs a periodic grid (K^-1 diagonal in Fourier space)")
@@ -154,11 +147,12 @@ def stability_margin(problem, gap: np.ndarray, q_rows: np.ndarray | None, steps:
                              + ", ".join(PRECONDITIONER_CHOICES))
         if preconditioner == "auto":
             attractive = comm.allreduce(float(d[~contact].min(initial=0.0)), op=MPI.MIN) >= 0.0
-            preconditioner = "mlmi" if attractive else "compliance"
+            preconditioner = "mlmi" if attractive else "multigrid"
         hessian = None
-        if preconditioner == "mlmi":
-            hessian = HessianPreconditioner(problem)
-            hessian.set(d, contact)
+        if preconditioner != "compliance":
+            from .stability_pc import AdhesiveCyclePreconditioner, DisplacementCycle
+            cls = AdhesiveCyclePreconditioner if preconditioner == "mlmi" else DisplacementCycle
+            hessian = cls(problem, d, contact)
         try:
             lam, settled = _lobpcg(problem.op, comm, d, contact, v, steps, residual_tol, precondition=hessian)
         finally:
@@ -214,40 +208,6 @@ class StabilityCheck:
                                                 preconditioner=self.preconditioner)
         pb.check_time += pb.history.elapsed() - t0
         return margin
-
-
-class HessianPreconditioner:
-    """The ``mlmi`` preconditioner of the LOBPCG check (module doc): T r = K p, p one adhesive
-    cycle on (K + diag(c)) p = f, c = -1/A and f = -r/A off the contact set C, c = f = 0 on
-    it.  The cycle is the problem's own (its hierarchy and work arrays, ``AdhesiveCycle``),
-    made once per problem and kept between checks in its ``PreconditionerData``
-    (``stability_cycle``), so that a check's power iterations start from the last check's
-    vectors; ``set(d, contact)`` sets it up at a state, ``release()`` frees that."""
-
-    def __init__(self, problem):
-        from .adhesive_mlmi import AdhesiveCycle
-        data = problem.jacobian_context.pc_data
-        if data.stability_cycle is None:
-            data.stability_cycle = AdhesiveCycle(problem.op, data, problem.prefix)
-        self.cycle = data.stability_cycle
-        self.op = problem.op
-        self.inv_beta = None
-
-    def set(self, d: np.ndarray, contact: np.ndarray) -> None:
-        """Set up at the law's derivative d = da/dg [Pa/m] and the contact nodes (collective)."""
-        from .adhesive_mlmi import law_rows
-        c, inv_beta = law_rows(np.ones_like(d), -d, self.cycle.k_ii)
-        self.cycle.set_rows(np.where(contact, 0.0, c))
-        self.inv_beta = np.where(contact, 0.0, inv_beta)
-
-    def __call__(self, r: np.ndarray, out: np.ndarray) -> np.ndarray:
-        # out holds f through the cycle (the cycle's own arrays are its work), then K p
-        p = self.cycle.solve(np.multiply(r, self.inv_beta, out=out))
-        return self.op.apply(p, out)
-
-    def release(self) -> None:
-        self.cycle.release()
-        self.inv_beta = None
 
 
 def leaves_checks_out(problem) -> bool:

@@ -8,8 +8,11 @@ contact and back), solved once with warm starts and the check off.  At each stat
 
 * ``lobpcg``: LOBPCG on the pencil A x = lambda (K^-1)_NN x, preconditioned by K (periodic grids;
   ``-<prefix>stability_preconditioner compliance``);
-* ``lobpcg-mlmi``: the same, preconditioned by an adhesive multilevel cycle on the Hessian
-  (``-<prefix>stability_preconditioner mlmi``, where ``auto`` takes it: the exponential law);
+* ``lobpcg-mlmi``: the same, preconditioned by an adhesive multilevel cycle on the Hessian's
+  pressure form (``-<prefix>stability_preconditioner mlmi``, where ``auto`` takes it: the
+  exponential law);
+* ``lobpcg-multigrid``: preconditioned by a displacement-form V-cycle on the Hessian
+  (``multigrid``, where ``auto`` takes it: the LJ laws);
 * ``lanczos``: Lanczos on A S, S the clamped compliance (a CG on the contact set per step where
   there are contact nodes);
 * ``reference``: LOBPCG to a residual of 1e-7 (at most 3000 iterations; preconditioned by
@@ -24,6 +27,8 @@ per state and method.
     .venv/bin/python run_scripts/bench/bench_stability.py --size 256 --law lj --w 0.2
     .venv/bin/python run_scripts/bench/bench_stability.py --size 1024 --law exponential \
         --methods lobpcg lobpcg-mlmi --reference mlmi
+    .venv/bin/python run_scripts/bench/bench_stability.py --size 256 --law lj --w 0.2 \
+        --methods lanczos lobpcg lobpcg-multigrid --reference multigrid
 
 One rank.
 """
@@ -38,9 +43,9 @@ from bench_args import emit, rough_parser
 HERE = os.path.dirname(os.path.abspath(__file__))
 ap = rough_parser(__doc__)
 ap.add_argument("--states", type=int, default=10, help="states of the load-unload path")
-ap.add_argument("--methods", nargs="+", default=["lobpcg", "lobpcg-mlmi", "lanczos"],
-                choices=["lobpcg", "lobpcg-mlmi", "lanczos"])
-ap.add_argument("--reference", default="compliance", choices=["compliance", "mlmi"],
+METHODS = ["lobpcg", "lobpcg-mlmi", "lobpcg-multigrid", "lanczos"]
+ap.add_argument("--methods", nargs="+", default=METHODS, choices=METHODS)
+ap.add_argument("--reference", default="compliance", choices=["compliance", "mlmi", "multigrid"],
                 help="the reference LOBPCG's preconditioner")
 args, petsc_args = ap.parse_known_args()
 petsc4py.init([sys.argv[0]] + petsc_args)
@@ -62,7 +67,7 @@ def margin(pb, method, **kw):
     gap = pb._gap(xb, pb._g)
     p0, t0 = pb.fft_pairs(), time.process_time()
     if method.startswith("lobpcg"):
-        method, kw = "lobpcg", dict({"preconditioner": "mlmi" if method == "lobpcg-mlmi" else "compliance"}, **kw)
+        method, kw = "lobpcg", dict({"preconditioner": method.partition("-")[2] or "compliance"}, **kw)
     m, settled = stability_margin(pb, gap, xb[0] if pb.hard_wall else None, method=method, **kw)
     return m, settled, pb.fft_pairs() - p0, time.process_time() - t0
 
