@@ -3,7 +3,9 @@
 
 The rough benchmark heights (``rough_surface.py``, periodic, E* = 1), a law with w = --w E* dx and
 range dx, the 10-state load-unload path of ``bench_fallback.py`` (approaches from 1 % to 10 %
-contact and back), solved once with warm starts and the check off.  At each state the margin
+contact and back), solved once with warm starts and a scene's defaults (the check on, so that an
+unstable state goes to the fallback and the path's states are the stable ones a scene reaches;
+its own margin is not reported).  At each state the margin
 1 - lambda_max of the stability pencil (``solvers/stability.py``) by
 
 * ``lobpcg``: LOBPCG on the pencil A x = lambda (K^-1)_NN x, preconditioned by K (periodic grids;
@@ -77,7 +79,7 @@ def main():
     law = adhesive_law(grid, args.w, 1.0, name=args.law)
     pairs_unit, cpu = non_adhesive_unit(grid, h)
     emit(kind="non-adhesive", size=args.size, fft_pairs=pairs_unit, cpu_s=cpu)
-    pb = AdhesiveProblem(grid, h, 1.0, law, prefix="stab_", stability_check=False)
+    pb = AdhesiveProblem(grid, h, 1.0, law, prefix="stab_")
     steps = code_default("adhesion", "stability_steps")
     for k, a in enumerate(load_unload_path(grid, h, law, args.states)):
         st = pb.solve(approach=a, raise_on_failure=False)
