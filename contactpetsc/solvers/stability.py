@@ -46,6 +46,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..lifetime import destroy_at_exit
+from ..log_events import log_event
 from .options import code_default
 from .pc_registry import PRECONDITIONERS
 
@@ -204,8 +205,13 @@ class StabilityCheck:
         t0 = pb.history.elapsed()
         xb = pb.blocks(pb._x, readonly=True)
         gap = pb._gap(xb, pb._g)
-        margin, self.settled = stability_margin(pb, gap, q_rows=xb[0] if pb.hard_wall else None, steps=self.steps,
-                                                preconditioner=self.preconditioner)
+        ev = log_event("CPStabilityCheck")
+        ev.begin()
+        try:
+            margin, self.settled = stability_margin(pb, gap, q_rows=xb[0] if pb.hard_wall else None,
+                                                    steps=self.steps, preconditioner=self.preconditioner)
+        finally:
+            ev.end()
         pb.check_time += pb.history.elapsed() - t0
         return margin
 

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..log_events import log_event
 from .transfer import add_prolonged, block_all, restrict
 
 #: Jacobi damping, sweeps before and after the coarse correction, sweeps on the coarsest grid
@@ -118,8 +119,11 @@ class DisplacementCycle:
         return x
 
     def __call__(self, r: np.ndarray, out: np.ndarray) -> np.ndarray:
+        ev = log_event("CPDisplacementCycle")
+        ev.begin()
         np.multiply(r, self.free[0], out=out)
         out[...] = self._cycle(0, out)
+        ev.end()
         return out
 
     def release(self) -> None:
