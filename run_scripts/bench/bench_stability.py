@@ -17,8 +17,8 @@ its own margin is not reported).  At each state the margin
   (``multigrid``, where ``auto`` takes it: the LJ laws);
 * ``lanczos``: Lanczos on A S, S the clamped compliance (a CG on the contact set per step where
   there are contact nodes);
-* ``reference``: LOBPCG to a residual of 1e-7 (at most 3000 iterations; preconditioned by
-  ``--reference``, K unless given);
+* ``reference``: LOBPCG to a residual of ``--reference-tol`` (1e-7; at most
+  ``--reference-steps``, 3000, iterations; preconditioned by ``--reference``, K unless given);
 
 each at the code's default steps, with its FFT pairs (exact), CPU s (``process_time``), whether
 it settled, and its margin's difference to the reference.  First line: the non-adhesive solve on
@@ -47,6 +47,8 @@ ap = rough_parser(__doc__)
 ap.add_argument("--states", type=int, default=10, help="states of the load-unload path")
 METHODS = ["lobpcg", "lobpcg-mlmi", "lobpcg-multigrid", "lanczos"]
 ap.add_argument("--methods", nargs="+", default=METHODS, choices=METHODS)
+ap.add_argument("--reference-tol", type=float, default=1e-7, help="the reference LOBPCG's residual tolerance")
+ap.add_argument("--reference-steps", type=int, default=3000, help="the reference LOBPCG's iteration cap")
 ap.add_argument("--reference", default="compliance", choices=["compliance", "mlmi", "multigrid"],
                 help="the reference LOBPCG's preconditioner")
 args, petsc_args = ap.parse_known_args()
@@ -83,7 +85,8 @@ def main():
     steps = code_default("adhesion", "stability_steps")
     for k, a in enumerate(load_unload_path(grid, h, law, args.states)):
         st = pb.solve(approach=a, raise_on_failure=False)
-        ref = margin(pb, "lobpcg", steps=3000, residual_tol=1e-7, preconditioner=args.reference)
+        ref = margin(pb, "lobpcg", steps=args.reference_steps, residual_tol=args.reference_tol,
+                     preconditioner=args.reference)
         for method in args.methods:
             m, settled, pairs, cpu = margin(pb, method, steps=steps)
             emit(kind="state", law=args.law, w=args.w, size=args.size, state=k, approach=a,
