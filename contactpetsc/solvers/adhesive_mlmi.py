@@ -51,7 +51,7 @@ from petsc4py import PETSc
 
 from ..collective import collective_guard
 from ..log_events import log_event
-from .mlmi import build_levels
+from .mlmi import shared_levels
 from .reduced import view_context
 from .transfer import add_prolonged, children, restrict
 
@@ -189,13 +189,11 @@ class AdhesiveCycle:
 
     def __init__(self, op, data, prefix: str):
         opts = PETSc.Options(prefix)
-        if data.mlmi_levels is None:
-            data.mlmi_levels = build_levels(op, opts.getInt("mlmi_levels", 8), opts.getInt("mlmi_min_size", 8))
+        base = shared_levels(data, op, prefix)
         if data.mlmi_work is None:
             # three are the hierarchy's own (the pressure-space cycle's; no two cycles overlap)
-            data.mlmi_work = [(b.work, b.work2, b.ku, np.zeros_like(b.ku), np.zeros_like(b.ku))
-                              for b in data.mlmi_levels]
-        self.levels = [_Level(b, w) for b, w in zip(data.mlmi_levels, data.mlmi_work)]
+            data.mlmi_work = [(b.work, b.work2, b.ku, np.zeros_like(b.ku), np.zeros_like(b.ku)) for b in base]
+        self.levels = [_Level(b, w) for b, w in zip(base, data.mlmi_work)]
         self.grid = op.grid
         self.power_its = opts.getInt("mlmi_power_its", 2)
         self.bound = opts.getReal("mlmi_rho_bound", 1.6)

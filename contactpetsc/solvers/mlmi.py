@@ -175,6 +175,16 @@ def build_levels(fine_op, max_levels: int = 8, min_size: int = 8) -> list[Level]
     return levels
 
 
+def shared_levels(data, op, prefix: str) -> list[Level]:
+    """The hierarchy of one problem's preconditioners and cycles: built on the first request
+    into its ``PreconditionerData`` ``data`` for the fine operator ``op``
+    (``-<prefix>mlmi_levels``, ``-<prefix>mlmi_min_size``), then shared."""
+    if data.mlmi_levels is None:
+        opts = PETSc.Options(prefix)
+        data.mlmi_levels = build_levels(op, opts.getInt("mlmi_levels", 8), opts.getInt("mlmi_min_size", 8))
+    return data.mlmi_levels
+
+
 class MLMIPC(ReducedPreconditioner):
     """Multilevel V/W-cycle with distributive Jacobi smoothing on the inactive set (see module doc)."""
 
@@ -182,10 +192,7 @@ class MLMIPC(ReducedPreconditioner):
         data = ctx.parent.pc_data
         prefix = ctx.parent.prefix
         opts = PETSc.Options(prefix)
-        if data.mlmi_levels is None:
-            data.mlmi_levels = build_levels(ctx.op, opts.getInt("mlmi_levels", 8),
-                                            opts.getInt("mlmi_min_size", 8))
-        self.levels = data.mlmi_levels
+        self.levels = shared_levels(data, ctx.op, prefix)
         self.cycle = opts.getString("mlmi_cycle", "v").lower()
         if self.cycle not in ("v", "w"):
             raise ValueError(f"{prefix}mlmi_cycle must be v or w, got {self.cycle!r}")

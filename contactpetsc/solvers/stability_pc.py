@@ -26,24 +26,13 @@ from __future__ import annotations
 import numpy as np
 
 from ..log_events import log_event
+from .mlmi import shared_levels
 from .transfer import add_prolonged, block_all, restrict
 
 #: Jacobi damping, sweeps before and after the coarse correction, sweeps on the coarsest grid
 DAMPING, SWEEPS, COARSE_SWEEPS = 0.8, 1, 20
 #: the Jacobi diagonal's floor, in multiples of (K^-1)_ii (H_ii near zero beyond a snap)
 DIAGONAL_FLOOR = 0.2
-
-
-def _hierarchy(problem):
-    """The problem's MLMI hierarchy (built once per problem, shared with its MLMI cycles)."""
-    from petsc4py import PETSc
-
-    from .mlmi import build_levels
-    data = problem.jacobian_context.pc_data
-    if data.mlmi_levels is None:
-        opts = PETSc.Options(problem.prefix)
-        data.mlmi_levels = build_levels(problem.op, opts.getInt("mlmi_levels", 8), opts.getInt("mlmi_min_size", 8))
-    return data
 
 
 class AdhesiveCyclePreconditioner:
@@ -53,7 +42,7 @@ class AdhesiveCyclePreconditioner:
 
     def __init__(self, problem, d: np.ndarray, contact: np.ndarray):
         from .adhesive_mlmi import AdhesiveCycle, law_rows
-        data = _hierarchy(problem)
+        data = problem.jacobian_context.pc_data
         if data.stability_cycle is None:
             data.stability_cycle = AdhesiveCycle(problem.op, data, problem.prefix)
         self.cycle = data.stability_cycle
@@ -76,7 +65,7 @@ class DisplacementCycle:
     """``multigrid`` (module doc); its arrays live as long as the object (one check)."""
 
     def __init__(self, problem, d: np.ndarray, contact: np.ndarray):
-        self.levels = _hierarchy(problem).mlmi_levels
+        self.levels = shared_levels(problem.jacobian_context.pc_data, problem.op, problem.prefix)
         self.a, self.free, self.dinv = [], [], []
         a, free = d, ~contact
         for l, lev in enumerate(self.levels):
