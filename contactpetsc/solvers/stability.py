@@ -111,6 +111,13 @@ RESIDUAL_TOL = 1e-3
 PRECONDITIONER_CHOICES = ("auto", "compliance", "mlmi", "multigrid")
 
 
+def preconditioner_choice(value: str, name: str) -> str:
+    """``value`` if it is one of PRECONDITIONER_CHOICES, else a ValueError naming ``name``."""
+    if value not in PRECONDITIONER_CHOICES:
+        raise ValueError(f"{name} = {value!r}: accepted values are {', '.join(PRECONDITIONER_CHOICES)}")
+    return value
+
+
 def stability_margin(problem, gap: np.ndarray, q_rows: np.ndarray | None, steps: int = 60,
                      tol: float = 1e-4, method: str = "auto", residual_tol: float = RESIDUAL_TOL,
                      preconditioner: str = "auto") -> float:
@@ -143,9 +150,7 @@ def stability_margin(problem, gap: np.ndarray, q_rows: np.ndarray | None, steps:
     if method == "lobpcg":
         if not grid.periodic:
             raise ValueError("stability method 'lobpcg' needs a periodic grid (K^-1 diagonal in Fourier space)")
-        if preconditioner not in PRECONDITIONER_CHOICES:
-            raise ValueError(f"stability preconditioner {preconditioner!r}: accepted values are "
-                             + ", ".join(PRECONDITIONER_CHOICES))
+        preconditioner = preconditioner_choice(preconditioner, "stability preconditioner")
         if preconditioner == "auto":
             attractive = comm.allreduce(float(d[~contact].min(initial=0.0)), op=MPI.MIN) >= 0.0
             preconditioner = "mlmi" if attractive else "multigrid"
@@ -191,11 +196,8 @@ class StabilityCheck:
         self.by_default, self.auto = stability_mode(opts.getString("stability_check", str(default)),
                                                     f"-{problem.prefix}stability_check")
         self.steps = opts.getInt("stability_steps", code_default("adhesion", "stability_steps"))
-        self.preconditioner = opts.getString("stability_preconditioner",
-                                             code_default("adhesion", "stability_preconditioner")).strip().lower()
-        if self.preconditioner not in PRECONDITIONER_CHOICES:
-            raise ValueError(f"-{problem.prefix}stability_preconditioner = {self.preconditioner!r}: accepted values "
-                             f"are {', '.join(PRECONDITIONER_CHOICES)}")
+        name = opts.getString("stability_preconditioner", code_default("adhesion", "stability_preconditioner"))
+        self.preconditioner = preconditioner_choice(name.strip().lower(), f"-{problem.prefix}stability_preconditioner")
         self.settled = None   #: whether the last margin's estimate settled
 
     def margin(self) -> float:
