@@ -123,3 +123,34 @@ def test_failed_adhesive_solve_returns_its_best_iterate(coll):
     start = x.getArray(readonly=True)
     assert coll.max(np.abs(start - grid.rows(good.pressure, readonly=True).ravel())) == 0.0
     x.destroy()
+
+
+def test_failed_fallback_reports_its_last_state_where_it_is_the_best(coll):
+    """Newton fails (steps backwards) and the energy descent, the fallback, runs out of
+    iterations on its way down: the state reported is the descent's last state, whose error is
+    below that of every Newton iterate -- not Newton's best, a worse iterate.  Truth: the errors
+    of the Newton iterates in the history, and the reported state's own (recomputed) fields."""
+    from contactpetsc.geometry.surfaces import self_affine
+    grid = SurfaceGrid(64, 64, 1.0, periodic=True, comm=coll.comm)
+    h = self_affine(grid, hurst=0.8, rms_height=1.0, seed=7)
+    law = make_law("lj", work_of_adhesion=0.05, z0=1.0)
+    prefix = "failed_fallback_"
+    problem = AdhesiveProblem(grid, h, 1.0, law, prefix=prefix,
+                              petsc_options={"fallback": "descent", "descent_tao_max_it": 6})
+    d0 = h.min()[1] + 0.5
+    assert problem.solve(approach=d0).converged
+    backward_line_search(prefix)
+    try:
+        problem.snes().setFromOptions()
+    finally:
+        backward_line_search(prefix, None)
+    n0 = len(problem.history)
+    st = problem.solve(approach=d0 + 0.5, raise_on_failure=False, check_stability=False)
+    assert not st.converged and "descent DIVERGED_MAXITS" in st.reason, st.reason
+    assert "iterate of smallest error" in st.reason and "at descent iteration" in st.reason, st.reason
+    newton = [max(r.adhesive_error, r.pressure_error) for r in problem.history[n0:] if r.solver.startswith("newton")]
+    assert newton
+    assert max(st.adhesive_error, st.pressure_error) < min(newton)
+    p = grid.rows(st.pressure, readonly=True)
+    assert_consistent(coll, problem, st, h)
+    assert coll.max(np.abs(p - grid.rows(st.adhesive_pressure, readonly=True))) == 0.0

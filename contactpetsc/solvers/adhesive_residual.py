@@ -154,6 +154,23 @@ class AdhesiveCallbacks:
             return PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT   # named WALL_TIME_BUDGET by VINewton.run
         return verdict
 
+    def offer_iterate(self, label: str) -> None:
+        """Measure the unknowns as they stand (the last state of a fallback method that failed,
+        which no SNES convergence test saw) and keep them as the solve's best iterate where their
+        error is the smallest so far: a failed solve reports its best iterate (``solve``), and a
+        descent that ran out of iterations near a minimum is nearer to a state than a Newton
+        iterate that diverged.  One FFT pair.  Collective."""
+        f = self.create_unknown()
+        try:
+            self._residual(None, self._x, f)
+            err_c, err_a, err_p, _, _ = self._measures(self._x, f)
+        finally:
+            f.destroy()
+        full = max(err_c, err_a, err_p)
+        if not full >= self._solve_best[0]:
+            self._solve_best = (full, label)
+            self._x.copy(self._x_solve_best)
+
     @property
     def solver_name(self) -> str:
         return f"newton-vi+{self.preconditioner}"
