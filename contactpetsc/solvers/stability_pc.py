@@ -86,17 +86,22 @@ class DisplacementCycle:
         out *= self.free[l]
         return np.subtract(b, out, out=out)
 
-    def _smooth(self, l: int, b: np.ndarray, x: np.ndarray, sweeps: int) -> None:
-        for _ in range(sweeps):
-            x += self.dinv[l] * self._residual(l, b, x)
+    def _smooth(self, l: int, b: np.ndarray, x: np.ndarray, sweeps: int, zero_start: bool = False) -> None:
+        if zero_start and not sweeps:
+            x[...] = 0.0
+        for k in range(sweeps):
+            if zero_start and k == 0:
+                # from x = 0 the residual is b: no FFT pair
+                np.multiply(self.dinv[l], b, out=x)
+            else:
+                x += self.dinv[l] * self._residual(l, b, x)
 
     def _cycle(self, l: int, b: np.ndarray) -> np.ndarray:
         x = self.x[l]
-        x[...] = 0.0
         if l == len(self.levels) - 1:
-            self._smooth(l, b, x, COARSE_SWEEPS)
+            self._smooth(l, b, x, COARSE_SWEEPS, zero_start=True)
             return x
-        self._smooth(l, b, x, SWEEPS)
+        self._smooth(l, b, x, SWEEPS, zero_start=True)
         coarse_free = self.free[l + 1]
         bc = restrict(self._residual(l, b, x))
         bc *= coarse_free
