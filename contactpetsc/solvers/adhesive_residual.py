@@ -155,8 +155,8 @@ class AdhesiveCallbacks:
         return verdict
 
     def offer_iterate(self, label: str) -> None:
-        """Measure the unknowns as they stand (the last state of a fallback method that failed,
-        which no SNES convergence test saw) and keep them as the solve's best iterate where their
+        """Measure the unknowns as they stand (the last state of a descent that failed, which
+        no SNES convergence test saw) and keep them as the solve's best iterate where their
         error is the smallest so far: a failed solve reports its best iterate (``solve``), and a
         descent that ran out of iterations near a minimum is nearer to a state than a Newton
         iterate that diverged.  One FFT pair.  Collective."""

@@ -94,9 +94,10 @@ class FallbackChain:
                 pb.shift, pb._ptc_prev = self.ptc_shift, 0.0
                 ok, reason, n2, l2 = self.ptc.run()
                 pb.shift = 0.0
-            if not ok and method != "ptc":
-                # PTC's iterates are measured by its SNES; these methods' last state is not
-                pb.offer_iterate(f"{method} iteration {n2}")
+            if not ok and method == "descent":
+                # the descent writes its last state, which no SNES measured (PTC's iterates
+                # are measured by its SNES; a failed relaxation leaves the start in place)
+                pb.offer_iterate(f"descent iteration {n2}")
             if ok and method != "ptc":
                 # the polish: VI Newton at the approach itself (a hard wall's descent ends
                 # within offset_tol z0 of it; the relaxation stops at fallback_tol)
