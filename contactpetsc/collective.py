@@ -80,3 +80,11 @@ def petsc_error_message(exc) -> str:
     if what is None and isinstance(code, int) and code > 0:
         what = "an internal PETSc failure, most often memory or an index beyond the PETSc build's range"
     return f"PETSc stopped with {what or 'an error'} (PETSc error code {code})"
+
+
+def max_error(comm, local: float) -> float:
+    """The largest of the ranks' ``local`` error measures, a NaN counted as infinite.  A MAX
+    reduction (MPI's, or mpi4py's over Python floats) can drop a NaN, and a state with a NaN on
+    one rank would then measure finite -- even converged -- on the others."""
+    local = float(local)
+    return comm.allreduce(float("inf") if local != local else local, op=MPI.MAX)

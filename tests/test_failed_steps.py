@@ -154,3 +154,27 @@ def test_failed_fallback_reports_its_last_state_where_it_is_the_best(coll):
     p = grid.rows(st.pressure, readonly=True)
     assert_consistent(coll, problem, st, h)
     assert coll.max(np.abs(p - grid.rows(st.adhesive_pressure, readonly=True))) == 0.0
+    # a state with one NaN, on one rank, never replaces a measured iterate: it measures as an
+    # infinite error on every rank (a NaN dropped by a MAX reduction or max() had measured 0)
+    best = problem._solve_best
+    if coll.comm.rank == coll.comm.size - 1:
+        problem._x.getArray()[-1] = np.nan
+    problem.offer_iterate("a state with a NaN")
+    assert problem._solve_best == best
+
+
+def test_a_nan_anywhere_is_an_infinite_error_on_every_rank(coll):
+    """The contact solver's convergence measure of a state with one NaN, on one rank: infinite
+    on every rank (a MAX reduction of Python floats keeps the first operand when the second is
+    NaN, so the ranks holding finite values had measured a finite error)."""
+    grid = SurfaceGrid(32, 32, 1e-9, periodic=False, comm=coll.comm)
+    h = sphere(grid, 100e-9)
+    problem = ContactProblem(grid, h, 1e9, prefix="nan_measure_", fmg=False)
+    st = problem.solve(approach=2e-9)
+    x, f = st.pressure.copy(), st.gap.copy()
+    if coll.comm.rank == coll.comm.size - 1:
+        x.getArray()[-1] = np.nan
+    errors = problem._measures(x, f)[:2]
+    assert not any(np.isfinite(errors)), errors
+    x.destroy()
+    f.destroy()

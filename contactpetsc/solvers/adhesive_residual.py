@@ -114,6 +114,9 @@ class AdhesiveCallbacks:
             errs[0] = float(np.abs(np.minimum(self.kappa * q, g)).max()) / self.z0
             errs[2] = max(errs[2], float(np.abs(np.minimum(q / self.pressure_scale, g / self.z0)).max()))
         errs[1] /= self.z0
+        # a NaN is an infinite error: MPI's MAX and Python's max() can both drop a NaN (a NaN
+        # state would then measure 0 on the ranks that hold finite values)
+        errs[np.isnan(errs)] = np.inf
         comm.Allreduce(MPI.IN_PLACE, errs, op=MPI.MAX)
         sums = comm.allreduce(np.array([p.sum(), np.count_nonzero(p > 0)], float))
         n = self.grid.nx * self.grid.ny
@@ -146,7 +149,7 @@ class AdhesiveCallbacks:
         self._last_error = err
         # converged: gaps right in z0 and pressures right on the law's scale, both to tol
         full = max(err, err_p)
-        if not full >= self._solve_best[0]:   # NaN never replaces a real iterate
+        if full < self._solve_best[0]:   # NaN never replaces a real iterate (nor the start, inf)
             self._solve_best = (full, f"{'ptc' if self.shift else 'Newton'} iteration {it}")
             x.copy(self._x_solve_best)
         verdict = convergence_verdict(snes, it, full, self.tol)
@@ -167,7 +170,7 @@ class AdhesiveCallbacks:
         finally:
             f.destroy()
         full = max(err_c, err_a, err_p)
-        if not full >= self._solve_best[0]:
+        if full < self._solve_best[0]:
             self._solve_best = (full, label)
             self._x.copy(self._x_solve_best)
 

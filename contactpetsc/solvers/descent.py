@@ -39,6 +39,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..collective import max_error
 from ..log_events import log_event
 from .options import code_default
 from .reduced import python_submatrix
@@ -246,7 +247,7 @@ class EnergyDescent:
         else:
             local = max(p.kappa * float(np.abs(d).max()) / p.z0,
                         float((np.abs(d) / (p.pressure_scale + np.abs(a))).max()))
-        return self.comm.allreduce(local, op=MPI.MAX)
+        return max_error(self.comm, local)
 
     def _converged(self, tao):
         u = tao.getSolution().getArray(readonly=True).reshape(self.shape)

@@ -32,10 +32,9 @@ registered in ``options.py`` (docs/formulation.md, "Options").
 from __future__ import annotations
 
 import numpy as np
-from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..collective import collective_guard
+from ..collective import collective_guard, max_error
 from ..grid import SurfaceGrid
 from ..lifetime import destroy_at_exit
 from ..operators.elastic import HalfSpaceOperator
@@ -260,7 +259,7 @@ class ContactProblem(NestedIteration, Backtracking, JointLoadNewton, ContactLoad
             np.minimum(nat, grid.rows(f, readonly=True), out=nat)
         # max |min(K_ii p, g)| without an |.| temporary: the larger of max and -min
         local = max(float(nat.max()), -float(nat.min()))
-        err = comm.allreduce(local, op=MPI.MAX)
+        err = max_error(comm, local)
         sums = comm.allreduce(np.array([p.sum(), np.count_nonzero(p)], float))
         n = grid.nx * grid.ny
         return err / self.length_scale, err / self._gap_scale(), sums[0] / n, sums[1] / n
@@ -297,7 +296,7 @@ class ContactProblem(NestedIteration, Backtracking, JointLoadNewton, ContactLoad
             mean_pressure=mean_p, contact_fraction=frac, solver=solver, interference_error=err_gap)
         self._last_error = err
         self._last_gap_error = err_gap
-        if not err_gap >= self._best[0]:   # NaN never replaces a real iterate
+        if err_gap < self._best[0]:   # NaN never replaces a real iterate (nor the start, inf)
             self._best = (err_gap, it)
             x.copy(self._x_best)
         verdict = convergence_verdict(snes, it, err_gap, self._inner_tol)

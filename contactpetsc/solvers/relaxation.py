@@ -48,6 +48,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..collective import max_error
 from ..physics.interactions import relaxation_laws
 from .adhesive_jacobian import _SetView
 from .base import AdhesiveSolveError, check_heights, check_tolerance
@@ -141,7 +142,7 @@ class RelaxationSolver:
             sums = comm.allreduce(np.array([float(np.sum(r[active] ** 2)), float(active.sum())]))
             rms = np.sqrt(sums[0] / max(sums[1], 1.0)) / pb.z0
             if rms <= self.contact_tol or it == self.max_inner or sums[1] == 0:
-                comp = comm.allreduce(float(np.abs(np.minimum(pb.kappa * q, r)).max()), op=MPI.MAX) / pb.z0
+                comp = max_error(comm, np.abs(np.minimum(pb.kappa * q, r)).max()) / pb.z0
                 return rms, comp, it
             omega = max(0.5 * omega, 0.05) if rms > prev else min(1.0, 1.1 * omega)
             prev = rms
@@ -179,7 +180,7 @@ class RelaxationSolver:
             target = self._adhesive_target(g)
             dg = pb.op.apply(target - a, np.empty_like(g))
             e_total = float(np.sqrt(comm.allreduce(float(np.sum(dg * dg))) / n)) / pb.z0
-            err_a = comm.allreduce(float(np.abs(target - a).max()), op=MPI.MAX) * pb.kappa / pb.z0
+            err_a = max_error(comm, np.abs(target - a).max()) * pb.kappa / pb.z0
             # and on the law's own scale: E_Total and err_a are K_ii times pressure errors,
             # which pass any a when w / (E* z0) is small
             err_p = float(np.sqrt(comm.allreduce(float(np.sum((target - a) ** 2))) / n)) / pb.pressure_scale
