@@ -8,7 +8,9 @@ are zero outside the contact and far above 1 Pa inside), it is the state whose f
 displacement, gap and errors the state reports (recomputed from the pressure), and the
 next solve starts from the last converged state.  The failure is forced with Newton
 steps that go backwards (``snes_linesearch_damping -1``; the contact problem with PETSc's ``bt``,
-whose failed line search is the one that leaves random values).
+whose failed line search is the one that leaves random values).  Where the fallback descent
+runs out of iterations, its last state competes with Newton's iterates; a state with a NaN
+anywhere is an infinite error on every rank, never a best iterate.
 """
 import numpy as np
 from petsc4py import PETSc
@@ -17,7 +19,7 @@ from contactpetsc.grid import SurfaceGrid
 from contactpetsc.physics.interactions import make_law
 from contactpetsc.solvers.adhesive import AdhesiveProblem
 from contactpetsc.solvers.problem import ContactProblem
-from contactpetsc.geometry.surfaces import sphere
+from contactpetsc.geometry.surfaces import self_affine, sphere
 
 
 def backward_line_search(prefix, value="-1", kind=None):
@@ -130,7 +132,6 @@ def test_failed_fallback_reports_its_last_state_where_it_is_the_best(coll):
     iterations on its way down: the state reported is the descent's last state, whose error is
     below that of every Newton iterate -- not Newton's best, a worse iterate.  Truth: the errors
     of the Newton iterates in the history, and the reported state's own (recomputed) fields."""
-    from contactpetsc.geometry.surfaces import self_affine
     grid = SurfaceGrid(64, 64, 1.0, periodic=True, comm=coll.comm)
     h = self_affine(grid, hurst=0.8, rms_height=1.0, seed=7)
     law = make_law("lj", work_of_adhesion=0.05, z0=1.0)
