@@ -19,6 +19,7 @@ import functools
 import sys
 import traceback
 
+import numpy as np
 from mpi4py import MPI
 
 
@@ -82,9 +83,14 @@ def petsc_error_message(exc) -> str:
     return f"PETSc stopped with {what or 'an error'} (PETSc error code {code})"
 
 
-def max_error(comm, local: float) -> float:
-    """The largest of the ranks' ``local`` error measures, a NaN counted as infinite.  A MAX
-    reduction (MPI's, or mpi4py's over Python floats) can drop a NaN, and a state with a NaN on
-    one rank would then measure finite -- even converged -- on the others."""
+def max_error(comm, local):
+    """The largest over the ranks of ``local``, an error measure or an array of them (reduced
+    element by element), a NaN counted as infinite.  A MAX reduction (MPI's, or mpi4py's over
+    Python floats) can drop a NaN, and a state with a NaN on one rank would then measure
+    finite -- even converged -- on the others."""
+    if np.ndim(local):
+        errs = np.where(np.isnan(local), np.inf, local).astype(float)
+        comm.Allreduce(MPI.IN_PLACE, errs, op=MPI.MAX)
+        return errs
     local = float(local)
     return comm.allreduce(float("inf") if local != local else local, op=MPI.MAX)

@@ -6,7 +6,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..collective import collective_guard
+from ..collective import collective_guard, max_error
 from .base import convergence_verdict
 
 
@@ -114,10 +114,8 @@ class AdhesiveCallbacks:
             errs[0] = float(np.abs(np.minimum(self.kappa * q, g)).max()) / self.z0
             errs[2] = max(errs[2], float(np.abs(np.minimum(q / self.pressure_scale, g / self.z0)).max()))
         errs[1] /= self.z0
-        # a NaN is an infinite error: MPI's MAX and Python's max() can both drop a NaN (a NaN
-        # state would then measure 0 on the ranks that hold finite values)
-        errs[np.isnan(errs)] = np.inf
-        comm.Allreduce(MPI.IN_PLACE, errs, op=MPI.MAX)
+        # a NaN counts as infinite: Python's max() below would drop it (a NaN state measured 0)
+        errs = max_error(comm, errs)
         sums = comm.allreduce(np.array([p.sum(), np.count_nonzero(p > 0)], float))
         n = self.grid.nx * self.grid.ny
         return errs[0], errs[1], errs[2], sums[0] / n, sums[1] / n
@@ -149,9 +147,7 @@ class AdhesiveCallbacks:
         self._last_error = err
         # converged: gaps right in z0 and pressures right on the law's scale, both to tol
         full = max(err, err_p)
-        if full < self._solve_best[0]:   # NaN never replaces a real iterate (nor the start, inf)
-            self._solve_best = (full, f"{'ptc' if self.shift else 'Newton'} iteration {it}")
-            x.copy(self._x_solve_best)
+        self._keep_if_best(full, f"{'ptc' if self.shift else 'Newton'} iteration {it}", x)
         verdict = convergence_verdict(snes, it, full, self.tol)
         if verdict == PETSc.SNES.ConvergedReason.ITERATING and self.out_of_time():
             return PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT   # named WALL_TIME_BUDGET by VINewton.run
@@ -169,10 +165,14 @@ class AdhesiveCallbacks:
             err_c, err_a, err_p, _, _ = self._measures(self._x, f)
         finally:
             f.destroy()
-        full = max(err_c, err_a, err_p)
-        if full < self._solve_best[0]:
-            self._solve_best = (full, label)
-            self._x.copy(self._x_solve_best)
+        self._keep_if_best(max(err_c, err_a, err_p), label, self._x)
+
+    def _keep_if_best(self, error: float, label: str, x: PETSc.Vec) -> None:
+        """Keep ``x`` as the running solve's best iterate where ``error`` is below the best so
+        far (an infinite error, a NaN's, never is)."""
+        if error < self._solve_best[0]:
+            self._solve_best = (error, label)
+            x.copy(self._x_solve_best)
 
     @property
     def solver_name(self) -> str:
