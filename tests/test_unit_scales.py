@@ -311,3 +311,38 @@ def test_relaxation_is_unit_free(coll, law_name, s, e):
         da = differences(coll, adhesive_dimensionless(pb0, a, 1.0, 1.0), adhesive_dimensionless(pb, b, s, e))
         assert max(da) <= (1e-12 if binary else 1e-8), da
 
+
+
+# -- the energy descent ------------------------------------------------------------------------
+def descended_path(law_name, s, e, name):
+    """``strategy descent`` (every state a descent from the last, then Newton's confirmation)
+    on the rough periodic cell of tests/test_descent.py, w = 0.05 E* dx, dx = z0 = s, E* = e,
+    at approaches min h + (0.25, 0.75) z0; (problem, states)."""
+    key = ("descent", law_name)
+    if (s, e) == (1.0, 1.0) and key in _reference:
+        return _reference[key]
+    g = SurfaceGrid(64, 64, s, periodic=True)
+    h = surfaces.self_affine(g, hurst=0.8, rms_height=s, seed=7)
+    law = make_law(law_name, work_of_adhesion=0.05 * e * s, z0=s)
+    pb = AdhesiveProblem(g, h, e, law, prefix=prefix(name), stability_check=False,
+                         petsc_options={"strategy": "descent"})
+    hmin = h.min()[1]
+    out = pb, [pb.solve(approach=hmin + d * s) for d in (0.25, 0.75)]
+    if (s, e) == (1.0, 1.0):
+        _reference[key] = out
+    return out
+
+
+@pytest.mark.parametrize("law_name", ["lj", "hardwall-lj"])
+@pytest.mark.parametrize("s, e", [(1e-9, 1e9), (1e6, 1e-3)])
+def test_energy_descent_is_unit_free(coll, law_name, s, e):
+    """nm and GPa, Mm and mPa: the descent takes the same TAO iterations, Newton confirms its
+    state in the same steps, and the states are the reference one to 1e-8."""
+    pb0, ref = descended_path(law_name, 1.0, 1.0, "dref")
+    pb, states = descended_path(law_name, s, e, "dsc")
+    assert pb.history.column("solver") == pb0.history.column("solver")
+    for a, b in zip(ref, states):
+        assert a.converged and b.converged and a.solver == b.solver and a.solver.startswith("descent+")
+        assert a.newton_iterations == b.newton_iterations
+        da = differences(coll, adhesive_dimensionless(pb0, a, 1.0, 1.0), adhesive_dimensionless(pb, b, s, e))
+        assert max(da) <= 1e-8, da

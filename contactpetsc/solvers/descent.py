@@ -11,7 +11,10 @@ negative curvature handled by the line search's shift) preconditioned by the com
 diagonal in Fourier space (one FFT pair).  Every accepted step lowers the energy, so the
 state reached is a minimum next to the start: across a snap the path does not climb, and
 no pseudo-time is spent on it.  The gradient is p - a(g) per node [Pa], p = K^-1 u (+ the
-mean pressure): zero where the state is an equilibrium.
+mean pressure): zero where the state is an equilibrium.  TAO itself sees the dimensionless
+v = u / z0 and the energy times K_ii / z0^2 (K_ii the compliance's diagonal [m/Pa]): gradient,
+Hessian and steps of order one in any units, so that its absolute step sizes and shifts mean
+the same in nanometres as in metres.
 
 * Full LJ curve (no wall): the mean of u, which K^-1 does not see and the approach fixes,
   is projected out exactly: g = h + (u - mean u) - delta, p = K^-1 u + mean a(g).
@@ -74,8 +77,8 @@ def require_descent(problem, what: str) -> None:
 
 
 class _Hessian:
-    """Python-context Mat: H = K^-1 + diag Phi''(g) on the displacement (the mean as the penalty
-    of a hard wall, the identity on the projected-out mean of the full LJ curve).  Its
+    """Python-context Mat: H = K_ii (K^-1 + diag Phi''(g)) on v = u / z0 (the mean as the
+    penalty of a hard wall, 1 on the projected-out mean of the full LJ curve).  Its
     principal sub-matrices (TAO's inactive set) embed, apply and extract rank-locally."""
 
     def __init__(self, descent, index=None):
@@ -165,11 +168,18 @@ class EnergyDescent:
         stiffness = op.inverse_kernel / norm             # modal stiffness E* |q| / 2 [Pa/m], 0 on the mean
         self.c = (self.comm.allreduce(float(stiffness.max()), op=MPI.MAX) if problem.hard_wall else 0.0)
         mean_mode = stiffness == 0
-        mean_value = 1.0 / self.c if self.c else 1.0
+        # the mean mode (no stiffness of its own): a hard wall's penalty c, else 1 / K_ii, the
+        # Hessian's scale there (a unit would be off by the units' scale in metres and pascals)
+        mean_value = 1.0 / self.c if self.c else problem.kappa
         compliance = np.where(mean_mode, mean_value, 1.0 / np.where(mean_mode, 1.0, stiffness))
         self._k_inv = op.as_pairs(op.inverse_kernel)
         self._compliance = op.as_pairs(compliance * norm)
         self.h = grid.rows(problem.heights, readonly=True)
+        # TAO works in v = u / z0 on the energy times K_ii / z0^2: gradient, Hessian and steps of
+        # order one at any units (in metres and pascals BNK's gradient steps and shifts, of
+        # absolute size, were off by many orders and its line search failed from the first steps)
+        self.length = problem.z0
+        self.kappa = problem.kappa
         self.W = 0.0
         self.delta = 0.0
         self.curvature = np.zeros(self.shape)
@@ -208,7 +218,8 @@ class EnergyDescent:
 
     def objective_gradient(self, tao, x, gradient) -> float:
         """E(u) / dA [J/m^2 times the number of nodes' area] and its gradient p - a(g) [Pa]."""
-        u, grad = x.getArray(readonly=True).reshape(self.shape), gradient.getArray().reshape(self.shape)
+        u = self.length * x.getArray(readonly=True).reshape(self.shape)
+        grad = gradient.getArray().reshape(self.shape)
         g, pressure, a, mean_u, k_inv_u = self.fields(u)
         local = 0.5 * float(np.dot(u.ravel(), k_inv_u.ravel())) + float(self.p.traction.energy(g).sum())
         energy = self._sum(local)
@@ -217,10 +228,11 @@ class EnergyDescent:
             energy += self.n * mean_u * (0.5 * self.c * mean_u + self.W)
         else:
             grad -= self._sum(float(grad.sum())) / self.n    # the mean is a null direction
-        return energy
+        grad *= self.kappa / self.length
+        return energy * self.kappa / self.length ** 2
 
     def hessian(self, tao, x, H, P):
-        g = self.fields(x.getArray(readonly=True).reshape(self.shape))[0]
+        g = self.fields(self.length * x.getArray(readonly=True).reshape(self.shape))[0]
         self.curvature = -self.p.traction.nodal_derivative(g)      # Phi''(g) = -da/dg
         H.getPythonContext().shift_value = 0.0
 
@@ -230,11 +242,13 @@ class EnergyDescent:
         if self.p.hard_wall:
             y += dx + self.c * self._sum(float(x.sum())) / self.n
         else:
-            # P0 D P0 on the zero-mean part, the identity on the mean
-            y += dx + (self._sum(float(x.sum())) - self._sum(float(dx.sum()))) / self.n
+            # P0 D P0 on the zero-mean part, 1 / K_ii (the compliance's inverse) on the mean
+            y += dx + (self._sum(float(x.sum())) / self.kappa - self._sum(float(dx.sum()))) / self.n
+        y *= self.kappa     # the Hessian in v = u / z0 of the scaled energy
 
     def precondition(self, x: np.ndarray, y: np.ndarray) -> None:
         self.p.op.convolve(self._compliance, x, y)
+        y /= self.kappa
 
     # -- measures ----------------------------------------------------------------------
     def error(self, g, pressure, a) -> float:
@@ -250,7 +264,7 @@ class EnergyDescent:
         return max_error(self.comm, local)
 
     def _converged(self, tao):
-        u = tao.getSolution().getArray(readonly=True).reshape(self.shape)
+        u = self.length * tao.getSolution().getArray(readonly=True).reshape(self.shape)
         g, pressure, a, mean_u, _ = self.fields(u)
         err = self.error(g, pressure, a)
         it = tao.getIterationNumber()
@@ -297,6 +311,7 @@ class EnergyDescent:
         if p.hard_wall:
             self.W = self._sum(float(pressure0.sum())) / self.n
             np.maximum(u, approach - self.h, out=u)
+        u /= self.length
         gradient = x.duplicate()
         H = self.shell((grid.n_local, self.n), _Hessian(self))
         tao = PETSc.TAO().create(comm=grid.comm)
@@ -306,7 +321,7 @@ class EnergyDescent:
         bounds = ()
         if p.hard_wall:
             lower, upper = x.duplicate(), x.duplicate()
-            grid.rows(lower)[...] = approach - self.h
+            grid.rows(lower)[...] = (approach - self.h) / self.length
             upper.set(PETSc.INFINITY)
             tao.setVariableBounds((lower, upper))
             bounds = (lower, upper)
@@ -329,7 +344,7 @@ class EnergyDescent:
                 rounds += 1
                 iterations += tao.getIterationNumber()
                 code = tao.getConvergedReason()
-                mean_u = self.fields(grid.rows(x, readonly=True))[3]
+                mean_u = self.fields(self.length * grid.rows(x, readonly=True))[3]
                 if not p.hard_wall or code < 0 or rounds >= self.max_rounds or abs(mean_u) <= self.offset_tol * p.z0:
                     break
                 # the measured mean pressure, W + c m, is the next round's multiplier; from the
@@ -347,14 +362,18 @@ class EnergyDescent:
             converged = code > 0
             reason = f"descent {reason_text(code)} ({iterations} TAO iterations"
             reason += f", {rounds} rounds)" if p.hard_wall else ")"
-            self._write_state(grid.rows(x, readonly=True))
+            v = grid.rows(x, readonly=True)
+            self._write_state(self.length * v, v <= grid.rows(lower, readonly=True) if p.hard_wall else None)
             return converged, reason, iterations, linear
         finally:
             for obj in (tao, H, x, gradient) + bounds:
                 obj.destroy()
 
-    def _write_state(self, u: np.ndarray) -> None:
-        """The problem's unknowns from the displacement u: a = a(g), q = p - a >= 0 (hard wall)."""
+    def _write_state(self, u: np.ndarray, at_bound: np.ndarray | None) -> None:
+        """The problem's unknowns from the displacement u: a = a(g), q = p - a >= 0 (hard wall)
+        on the nodes ``at_bound``, those TAO holds at its bound (compared in TAO's own scaled
+        variable: u = z0 v rounds, and a contact node read as one ulp above the wall in metres
+        lost its multiplier and sent Newton's confirmation off)."""
         p = self.p
         g, pressure, a = self.fields(u)[:3]
         xb = p.blocks(p._x)
@@ -362,7 +381,6 @@ class EnergyDescent:
             # the multiplier lives on the contact nodes, where u sits on its bound: elsewhere
             # p - a is the descent's residual, ~1e-9 of the peak attraction, which the VI's
             # Newton and the tangent would take for contact rows (q > 0)
-            at_bound = u <= self.delta - self.h
             xb[0] = np.where(at_bound, np.maximum(pressure - a, 0.0), 0.0)
             xb[1] = a
         else:
