@@ -147,14 +147,16 @@ def path_point(step, branch, st) -> PathPoint:
 
 def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0.05,
           refine: int = 6, on_state=None, path: Path | None = None, stop_on_failure: bool = False,
-          on_failure=None, previous: tuple | None = None, substeps: int = 3) -> Path:
+          on_failure=None, previous: tuple | None = None, substeps: int = 3, max_step: float = 0.0) -> Path:
     """Displacement-controlled path through ``approaches`` [m] (loading where they rise,
     unloading where they fall).  ``on_state(step, state, point)`` is called for each
     converged step (e.g. to write fields), ``on_failure(step, state, point)`` for each
     failed one.  ``previous`` = (approach [m], force [N], dF/d delta [N/m] or NaN) of the
     problem's current state when the path continues one (a restart), so that a jump between
-    it and the first step is found too.  A step that fails is tried again from the last
-    converged state in halved steps, down to 2**-``substeps`` of it (``_advance``); the
+    it and the first step is found too.  A step longer than ``max_step`` [m] (0: any) is taken
+    in equal sub-steps of at most that: the quasi-static path, whose states do not depend on
+    the step (docs/formulation.md, "Loading paths").  A step that fails is tried again from the
+    last converged state in halved steps, down to 2**-``substeps`` of it (``_advance``); the
     sub-steps' states are not points of the path, their cost is counted in the step's.
     A step that still fails is kept as a point (not converged, with its reason)
     and the path goes on from the last converged state, or,
@@ -166,7 +168,7 @@ def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0
     last = None          # (point index, snapshot) of the last point if it was stable
     for k, delta in enumerate(approaches):
         here = branch or ("loading" if prev is None or delta >= prev[0] else "unloading")
-        st, prev = _advance(problem, delta, prev, path, jump_tol, refine, substeps)
+        st, prev = _advance(problem, delta, prev, path, jump_tol, refine, substeps, max_step)
         pt = path_point(k, here, st)
         path.points.append(pt)
         last = keep_for_search(path, problem, last)
@@ -212,10 +214,10 @@ def keep_for_search(path: Path, problem, last: tuple | None) -> tuple | None:
     return last
 
 
-def _advance(problem, target, prev, path, jump_tol, refine, substeps):
-    """Solve at ``target`` from the present state, testing for a jump; where that fails,
-    go back to the last converged state and get there in halved steps, at least
-    2**-``substeps`` of the whole step each.  A step longer than Newton's basin is not the
+def _advance(problem, target, prev, path, jump_tol, refine, substeps, max_step=0.0):
+    """Solve at ``target`` from the present state in equal sub-steps of at most ``max_step``
+    [m] (0: one step), testing each for a jump; where one fails, go back to the last converged
+    state and get there in halved steps, at least 2**-``substeps`` of the sub-step each.  A step longer than Newton's basin is not the
     end of the branch: a strongly adhesive hard-wall sphere's compressed states need
     shorter steps than its path gives (docs/studies.md).  Returns
     the state at ``target`` (or the failed one) with the cost of every try and sub-step in
@@ -232,7 +234,10 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps):
             watch.seen(st, None, jumped=False)
         return st, ((st.approach, st.force, st.stiffness) if st.converged else None)
     whole = target - prev[0]
-    h, spent, done = whole, np.zeros(4), 0
+    # (1 - 1e-9: a step of exactly max_step, give or take a rounding, is one step)
+    n = int(np.ceil(abs(whole) / max_step * (1.0 - 1e-9))) if max_step > 0 else 1
+    h0 = whole / max(n, 1)
+    h, spent, done = h0, np.zeros(4), 0
     while True:
         d = target if abs(target - prev[0]) <= abs(h) * (1 + 1e-12) else prev[0] + h
         snap = problem.snapshot()
@@ -261,7 +266,7 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps):
                 watch.seen(st, prev[0], jumped=st.fallback or len(path.jumps) > n_jumps)
         # (a converged sub-step goes on even past a time budget: the next solve says so)
         final = (st.converged and d == target) or (not st.converged and (
-            substeps <= 0 or problem.out_of_time() or abs(h) <= abs(whole) * 2.0 ** -substeps * (1 + 1e-12)))
+            substeps <= 0 or problem.out_of_time() or abs(h) <= abs(h0) * 2.0 ** -substeps * (1 + 1e-12)))
         if not final:
             spent += (st.fft_pairs, st.wall_time, st.newton_iterations, st.linear_iterations)
             if st.converged:
@@ -279,7 +284,8 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps):
         st.wall_time += spent[1]
         st.newton_iterations += int(spent[2])
         st.linear_iterations += int(spent[3])
-        st.solver += f" ({done} sub-step{'' if done == 1 else 's'})"
+        # the pieces the step was taken in: the converged sub-steps and the last solve
+        st.solver += f" ({done + 1} sub-steps)"
     if st.converged:
         prev = (st.approach, st.force, st.stiffness)
     return st, prev

@@ -160,3 +160,50 @@ def test_a_budget_spent_while_a_jump_is_located_keeps_neither_step_nor_jump(coll
                  previous=(path.points[-2].approach, path.points[-2].force, path.points[-2].stiffness))
     assert [j.kind for j in rest.jumps] == ["jump-on"]
     assert abs(rest.jumps[0].approach_before - on.approach_before) <= 1e-9
+
+
+def _bench_rough(n):
+    """The rough benchmark surface (examples/scenes/bench_rough.toml) on an n x n grid: the same
+    cell and seed, the cut-off at the same 4 grid spacings; (grid, heights)."""
+    import os
+    import tomllib
+
+    from contactpetsc.app import scenes
+    from contactpetsc.app.builder import build_heights
+    from contactpetsc.grid import SurfaceGrid
+    path = os.path.join(os.path.dirname(__file__), "..", "examples", "scenes", "bench_rough.toml")
+    with open(path, "rb") as f:
+        raw = tomllib.load(f)
+    g = raw["geometry"]
+    g.update(nx=n, dx=g["nx"] * g["dx"] / n, short_cutoff_wavelength=4 * g["nx"] * g["dx"] / n)
+    scene = scenes.validate(raw)
+    grid = SurfaceGrid(n, n, scene["geometry"]["dx"], periodic=True)
+    return grid, build_heights(scene, grid)
+
+
+@pytest.mark.heavy   # two rough adhesive paths: 1 and 2 ranks
+def test_a_rough_adhesive_path_is_the_limit_of_small_steps(coll):
+    """The rough benchmark surface at 128^2, the full LJ curve (w = 0.05 E* dx, z0 = dx), loaded
+    from 0.07 z0 below its lowest point to 0.73 z0 above it and back in steps of 0.2 / 0.16 z0
+    with the defaults a scene gets: a quasi-static path does not depend on its step, so the
+    sweep with its own steps and the sweep taking each in sub-steps of at most 0.05 z0
+    (``max_step``) reach the same state at every approach.  (With the predicted Newton step,
+    ``-strategy newton``, the two part at the first loading step: its steps land on
+    neighbouring branches.)"""
+    from contactpetsc.physics.interactions import make_law
+    from contactpetsc.solvers.adhesive import AdhesiveProblem
+    grid, h = _bench_rough(128)
+    z0 = grid.dx
+    law = make_law("lj", work_of_adhesion=0.05 * grid.dx, z0=z0)
+    hmin = h.min()[1]
+    values = list(hmin + z0 * np.concatenate([np.linspace(-0.07, 0.73, 5), np.linspace(0.73, -0.07, 6)[1:]]))
+    gaps = {}
+    for max_step in (0.0, 0.05):
+        pb = AdhesiveProblem(grid, h, 1.0, law, prefix=f"qs{int(max_step * 100)}_", stability_check=False)
+        seen = []
+        path = sweep(pb, values, max_step=max_step * z0, on_state=lambda k, st, pt: seen.append(grid.gather(st.gap)))
+        assert all(p.converged for p in path.points)
+        assert ("4 sub-steps" in path.points[1].solver) == (max_step > 0), path.points[1].solver
+        gaps[max_step] = seen
+    differ = [k for k, (a, b) in enumerate(zip(gaps[0.0], gaps[0.05])) if coll.max(np.abs(a - b)) > 1e-6 * z0]
+    assert not differ, differ

@@ -137,7 +137,7 @@ def test_failed_fallback_reports_its_last_state_where_it_is_the_best(coll):
     law = make_law("lj", work_of_adhesion=0.05, z0=1.0)
     prefix = "failed_fallback_"
     problem = AdhesiveProblem(grid, h, 1.0, law, prefix=prefix,
-                              petsc_options={"fallback": "descent", "descent_tao_max_it": 6})
+                              petsc_options={"fallback": "descent", "descent_tao_max_it": 6, "strategy": "newton"})
     d0 = h.min()[1] + 0.5
     assert problem.solve(approach=d0).converged
     backward_line_search(prefix)

@@ -142,6 +142,8 @@ class AdhesiveSteps:
         last, saved = rows[-1], recorder.path_state(len(rows))
         self.prev = (float(last["approach_m"]), float(last["force_N"]), NAN if saved.get("stiffness") is None
                      else float(saved["stiffness"]))
+        # the coarse levels the uninterrupted run had dropped after a failed solve there
+        self.problem.coarse_levels.restore(saved.get("coarse_levels", []))
         if self.path is not None and saved.get("fold_watch") and leaves_checks_out(self.problem):
             # where the uninterrupted run would leave the check out (fold_watch.py)
             from ..fold_watch import FoldWatch
@@ -149,12 +151,14 @@ class AdhesiveSteps:
 
     def path_state(self) -> dict | None:
         """What the next step of a sweep decides by and the step files keep for a restart: the
-        last state's stiffness (jump test, fold watch) and the fold watch's record."""
+        last state's stiffness (jump test, fold watch), the fold watch's record and the coarse
+        levels dropped so far."""
         if not self.sweeping or self.prev is None:
             return None
         watch = self.path._watch
         return {"stiffness": self.prev[2] if np.isfinite(self.prev[2]) else None,
-                "fold_watch": None if watch is None else watch.state()}
+                "fold_watch": None if watch is None else watch.state(),
+                "coarse_levels": self.problem.coarse_levels.state()}
 
     def _restore_best(self, recorder) -> None:
         """The pull-off search's start (``paths.keep_for_search``) on a restarted path: the most
@@ -204,7 +208,8 @@ class AdhesiveSteps:
             central_gap_path(self.problem, [value], path=self.path, on_state=keep, on_failure=keep)
         else:
             sweep(self.problem, [value], refine=self.proto["jump_refinement"], on_state=keep,
-                  on_failure=keep, path=self.path, previous=self.prev, substeps=self.proto["substeps"])
+                  on_failure=keep, path=self.path, previous=self.prev, substeps=self.proto["substeps"],
+                  max_step=self.proto["max_step"] * self.z0)
         st = got[0]
         jumps = self.path.jumps[n:]
         if not st.converged:

@@ -44,7 +44,7 @@ from .adhesive_levels import CoarseLevels
 from .adhesive_residual import AdhesiveCallbacks
 from .base import AdhesiveSolveError, VIProblem, check_tolerance, reason_name, with_options
 from .continuation import Continuation
-from .descent import EnergyDescent, require_descent
+from .descent import EnergyDescent, descent_applies, require_descent
 from .fallback import FallbackChain
 from .history import SolveHistory
 from .load_control import solve_force
@@ -199,7 +199,13 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self.max_it = opts.getInt("max_it", code_default("adhesion", "max_it"))
         self.stability_check = StabilityCheck(self, self._default("stability_check"))
         self.fallback = FallbackChain(self)
-        self.strategy = opts.getString("strategy", code_default("adhesion", "strategy")).lower()
+        # the full LJ curve descends from the last state: its predicted Newton steps hop between
+        # neighbouring branches (paths at 1/64 of a step still alternate between two states on
+        # consecutive steps), while the descent's states follow the branch a quasi-static path
+        # follows (docs/performance.md, "Quasi-static limit of a load-unload path"); a hard
+        # wall's predicted Newton step reaches the same states for less
+        strategy = "descent" if descent_applies(self) and not self.hard_wall else "newton"
+        self.strategy = opts.getString("strategy", strategy).lower()
         if self.strategy not in ("newton", "descent"):
             raise ValueError(f"-{self.prefix}strategy must be newton or descent, got {self.strategy!r}")
         if self.strategy == "descent":

@@ -46,6 +46,7 @@ class CoarseLevels:
         # fallback"); an inexact step is still judged by the line search, and the fallback follows
         self.ksp_max_it = opts.getInt("ksp_max_it", code_default("adhesion", "fmg_ksp_max_it"))
         self._coarse = None          # the problem on the 2x coarser grid; False: none or dropped
+        self.dropped = False         # dropped after a failed solve there (``_drop``)
         self._dropped_pairs = 0.0    # FFT pairs of a dropped level (fine-grid units)
 
     def available(self) -> bool:
@@ -165,7 +166,25 @@ class CoarseLevels:
     def _drop(self) -> None:
         """Stop using the level after a failed solve there; its FFT pairs stay counted."""
         self._dropped_pairs += self._coarse.fft_pairs() / 4.0
-        self._coarse = False
+        self._coarse, self.dropped = False, True
+
+    def state(self) -> list[bool]:
+        """Which levels made so far were dropped, from this one down (JSON-able): a restarted path
+        that drops them again (``restore``) predicts as the uninterrupted one did."""
+        if self._coarse is None or (self._coarse is False and not self.dropped):
+            return []
+        return [True] if self.dropped else [False] + self._coarse.coarse_levels.state()
+
+    def restore(self, state: list[bool]) -> None:
+        """Drop the levels ``state`` says were dropped (making those it says were kept)."""
+        if not state:
+            return
+        if state[0]:
+            self._coarse, self.dropped = False, True
+            return
+        coarse = self.coarse()
+        if coarse is not None:
+            coarse.coarse_levels.restore(list(state[1:]))
 
     def fft_pairs(self) -> float:
         """FFT pairs of the levels below, kept and dropped, in the problem's grid units."""

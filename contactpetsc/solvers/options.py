@@ -89,8 +89,9 @@ ADHESION = (
            "every displacement-controlled state's tangent stiffness (false: NaN, the tangent only for the predictor)"),
     Option(("load_from_rest", "initial_step"), (False, 0.25),
            "first solve: load from separation in steps of at most this many z0"),
-    Option(("strategy",), ("newton",), "newton (from the predicted state) or descent (the energy descent from the "
-           "last state, then Newton; periodic grids, nodal rule)"),
+    Option(("strategy",), "descent (the full LJ curve on periodic grids with the nodal rule) or newton",
+           "newton (from the predicted state) or descent (the energy descent from the last state, then Newton; "
+           "periodic grids, nodal rule)"),
     Option(("fallback",), "descent first on periodic nodal grids, then relaxation,ptc (hard wall) or ptc",
            "where Newton fails or ends unstable: these in turn"),
     Option(("descent_max_rounds",), (40,), "energy descent: a hard wall's mean-pressure rounds"),
