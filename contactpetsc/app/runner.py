@@ -45,10 +45,29 @@ def plan(scene: dict, grid: SurfaceGrid, law=None, out_dir: str | None = None) -
             f"  rows per rank {[b - a for a, b in grid.y_ranges]}",
             chain,
             *builder.leave_out(scene),
-            f"  protocol: {scene['protocol']['control']} x {len(scene['protocol']['values'])} steps",
+            _protocol_line(scene, law),
             f"  memory estimate: {per_rank / 2**20:.0f} MiB per rank" + _memory_note(grid, per_rank),
             _outputs_line(scene, grid.nx * grid.ny, out_dir or scene["output"]["directory"]),
             _stack_line(grid)]
+
+
+def _protocol_line(scene: dict, law) -> str:
+    """The steps, and under approach control with adhesion, those taken in sub-steps of at most
+    ``protocol.max_step`` of the law's range (``paths.sweep``: the quasi-static path)."""
+    proto = scene["protocol"]
+    line = f"  protocol: {proto['control']} x {len(proto['values'])} steps"
+    if law is None or law.work_of_adhesion == 0 or proto["control"] != "approach" or not proto["max_step"]:
+        return line
+    if scene["solver"]["method"] == "relaxation":
+        return line
+    import numpy as np
+    longest = proto["max_step"] * law.length_scale()
+    pieces = np.ceil(np.abs(np.diff(proto["values"])) / longest * (1.0 - 1e-9)).astype(int)
+    long = int(np.count_nonzero(pieces > 1))
+    if long:
+        line += (f"; {long} longer than {proto['max_step']:g} of the law's range (protocol.max_step), "
+                 f"taken in {int(pieces[pieces > 1].sum())} equal sub-steps: the quasi-static path")
+    return line
 
 
 #: which side of a generated surface touches first (docs/scenes.md, "Which side is pressed")
