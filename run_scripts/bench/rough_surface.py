@@ -69,9 +69,10 @@ def calibrate(grid, h, law, areas, steps=40, max_n=128):
         grid, h = coarse, hc
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UnderResolvedWarning)   # coarser than the case by design
-        # one preconditioner whatever the default: the approaches stay those of earlier tables
+        # one preconditioner and one strategy whatever the defaults: the approaches stay those of
+        # earlier tables
         pb = AdhesiveProblem(grid, h, 1.0, law, prefix="cal_", tol=1e-6, stability_check=False,
-                             preconditioner="spectral")
+                             preconditioner="spectral", petsc_options={"strategy": "newton"})
     lo, hi = float(h.min()[1]) - law.length_scale(), float(h.max()[1])
     deltas, fractions = [], []
     for d in np.linspace(lo, hi, steps):
