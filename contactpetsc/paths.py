@@ -155,9 +155,10 @@ def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0
     problem's current state when the path continues one (a restart), so that a jump between
     it and the first step is found too.  A step longer than ``max_step`` [m] (0: any) is taken
     in equal sub-steps of at most that: the quasi-static path, whose states do not depend on
-    the step (docs/formulation.md, "Loading paths").  A step that fails is tried again from the
-    last converged state in halved steps, down to 2**-``substeps`` of it (``_advance``); the
-    sub-steps' states are not points of the path, their cost is counted in the step's.
+    the step (docs/formulation.md, "Loading paths").  A step or sub-step that fails is tried
+    again from the last converged state in halved steps, down to 2**-``substeps`` of it
+    (``_advance``); the sub-steps' states are not points of the path, their cost is counted in
+    the step's.
     A step that still fails is kept as a point (not converged, with its reason)
     and the path goes on from the last converged state, or,
     with ``stop_on_failure``, ends there (a run that must stay contiguous, to restart
@@ -235,11 +236,14 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps, max_step=0
         return st, ((st.approach, st.force, st.stiffness) if st.converged else None)
     whole = target - prev[0]
     # (1 - 1e-9: a step of exactly max_step, give or take a rounding, is one step)
-    n = int(np.ceil(abs(whole) / max_step * (1.0 - 1e-9))) if max_step > 0 else 1
+    n = int(np.ceil(abs(whole) / max_step * (1.0 - 1e-9))) if max_step > 0 and np.isfinite(whole) else 1
     h0 = whole / max(n, 1)
     h, spent, done = h0, np.zeros(4), 0
+    # the sum of the sub-steps rounds: far from the origin (|approach| >> max_step) a remainder
+    # of a few ulps past the last piece would be one more solve
+    slack = 64.0 * np.spacing(abs(target))
     while True:
-        d = target if abs(target - prev[0]) <= abs(h) * (1 + 1e-12) else prev[0] + h
+        d = target if abs(target - prev[0]) <= abs(h) * (1 + 1e-9) + slack else prev[0] + h
         snap = problem.snapshot()
         n_jumps = len(path.jumps)
         check = None if watch is None else (
@@ -285,14 +289,15 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps, max_step=0
         st.newton_iterations += int(spent[2])
         st.linear_iterations += int(spent[3])
         # the pieces the step was taken in: the converged sub-steps and the last solve
-        st.solver += f" ({done + 1} sub-steps)"
+        st.solver += f" ({done + 1} sub-steps)" if done else " (no halved step converged)"
     if st.converged:
         prev = (st.approach, st.force, st.stiffness)
     return st, prev
 
 
 def _locate_jump(problem, snap, prev, after, refine) -> Jump | None:
-    """Bisect [prev approach, after.approach] with Newton from the old branch only; None when
+    """Bisect [prev approach, after.approach] with solves from the old branch, without the
+    fallback (the problem's strategy: Newton, or the descent then Newton); None when
     the branch is continuous there: the force gap across the final bracket is no larger than
     twice the larger branch slope times its width (a jump keeps its gap as the bracket
     shrinks; a steep smooth branch does not)."""

@@ -203,7 +203,50 @@ def test_a_rough_adhesive_path_is_the_limit_of_small_steps(coll):
         seen = []
         path = sweep(pb, values, max_step=max_step * z0, on_state=lambda k, st, pt: seen.append(grid.gather(st.gap)))
         assert all(p.converged for p in path.points)
-        assert ("4 sub-steps" in path.points[1].solver) == (max_step > 0), path.points[1].solver
+        assert path.points[1].solver.endswith(" (4 sub-steps)") == (max_step > 0), path.points[1].solver
         gaps[max_step] = seen
     differ = [k for k, (a, b) in enumerate(zip(gaps[0.0], gaps[0.05])) if coll.max(np.abs(a - b)) > 1e-6 * z0]
     assert not differ, differ
+
+
+class _LinearBranch:
+    """A duck-typed problem for ``sweep`` (solve, snapshot, restore, out_of_time): one smooth
+    branch, force = -approach [N], stiffness -1; it counts its solves."""
+
+    def __init__(self):
+        self.solves = []
+
+    def solve(self, approach, raise_on_failure=True, check_stability=None, fallback=True):
+        from types import SimpleNamespace
+        self.solves.append(approach)
+        nan = float("nan")
+        return SimpleNamespace(approach=approach, central_gap=nan, force=-approach, adhesive_force=nan,
+                               contact_fraction=0.0, stable=None, converged=True, solver="linear",
+                               fft_pairs=1.0, wall_time=0.0, newton_iterations=1, linear_iterations=1,
+                               complementarity_error=0.0, adhesive_error=0.0, total_error=0.0, reason="",
+                               stiffness=-1.0, stability_margin=nan, fallback=False)
+
+    def snapshot(self):
+        from types import SimpleNamespace
+        return SimpleNamespace(destroy=lambda: None)
+
+    def restore(self, snap):
+        pass
+
+    def out_of_time(self):
+        return False
+
+
+@pytest.mark.parametrize("start", [0.0, 1.3e-6, -4.1e-5])
+def test_max_step_takes_each_step_in_the_fewest_equal_sub_steps(start):
+    """A step of 7.37 nm with max_step 0.1 nm is 74 solves, the last at the step's approach
+    exactly, also far from the origin (the sub-steps' sum rounds there: an extra solve a few
+    ulps short of the target had followed); steps of exactly max_step, up and down, are one
+    solve each.  Truth: counting."""
+    pb = _LinearBranch()
+    step, longest = 7.37e-9, 1e-10
+    path = sweep(pb, [start, start + step, start + step - 3 * longest, start + step - 2 * longest], max_step=longest)
+    assert len(pb.solves) == 1 + 74 + 3 + 1, len(pb.solves)
+    assert pb.solves[74] == start + step
+    assert [p.solver for p in path.points] == ["linear", "linear (74 sub-steps)", "linear (3 sub-steps)", "linear"]
+    assert np.max(np.abs(np.diff(pb.solves[:75]))) <= longest * (1 + 1e-9)

@@ -112,10 +112,10 @@ _SCHEMA = {
         "jump_refinement": _k(int, 6, "", "adhesive sweeps: bisections locating each jump", (0, 40, True, True)),
         "substeps": _k(int, 3, "", "adhesive sweeps: halvings of a step that fails, tried from the last "
                        "converged state (0: none)", (0, 20, True, True)),
-        "max_step": _k(float, 0.1, "z0", "adhesive sweeps: the longest step in approach, in units of the law's "
-                       "range (z0, rho or w / sigma0); a longer step of the values is taken in equal sub-steps, "
-                       "so that the states are those of the quasi-static path and not of the step (0: the "
-                       "values' own steps)", NONNEG),
+        "max_step": _k(float, 0.1, "z0", "adhesive sweeps under approach control (not the relaxation): the "
+                       "longest step in approach, in units of the law's range (z0, rho or w / sigma0); a longer "
+                       "step of the values is taken in equal sub-steps, so that the states are those of the "
+                       "quasi-static path and not of the step (0: the values' own steps)", NONNEG),
     },
     "solver": {
         "method": _k(str, "newton", "", "with adhesion: SNES VI Newton, or the reference paper's MLMI "

@@ -135,15 +135,17 @@ class AdhesiveSteps:
                                     approach_after=float(j["approach_after_m"]),
                                     force_before=float(j["force_before_N"]),
                                     force_after=float(j["force_after_N"])) for j in recorder.jumps]
+        last, saved = rows[-1], recorder.path_state(len(rows))
+        # the coarse levels the uninterrupted run had dropped after a failed solve there, before
+        # any solve here makes them
+        self.problem.snes()
+        self.problem.coarse_levels.restore(saved.get("coarse_levels", []))
         if self.refines:
             self._restore_best(recorder)
         (q, a), approach = recorder.read_step(len(rows), self.fields)
         self.problem.warm_start(q, a, approach)
-        last, saved = rows[-1], recorder.path_state(len(rows))
         self.prev = (float(last["approach_m"]), float(last["force_N"]), NAN if saved.get("stiffness") is None
                      else float(saved["stiffness"]))
-        # the coarse levels the uninterrupted run had dropped after a failed solve there
-        self.problem.coarse_levels.restore(saved.get("coarse_levels", []))
         if self.path is not None and saved.get("fold_watch") and leaves_checks_out(self.problem):
             # where the uninterrupted run would leave the check out (fold_watch.py)
             from ..fold_watch import FoldWatch

@@ -47,6 +47,7 @@ class CoarseLevels:
         self.ksp_max_it = opts.getInt("ksp_max_it", code_default("adhesion", "fmg_ksp_max_it"))
         self._coarse = None          # the problem on the 2x coarser grid; False: none or dropped
         self.dropped = False         # dropped after a failed solve there (``_drop``)
+        self._pending: list[bool] = []   # a restarted path's record of dropped levels (``restore``)
         self._dropped_pairs = 0.0    # FFT pairs of a dropped level (fine-grid units)
 
     def available(self) -> bool:
@@ -63,6 +64,10 @@ class CoarseLevels:
             return self._coarse or None
         self._coarse = False
         if not self.available():
+            return None
+        if self._pending[:1] == [True]:
+            # the uninterrupted path had dropped it (``restore``)
+            self.dropped, self._pending = True, []
             return None
         fine = self.problem
         grid = fine.grid
@@ -89,6 +94,8 @@ class CoarseLevels:
             coarse.fallback.methods = ["descent"]
         coarse.predictor.predicts = coarse.predictor.wanted = False   # a level needs no tangent
         coarse.coarse_levels.step_levels = self.step_levels - 1
+        coarse.coarse_levels.restore(self._pending[1:])
+        self._pending = []
         ksp = coarse._snes.getKSP()
         ksp.setTolerances(max_it=min(ksp.getTolerances()[3], self.ksp_max_it))
         self._coarse = coarse
@@ -169,22 +176,19 @@ class CoarseLevels:
         self._coarse, self.dropped = False, True
 
     def state(self) -> list[bool]:
-        """Which levels made so far were dropped, from this one down (JSON-able): a restarted path
-        that drops them again (``restore``) predicts as the uninterrupted one did."""
-        if self._coarse is None or (self._coarse is False and not self.dropped):
-            return []
-        return [True] if self.dropped else [False] + self._coarse.coarse_levels.state()
+        """Which levels were dropped, from this one down (JSON-able; a level not made yet keeps
+        what ``restore`` gave it): a restarted path that drops them again predicts as the
+        uninterrupted one did."""
+        if self._coarse is None:
+            return list(self._pending)
+        if self._coarse is False:
+            return [True] if self.dropped else []
+        return [False] + self._coarse.coarse_levels.state()
 
     def restore(self, state: list[bool]) -> None:
-        """Drop the levels ``state`` says were dropped (making those it says were kept)."""
-        if not state:
-            return
-        if state[0]:
-            self._coarse, self.dropped = False, True
-            return
-        coarse = self.coarse()
-        if coarse is not None:
-            coarse.coarse_levels.restore(list(state[1:]))
+        """Drop the levels ``state`` (``state()`` of the uninterrupted path) says were dropped,
+        each when it would be made (inside the problem's options and time budget, as then)."""
+        self._pending = [bool(b) for b in state]
 
     def fft_pairs(self) -> float:
         """FFT pairs of the levels below, kept and dropped, in the problem's grid units."""

@@ -53,9 +53,8 @@ TAO_REASON = getattr(PETSc.TAO, "ConvergedReason", None) or PETSc.TAO.Reason
 #: TAO's code defaults (set under the strategy's prefix unless the user gave them)
 TAO_DEFAULTS = {
     "tao_type": "bnls",
-    # BNK's default active-set estimate takes a Euclidean gradient step whose scale is off by
-    # orders of magnitude here: its trust region collapsed on every hard-wall state
-    # (docs/journal/descent_probe.md)
+    # BNK's default active-set estimate (a projected gradient step) collapsed its trust region
+    # on every hard-wall state, measured in unit-scale problems (docs/journal/descent_probe.md)
     "tao_bnk_as_type": "none",
     # inexact Newton: a tenth of the gradient per step is cheapest (docs/journal/descent_probe.md)
     "tao_bnk_ksp_rtol": "0.1",
@@ -217,7 +216,8 @@ class EnergyDescent:
         return self._fields[1:]
 
     def objective_gradient(self, tao, x, gradient) -> float:
-        """E(u) / dA [J/m^2 times the number of nodes' area] and its gradient p - a(g) [Pa]."""
+        """TAO's objective at v = u / z0: E(u) / dA (1/2 u . K^-1 u + sum Phi(g), [J/m^2] summed
+        over the nodes) times K_ii / z0^2, and its gradient (p - a(g)) K_ii / z0."""
         u = self.length * x.getArray(readonly=True).reshape(self.shape)
         grad = gradient.getArray().reshape(self.shape)
         g, pressure, a, mean_u, k_inv_u = self.fields(u)
@@ -363,7 +363,10 @@ class EnergyDescent:
             reason = f"descent {reason_text(code)} ({iterations} TAO iterations"
             reason += f", {rounds} rounds)" if p.hard_wall else ")"
             v = grid.rows(x, readonly=True)
-            self._write_state(self.length * v, v <= grid.rows(lower, readonly=True) if p.hard_wall else None)
+            at_bound = None
+            if p.hard_wall:
+                at_bound = v <= grid.rows(bounds[0], readonly=True)
+            self._write_state(self.length * v, at_bound)
             return converged, reason, iterations, linear
         finally:
             for obj in (tao, H, x, gradient) + bounds:
