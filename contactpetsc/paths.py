@@ -215,6 +215,14 @@ def keep_for_search(path: Path, problem, last: tuple | None) -> tuple | None:
     return last
 
 
+def pieces(step: float, max_step: float) -> int:
+    """The equal sub-steps of at most ``max_step`` [m] (0: any) a step of ``step`` [m] is taken
+    in (``sweep``); a step of exactly max_step, give or take a rounding, is one."""
+    if not (max_step > 0 and np.isfinite(step)):
+        return 1
+    return max(int(np.ceil(abs(step) / max_step * (1.0 - 1e-9))), 1)
+
+
 def _advance(problem, target, prev, path, jump_tol, refine, substeps, max_step=0.0):
     """Solve at ``target`` from the present state in equal sub-steps of at most ``max_step``
     [m] (0: one step), testing each for a jump; where one fails, go back to the last converged
@@ -235,9 +243,7 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps, max_step=0
             watch.seen(st, None, jumped=False)
         return st, ((st.approach, st.force, st.stiffness) if st.converged else None)
     whole = target - prev[0]
-    # (1 - 1e-9: a step of exactly max_step, give or take a rounding, is one step)
-    n = int(np.ceil(abs(whole) / max_step * (1.0 - 1e-9))) if max_step > 0 and np.isfinite(whole) else 1
-    h0 = whole / max(n, 1)
+    h0 = whole / pieces(whole, max_step)
     h, spent, done = h0, np.zeros(4), 0
     # the sum of the sub-steps rounds: far from the origin (|approach| >> max_step) a remainder
     # of a few ulps past the last piece would be one more solve

@@ -60,13 +60,13 @@ def _protocol_line(scene: dict, law) -> str:
         return line
     if scene["solver"]["method"] == "relaxation":
         return line
-    import numpy as np
-    longest = proto["max_step"] * law.length_scale()
-    pieces = np.ceil(np.abs(np.diff(proto["values"])) / longest * (1.0 - 1e-9)).astype(int)
-    long = int(np.count_nonzero(pieces > 1))
+    from ..paths import pieces
+    values = proto["values"]
+    counts = [pieces(b - a, proto["max_step"] * law.length_scale()) for a, b in zip(values, values[1:])]
+    long = [n for n in counts if n > 1]
     if long:
-        line += (f"; {long} longer than {proto['max_step']:g} of the law's range (protocol.max_step), "
-                 f"taken in {int(pieces[pieces > 1].sum())} equal sub-steps: the quasi-static path")
+        line += (f"; {len(long)} longer than {proto['max_step']:g} of the law's range (protocol.max_step), "
+                 f"taken in {sum(long)} equal sub-steps: the quasi-static path")
     return line
 
 
