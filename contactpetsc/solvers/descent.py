@@ -215,10 +215,14 @@ class EnergyDescent:
         self._fields = (u.copy(), g, pressure, a, mean_u, k_inv_u)
         return self._fields[1:]
 
+    def displacement(self, x: PETSc.Vec) -> np.ndarray:
+        """u = z0 v [m], this rank's rows, of TAO's variable ``x``."""
+        return self.length * x.getArray(readonly=True).reshape(self.shape)
+
     def objective_gradient(self, tao, x, gradient) -> float:
         """TAO's objective at v = u / z0: E(u) / dA (1/2 u . K^-1 u + sum Phi(g), [J/m^2] summed
         over the nodes) times K_ii / z0^2, and its gradient (p - a(g)) K_ii / z0."""
-        u = self.length * x.getArray(readonly=True).reshape(self.shape)
+        u = self.displacement(x)
         grad = gradient.getArray().reshape(self.shape)
         g, pressure, a, mean_u, k_inv_u = self.fields(u)
         local = 0.5 * float(np.dot(u.ravel(), k_inv_u.ravel())) + float(self.p.traction.energy(g).sum())
@@ -232,7 +236,7 @@ class EnergyDescent:
         return energy * self.kappa / self.length ** 2
 
     def hessian(self, tao, x, H, P):
-        g = self.fields(self.length * x.getArray(readonly=True).reshape(self.shape))[0]
+        g = self.fields(self.displacement(x))[0]
         self.curvature = -self.p.traction.nodal_derivative(g)      # Phi''(g) = -da/dg
         H.getPythonContext().shift_value = 0.0
 
@@ -264,7 +268,7 @@ class EnergyDescent:
         return max_error(self.comm, local)
 
     def _converged(self, tao):
-        u = self.length * tao.getSolution().getArray(readonly=True).reshape(self.shape)
+        u = self.displacement(tao.getSolution())
         g, pressure, a, mean_u, _ = self.fields(u)
         err = self.error(g, pressure, a)
         it = tao.getIterationNumber()
@@ -344,7 +348,7 @@ class EnergyDescent:
                 rounds += 1
                 iterations += tao.getIterationNumber()
                 code = tao.getConvergedReason()
-                mean_u = self.fields(self.length * grid.rows(x, readonly=True))[3]
+                mean_u = self.fields(self.displacement(x))[3]
                 if not p.hard_wall or code < 0 or rounds >= self.max_rounds or abs(mean_u) <= self.offset_tol * p.z0:
                     break
                 # the measured mean pressure, W + c m, is the next round's multiplier; from the
@@ -362,11 +366,10 @@ class EnergyDescent:
             converged = code > 0
             reason = f"descent {reason_text(code)} ({iterations} TAO iterations"
             reason += f", {rounds} rounds)" if p.hard_wall else ")"
-            v = grid.rows(x, readonly=True)
             at_bound = None
             if p.hard_wall:
-                at_bound = v <= grid.rows(bounds[0], readonly=True)
-            self._write_state(self.length * v, at_bound)
+                at_bound = grid.rows(x, readonly=True) <= grid.rows(bounds[0], readonly=True)
+            self._write_state(self.displacement(x), at_bound)
             return converged, reason, iterations, linear
         finally:
             for obj in (tao, H, x, gradient) + bounds:
