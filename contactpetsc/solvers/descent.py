@@ -253,12 +253,18 @@ class EnergyDescent:
         return energy * self.kappa / self.length ** 2
 
     def hessian(self, tao, x, H, P):
-        g = self.fields(self.displacement(x))[0]
-        self.curvature = -self.p.traction.nodal_derivative(g)      # Phi''(g) = -da/dg
+        self.set_curvature(self.fields(self.displacement(x))[0])
+        H.getPythonContext().shift_value = 0.0
+
+    def set_curvature(self, g: np.ndarray) -> None:
+        """The Hessian's diagonal term Phi''(g) = -da/dg at the gaps g [m], and the
+        preconditioner's scaling S from it."""
+        self.curvature = -self.p.traction.nodal_derivative(g)
         if self.pc_contact_factor:
             stiff = np.clip(self.kappa * self.curvature, 0.0, 1.0)
             self.pc_scale = 1.0 / np.sqrt(1.0 + self.pc_contact_factor * stiff)
-        H.getPythonContext().shift_value = 0.0
+        else:
+            self.pc_scale = None
 
     def hessian_mult(self, x: np.ndarray, y: np.ndarray) -> None:
         self.p.op.convolve(self._k_inv, x, y)
