@@ -3,8 +3,8 @@
 
 The rough benchmark case of ``bench_adhesion_path.py`` (``--law lj`` or ``exponential``, a hard
 wall), one problem solved at ``--approaches`` [m] in turn with a scene's defaults (stability
-check, tangent stiffness).  After each phase (each VI Newton run, stability check and tangent
-solve) and each state, in doubles per grid point: PETSc's allocations now and at their
+check, tangent stiffness).  After each phase (each energy descent, VI Newton run, stability
+check and tangent solve) and each state, in doubles per grid point: PETSc's allocations now and at their
 maximum so far (``PetscMallocGetCurrentUsage`` / ``GetMaximumUsage``, which count only under
 ``-malloc_debug``, passed here), numpy's (``tracemalloc``: now, and the phase's peak), and the
 anonymous resident size over the one before the problem.  The rest of the resident size is
@@ -33,7 +33,7 @@ petsc4py.init([sys.argv[0], "-malloc_debug"] + petsc_args)
 
 from petsc4py import PETSc  # noqa: E402
 
-from contactpetsc.solvers import newton, predictor, stability  # noqa: E402
+from contactpetsc.solvers import descent, newton, predictor, stability  # noqa: E402
 from contactpetsc.solvers.adhesive import AdhesiveProblem  # noqa: E402
 
 sys.path.insert(0, HERE)
@@ -87,8 +87,8 @@ def main():
             return out
         setattr(cls, name, wrapped)
 
-    for cls, name in ((newton.VINewton, "run"), (stability.StabilityCheck, "margin"),
-                      (predictor.TangentPredictor, "solve")):
+    for cls, name in ((descent.EnergyDescent, "descend"), (newton.VINewton, "run"),
+                      (stability.StabilityCheck, "margin"), (predictor.TangentPredictor, "solve")):
         phased(cls, name)
     pb = AdhesiveProblem(grid, h, 1.0, law, prefix="split_")
     for k, d in enumerate(args.approaches):
