@@ -23,13 +23,17 @@ def rough(comm, n=64):
 
 
 @pytest.mark.parametrize("law_name", ["lj", "hardwall-lj"])
-def test_descent_reaches_newtons_state_on_any_rank_count(coll, law_name):
+@pytest.mark.parametrize("pc_factor", [0.0, 10.0])
+def test_descent_reaches_newtons_state_on_any_rank_count(coll, law_name, pc_factor):
     """From the converged state at one approach, the descent alone (to 1e-9) reaches the state
-    Newton reaches at the next approach, and the same on one rank as on all."""
+    Newton reaches at the next approach, and the same on one rank as on all; with the
+    compliance alone as its preconditioner and with it scaled on the repulsive nodes (a
+    preconditioner changes the way to the minimum, not the minimum)."""
     law = make_law(law_name, work_of_adhesion=0.05, z0=1.0)
     key = law_name.replace("-", "")
     opts = PETSc.Options(f"desc{key}_")
-    for name, value in dict(descent_tol=1e-9, descent_offset_tol=1e-11, descent_max_rounds=30).items():
+    for name, value in dict(descent_tol=1e-9, descent_offset_tol=1e-11, descent_max_rounds=30,
+                            descent_pc_contact_factor=pc_factor).items():
         opts.setValue(name, value)
     pressures = []
     try:
@@ -51,9 +55,18 @@ def test_descent_reaches_newtons_state_on_any_rank_count(coll, law_name):
             assert diff < 1e-6, diff
             pressures.append(grid.gather(_as_vec(grid, p)))
     finally:
-        for name in ("descent_tol", "descent_offset_tol", "descent_max_rounds"):
+        for name in ("descent_tol", "descent_offset_tol", "descent_max_rounds", "descent_pc_contact_factor"):
             opts.delValue(name)
     assert coll.max(np.abs(pressures[0] - pressures[1])) / float(law.peak_attraction) < 1e-9
+
+
+@pytest.mark.parametrize("value", ["-1", "nan"])
+def test_a_bad_contact_factor_is_refused_by_name(coll, value):
+    grid, h = rough(PETSc.COMM_WORLD, n=16)
+    pb = AdhesiveProblem(grid, h, 1.0, make_law("lj", work_of_adhesion=0.05, z0=1.0), prefix="descbad_",
+                         petsc_options={"descent_pc_contact_factor": value})
+    with pytest.raises(ValueError, match="descbad_descent_pc_contact_factor must be finite and >= 0"):
+        pb.solve(approach=float(h.min()[1]) + 0.5)
 
 
 def _as_vec(grid, rows):

@@ -279,13 +279,17 @@ def _lobpcg(op, comm, d, contact, v, steps, residual_tol, precondition=None):
     shape = v.shape
     free = np.where(contact, 0.0, 1.0).reshape(-1)   # a mask by multiplication: indexing copies
     n_free = comm.allreduce(float(free.sum()))
+    # without contact nodes (the full LJ curve) the mask is all ones: two passes a projection less
+    masked = n_free < comm.allreduce(free.size)
     a = d.reshape(-1)
 
     def on_w(x):
         """x projected on W (orthogonally): zero on C, zero mean; in place, no temporaries"""
-        x *= free
+        if masked:
+            x *= free
         x -= comm.allreduce(float(x.sum())) / n_free
-        x *= free
+        if masked:
+            x *= free
         return x
 
     def mult(f, x, out):
