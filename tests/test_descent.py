@@ -60,6 +60,41 @@ def test_descent_reaches_newtons_state_on_any_rank_count(coll, law_name, pc_fact
     assert coll.max(np.abs(pressures[0] - pressures[1])) / float(law.peak_attraction) < 1e-9
 
 
+@pytest.mark.serial
+@pytest.mark.parametrize("law_name", ["lj", "hardwall-lj"])
+def test_the_descents_hessian_is_symmetric_and_its_preconditioner_positive(coll, law_name):
+    """CG needs both: the Hessian symmetric on every vector (its mean component included, which
+    the scaled preconditioner's output has) and S K S symmetric positive definite, S = 1 where
+    Phi'' <= 0.  Dense on a 16^2 state with nodes in repulsive contact."""
+    law = make_law(law_name, work_of_adhesion=0.05, z0=1.0)
+    grid, h = rough(PETSc.COMM_SELF, n=16)
+    pb = AdhesiveProblem(grid, h, 1.0, law, prefix=f"descsym{law_name.replace('-', '')}_")
+    approach = float(h.min()[1]) + 1.0      # contact at a few per cent of the nodes
+    state = pb.solve(approach=approach)
+    assert 0.01 < state.contact_fraction < 0.5
+    descent = EnergyDescent(pb)
+    descent.delta = approach
+    u = pb.op.apply(pb.blocks(pb._x, readonly=True).sum(axis=0), np.empty(descent.shape))
+    descent.set_curvature(descent.fields(u)[0])
+    if not pb.hard_wall:
+        assert (descent.curvature > 0).any()    # nodes in repulsive contact: S < 1 there
+    n = descent.n
+    H, P = np.empty((n, n)), np.empty((n, n))
+    e, y = np.zeros(descent.shape), np.empty(descent.shape)
+    for j in range(n):
+        e.reshape(-1)[:] = 0.0
+        e.reshape(-1)[j] = 1.0
+        descent.hessian_mult(e, y)
+        H[:, j] = y.reshape(-1)
+        descent.precondition(e, y)
+        P[:, j] = y.reshape(-1)
+    assert np.abs(H - H.T).max() <= 1e-12 * np.abs(H).max()
+    assert np.abs(P - P.T).max() <= 1e-12 * np.abs(P).max()
+    assert np.linalg.eigvalsh(0.5 * (P + P.T)).min() > 0
+    assert np.all(descent.pc_scale[descent.curvature <= 0] == 1.0)
+    assert descent.pc_scale.min() < 1.0 or pb.hard_wall
+
+
 @pytest.mark.parametrize("value", ["-1", "nan"])
 def test_a_bad_contact_factor_is_refused_by_name(coll, value):
     grid, h = rough(PETSc.COMM_WORLD, n=16)

@@ -10,12 +10,11 @@ bound-constrained Newton line search (``bnls``: Hessian K^-1 + diag Phi''(g), tr
 negative curvature handled by the line search's shift) preconditioned by the compliance K,
 diagonal in Fourier space (one FFT pair), scaled down on the nodes in repulsive contact:
 P = S K S, S_ii = (1 + f min(1, K_ii Phi''(g_i)))^-1/2 where Phi'' > 0.  There the Hessian's
-diagonal term holds the node at its gap, and K alone, which leaves it free, put the
-preconditioned spectrum of a rough 256^2 state at 0.05-27; with f = 10 it is 0.05-5.3 and
-the CG iterations half.  (f stands for a node's compliance within a contact patch, several
-times K_ii; the min keeps the nodes pushed deep into the wall, whose Phi'' is orders larger
-during a snap, at the same factor: scaled by 1 / (K_ii Phi'') their CG solves took
-thousands of iterations.)  Every accepted step lowers the energy, so the
+diagonal term holds the node at its gap, which K alone ignores: the top of the preconditioned
+spectrum is the contact patches' (docs/performance.md, "The descent's preconditioner").  f
+stands for a node's compliance within a contact patch, several times K_ii; the min keeps the
+nodes pushed deep into the wall during a snap, whose Phi'' is orders larger, at the same
+factor (scaled by 1 / (K_ii Phi'') their CG solves stagnated).  Every accepted step lowers the energy, so the
 state reached is a minimum next to the start: across a snap the path does not climb, and
 no pseudo-time is spent on it.  The gradient is p - a(g) per node [Pa], p = K^-1 u (+ the
 mean pressure): zero where the state is an equilibrium.  TAO itself sees the dimensionless
@@ -72,6 +71,15 @@ TAO_DEFAULTS = {
     "tao_bnk_ksp_max_it": "50",
     "tao_max_it": "500",
 }
+
+
+def pc_contact_factor(prefix: str) -> float:
+    """``-<prefix>descent_pc_contact_factor`` (f of the module doc), checked: finite, >= 0."""
+    value = PETSc.Options(prefix).getReal("descent_pc_contact_factor",
+                                          code_default("adhesion", "descent_pc_contact_factor"))
+    if not (np.isfinite(value) and value >= 0):
+        raise ValueError(f"-{prefix}descent_pc_contact_factor must be finite and >= 0, got {value}")
+    return value
 
 
 def descent_applies(problem) -> bool:
@@ -171,10 +179,7 @@ class EnergyDescent:
         self.tol = opts.getReal("tol", (0.5 if problem.hard_wall else 1.0) * problem.tol)
         self.offset_tol = opts.getReal("offset_tol", 0.1 * problem.tol)
         self.max_rounds = opts.getInt("max_rounds", code_default("adhesion", "descent_max_rounds"))
-        self.pc_contact_factor = opts.getReal("pc_contact_factor",
-                                              code_default("adhesion", "descent_pc_contact_factor"))
-        if not (np.isfinite(self.pc_contact_factor) and self.pc_contact_factor >= 0):
-            raise ValueError(f"-{self.prefix}pc_contact_factor must be finite and >= 0, got {self.pc_contact_factor}")
+        self.pc_contact_factor = pc_contact_factor(problem.prefix)
         for key, value in TAO_DEFAULTS.items():
             problem.set_default(key, value, self.prefix)
         op = problem.op
@@ -268,19 +273,24 @@ class EnergyDescent:
 
     def hessian_mult(self, x: np.ndarray, y: np.ndarray) -> None:
         self.p.op.convolve(self._k_inv, x, y)
-        dx = self.curvature * x
+        mean_x = self._sum(float(x.sum())) / self.n
         if self.p.hard_wall:
-            y += dx + self.c * self._sum(float(x.sum())) / self.n
+            y += self.curvature * x + self.c * mean_x
         else:
-            # P0 D P0 on the zero-mean part, 1 / K_ii (the compliance's inverse) on the mean
-            y += dx + (self._sum(float(x.sum())) / self.kappa - self._sum(float(dx.sum()))) / self.n
+            # P0 D P0 + 1 / K_ii on the mean (the compliance's inverse there): symmetric on
+            # every vector, a mean component included, which the scaled preconditioner's
+            # output has
+            dx = self.curvature * (x - mean_x)
+            y += dx + (mean_x / self.kappa - self._sum(float(dx.sum())) / self.n)
         y *= self.kappa     # the Hessian in v = u / z0 of the scaled energy
 
     def precondition(self, x: np.ndarray, y: np.ndarray) -> None:
         """y = S K S x / K_ii: the compliance, scaled down on the repulsive nodes."""
         s = self.pc_scale
-        self.p.op.convolve(self._compliance, x if s is None else s * x, y)
-        if s is not None:
+        if s is None:
+            self.p.op.convolve(self._compliance, x, y)
+        else:
+            self.p.op.convolve(self._compliance, np.multiply(s, x, out=y), y)
             y *= s
         y /= self.kappa
 
