@@ -14,16 +14,17 @@ diagonal term holds the node at its gap, which K alone ignores: the top of the p
 spectrum is the contact patches' (docs/performance.md, "The descent's preconditioner").  f
 stands for a node's compliance within a contact patch, several times K_ii; the min keeps the
 nodes pushed deep into the wall during a snap, whose Phi'' is orders larger, at the same
-factor (scaled by 1 / (K_ii Phi'') their CG solves stagnated).  Every accepted step lowers the energy, so the
-state reached is a minimum next to the start: across a snap the path does not climb, and
-no pseudo-time is spent on it.  The gradient is p - a(g) per node [Pa], p = K^-1 u (+ the
+factor (scaled by 1 / (K_ii Phi'') their CG solves stagnated).  Every accepted step lowers
+the energy, so the state reached is a minimum next to the start: across a snap the path
+does not climb, and no pseudo-time is spent on it.  The gradient is p - a(g) per node [Pa], p = K^-1 u (+ the
 mean pressure): zero where the state is an equilibrium.  TAO itself sees the dimensionless
 v = u / z0 and the energy times K_ii / z0^2 (K_ii the compliance's diagonal [m/Pa]): gradient,
 Hessian and steps of order one in any units, so that its absolute step sizes and shifts mean
 the same in nanometres as in metres.
 
 * Full LJ curve (no wall): the mean of u, which K^-1 does not see and the approach fixes,
-  is projected out exactly: g = h + (u - mean u) - delta, p = K^-1 u + mean a(g).
+  is projected out exactly: g = h + (u - mean u) - delta, p = K^-1 u + mean a(g); the
+  Hessian is K^-1 + P0 diag Phi'' P0 (P0 takes out the mean) + 1 / K_ii on the mean.
 * Hard wall: the bound u >= delta - h is TAO's variable bound (the contact nodes are its
   active set; the multiplier q = p - a(g) >= 0).  The mean of u is held by a penalty
   c/2 N mean(u)^2 + W N mean(u) (c the largest modal stiffness, W the mean-pressure
