@@ -16,8 +16,8 @@ stands for a node's compliance within a contact patch, several times K_ii; the m
 nodes pushed deep into the wall during a snap, whose Phi'' is orders larger, at the same
 factor (scaled by 1 / (K_ii Phi'') their CG solves stagnated).  Every accepted step lowers
 the energy, so the state reached is a minimum next to the start: across a snap the path
-does not climb, and no pseudo-time is spent on it.  The gradient is p - a(g) per node [Pa], p = K^-1 u (+ the
-mean pressure): zero where the state is an equilibrium.  TAO itself sees the dimensionless
+does not climb, and no pseudo-time is spent on it.  The gradient is p - a(g) per node [Pa],
+p = K^-1 u (+ the mean pressure): zero where the state is an equilibrium.  TAO itself sees the dimensionless
 v = u / z0 and the energy times K_ii / z0^2 (K_ii the compliance's diagonal [m/Pa]): gradient,
 Hessian and steps of order one in any units, so that its absolute step sizes and shifts mean
 the same in nanometres as in metres.
@@ -273,20 +273,22 @@ class EnergyDescent:
             self.pc_scale = None
 
     def hessian_mult(self, x: np.ndarray, y: np.ndarray) -> None:
+        """y = H x on rows of the dimensionless v = u / z0 (the scaled energy's Hessian)."""
         self.p.op.convolve(self._k_inv, x, y)
-        mean_x = self._sum(float(x.sum())) / self.n
         if self.p.hard_wall:
-            y += self.curvature * x + self.c * mean_x
+            y += self.curvature * x + self.c * self._sum(float(x.sum())) / self.n
         else:
             # P0 D P0 + 1 / K_ii on the mean (the compliance's inverse there): symmetric on
             # every vector, a mean component included, which the scaled preconditioner's
             # output has
+            mean_x = self._sum(float(x.sum())) / self.n
             dx = self.curvature * (x - mean_x)
             y += dx + (mean_x / self.kappa - self._sum(float(dx.sum())) / self.n)
         y *= self.kappa     # the Hessian in v = u / z0 of the scaled energy
 
     def precondition(self, x: np.ndarray, y: np.ndarray) -> None:
-        """y = S K S x / K_ii: the compliance, scaled down on the repulsive nodes."""
+        """y = S K S x / K_ii on rows of v = u / z0 (dimensionless): the compliance, scaled
+        down on the repulsive nodes."""
         s = self.pc_scale
         if s is None:
             self.p.op.convolve(self._compliance, x, y)

@@ -74,8 +74,8 @@ def main():
         ev = np.sort(ksp.computeEigenvalues().real)
         emit(n=args.size, w=args.w, contact_fraction=st.contact_fraction, converged=st.converged,
              stiff_max=float(stiff.max()), stiff_nodes=float(np.mean(stiff > 1.0)), factor=f,
-             cg_iterations=ksp.getIterationNumber(), reason=int(ksp.getConvergedReason()), eig_min=float(ev[0]), eig_max=float(ev[-1]),
-             condition=float(ev[-1] / ev[0]))
+             cg_iterations=ksp.getIterationNumber(), reason=int(ksp.getConvergedReason()),
+             eig_min=float(ev[0]), eig_max=float(ev[-1]), condition=float(ev[-1] / ev[0]))
         for obj in (ksp, H, b, x, rng):
             obj.destroy()
 
