@@ -95,12 +95,15 @@ def test_the_descents_hessian_is_symmetric_and_its_preconditioner_positive(coll,
     assert descent.pc_scale.min() < 1.0 or pb.hard_wall
 
 
-@pytest.mark.parametrize("value", ["-1", "nan"])
-def test_a_bad_contact_factor_is_refused_by_name(coll, value):
+@pytest.mark.parametrize("option, value, message", [
+    ("descent_pc_contact_factor", "-1", "descent_pc_contact_factor must be finite and >= 0"),
+    ("descent_pc_contact_factor", "nan", "descent_pc_contact_factor must be finite and >= 0"),
+    ("descent_tao_bnk_max_cg_its", "5", "descent_tao_bnk_max_cg_its must be 0")])
+def test_bad_descent_options_are_refused_by_name(coll, option, value, message):
     grid, h = rough(PETSc.COMM_WORLD, n=16)
     pb = AdhesiveProblem(grid, h, 1.0, make_law("lj", work_of_adhesion=0.05, z0=1.0), prefix="descbad_",
-                         petsc_options={"descent_pc_contact_factor": value})
-    with pytest.raises(ValueError, match="descbad_descent_pc_contact_factor must be finite and >= 0"):
+                         petsc_options={option: value})
+    with pytest.raises(ValueError, match="descbad_" + message):
         pb.solve(approach=float(h.min()[1]) + 0.5)
 
 

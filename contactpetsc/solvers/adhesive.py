@@ -44,7 +44,7 @@ from .adhesive_levels import CoarseLevels
 from .adhesive_residual import AdhesiveCallbacks
 from .base import AdhesiveSolveError, VIProblem, check_tolerance, reason_name, with_options
 from .continuation import Continuation
-from .descent import EnergyDescent, descent_applies, pc_contact_factor, require_descent
+from .descent import EnergyDescent, descent_applies, descent_options, require_descent
 from .fallback import FallbackChain
 from .history import SolveHistory
 from .load_control import solve_force
@@ -210,7 +210,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
             raise ValueError(f"-{self.prefix}strategy must be newton or descent, got {self.strategy!r}")
         if self.strategy == "descent":
             require_descent(self, f"-{self.prefix}strategy descent")
-        pc_contact_factor(self.prefix)    # bad input is refused at set-up, not at the first descent
+        descent_options(self.prefix)    # bad input is refused at set-up, not at the first descent
         # past the wall-time budget every solve stops (WALL_TIME_BUDGET): a batch job ends
         # cleanly with its finished steps written, an unresolvable case in bounded time
         self.time_budget = opts.getReal("time_budget", code_default("adhesion", "time_budget"))

@@ -74,12 +74,18 @@ TAO_DEFAULTS = {
 }
 
 
-def pc_contact_factor(prefix: str) -> float:
-    """``-<prefix>descent_pc_contact_factor`` (f of the module doc), checked: finite, >= 0."""
-    value = PETSc.Options(prefix).getReal("descent_pc_contact_factor",
-                                          code_default("adhesion", "descent_pc_contact_factor"))
+def descent_options(prefix: str) -> float:
+    """Check the descent's options under the problem prefix ``prefix``; returns
+    ``-<prefix>descent_pc_contact_factor`` (f of the module doc: finite, >= 0)."""
+    opts = PETSc.Options(prefix)
+    value = opts.getReal("descent_pc_contact_factor", code_default("adhesion", "descent_pc_contact_factor"))
     if not (np.isfinite(value) and value >= 0):
         raise ValueError(f"-{prefix}descent_pc_contact_factor must be finite and >= 0, got {value}")
+    # BNK's embedded CG steps call the convergence test without its Python context (petsc4py
+    # then fails inside TAOSolve with a TypeError): refused here, by name
+    if opts.getInt("descent_tao_bnk_max_cg_its", 0) != 0:
+        raise ValueError(f"-{prefix}descent_tao_bnk_max_cg_its must be 0 (BNK's CG steps are not supported "
+                         f"by the descent's convergence test)")
     return value
 
 
@@ -180,7 +186,7 @@ class EnergyDescent:
         self.tol = opts.getReal("tol", (0.5 if problem.hard_wall else 1.0) * problem.tol)
         self.offset_tol = opts.getReal("offset_tol", 0.1 * problem.tol)
         self.max_rounds = opts.getInt("max_rounds", code_default("adhesion", "descent_max_rounds"))
-        self.pc_contact_factor = pc_contact_factor(problem.prefix)
+        self.pc_contact_factor = descent_options(problem.prefix)
         for key, value in TAO_DEFAULTS.items():
             problem.set_default(key, value, self.prefix)
         op = problem.op
