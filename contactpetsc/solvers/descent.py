@@ -53,6 +53,7 @@ from petsc4py import PETSc
 
 from ..collective import max_error
 from ..log_events import log_event
+from .adhesive_residual import total_pressure
 from .options import code_default
 from .reduced import python_submatrix
 
@@ -355,8 +356,7 @@ class EnergyDescent:
         p, grid = self.p, self.grid
         self.delta = approach
         self._fields = None
-        blocks = p.blocks(start, readonly=True)
-        pressure0 = blocks.sum(axis=0)
+        pressure0 = total_pressure(p.blocks(start, readonly=True))
         # the start's displacement: u = K p (zero mean), the bound projected
         x = grid.create_vec()
         u = grid.rows(x)
