@@ -170,3 +170,28 @@ def test_the_descent_strategy_follows_newtons_path(coll, law_name):
             assert coll.max(np.abs(dg)) < 1e-6
     finally:
         opts.delValue("strategy")
+
+
+def test_the_energy_tangent_is_the_force_slope(coll):
+    """The full LJ curve's tangent from the energy's Hessian (``EnergyDescent.tangent``, what a
+    periodic full-LJ state's stiffness is) is dF/d delta: the central difference of the force
+    over two further solves agrees to the difference's own error, on any rank count."""
+    law = make_law("lj", work_of_adhesion=0.05, z0=1.0)
+    grid, h = rough(PETSc.COMM_WORLD)
+    opts = PETSc.Options("etan_")
+    for name, value in dict(tol=1e-11, tangent_ksp_rtol=1e-10).items():
+        opts.setValue(name, value)
+    try:
+        pb = AdhesiveProblem(grid, h, 1.0, law, prefix="etan_")
+        d, step = h.min()[1] + 0.75, 1e-3
+        st = pb.solve(approach=d)
+        assert st.converged and st.stable and np.isfinite(st.stiffness)
+        tangent = EnergyDescent(pb).tangent(d)
+        assert tangent is not None and tangent[1] == pytest.approx(st.stiffness, rel=1e-12)
+        lo, hi = pb.solve(approach=d - step), pb.solve(approach=d + step)
+        slope = (hi.force - lo.force) / (2 * step)
+        # second-order differences: the slope's error is step^2 F''' / 6, far below 1e-5 here
+        assert coll.max(abs(slope / st.stiffness - 1)) < 1e-5
+    finally:
+        for name in ("tol", "tangent_ksp_rtol"):
+            opts.delValue(name)

@@ -42,7 +42,7 @@ Options (prefix ``<problem prefix>descent_``): ``tol`` (error measure, z0), ``ma
 (Uzawa rounds of a hard wall), ``offset_tol`` (z0; default a tenth of the problem's ``tol``),
 ``pc_contact_factor`` (f above, default 10; 0: the compliance alone), and every ``tao_*``
 option (code defaults: ``tao_type bnls``, ``tao_bnk_as_type none``, ``tao_bnk_ksp_rtol 0.1``,
-``tao_bnk_ksp_max_it 50``, ``tao_max_it 500``; ``-<prefix>descent_tao_monitor`` prints its
+``tao_bnk_ksp_max_it 50``, ``tao_bnk_psfac 0``, ``tao_max_it 500``; ``-<prefix>descent_tao_monitor`` prints its
 iterations).
 """
 from __future__ import annotations
@@ -71,6 +71,10 @@ TAO_DEFAULTS = {
     # a truncated Newton step: across a large snap single CG solves ran to hundreds of
     # iterations for a direction the line search then cut (docs/performance.md)
     "tao_bnk_ksp_max_it": "50",
+    # the Hessian's shift, put on where CG meets negative curvature (a snap), is taken off at
+    # the next Newton step that succeeds: BNK's default only shrinks it by 0.4 a step (its floor
+    # is 1e-12), and what was left of it damped the Newton steps after the snap (docs/performance.md)
+    "tao_bnk_psfac": "0",
     "tao_max_it": "500",
 }
 
@@ -422,6 +426,49 @@ class EnergyDescent:
             return converged, reason, iterations, linear
         finally:
             for obj in (tao, H, x, gradient) + bounds:
+                obj.destroy()
+
+    def tangent(self, approach: float) -> tuple[np.ndarray, float] | None:
+        """(dp/d delta rows [Pa/m], dF/d delta [N/m]) of the problem's present state (full LJ
+        curve) at approach delta [m], from the descent's own Hessian and preconditioner: with
+        G(u, delta) = K^-1 u - P0 a(g) the energy's gradient, the branch's tangent t = du/d delta
+        solves H t = -dG/d delta = P0 Phi''(g) (CG, ``-<problem prefix>tangent_ksp_*``, code
+        default rtol 1e-3), and dp/d delta = K^-1 t + mean(Phi''(g) (1 - P0 t)), the force's
+        derivative the area times its mean.  None where CG does not converge (an unstable
+        state's indefinite H)."""
+        p = self.p
+        self.delta = float(approach)
+        self._fields = None
+        u = p.op.apply(total_pressure(p.blocks(p._x, readonly=True)), np.empty(self.shape))
+        self.set_curvature(self.fields(u)[0])
+        self._fields = None
+        H = self.shell((self.grid.n_local, self.n), _Hessian(self))
+        b, t = H.createVecs()
+        rhs = b.getArray().reshape(self.shape)
+        # the scaled Hessian K_ii H acts on t = du/d delta, dimensionless as v = u / z0 is
+        rhs[...] = self.curvature - self._sum(float(self.curvature.sum())) / self.n
+        rhs *= self.kappa
+        ksp = PETSc.KSP().create(comm=self.grid.comm)
+        ksp.setOptionsPrefix(p.prefix + "tangent_")
+        ksp.setType("cg")
+        ksp.setTolerances(rtol=1e-3, max_it=1000)
+        ksp.getPC().setType("python")
+        ksp.getPC().setPythonContext(_Compliance(self))
+        ksp.setOperators(H, H)
+        ksp.setFromOptions()
+        try:
+            ksp.solve(b, t)
+            if ksp.getConvergedReason() <= 0:
+                return None
+            tu = t.getArray(readonly=True).reshape(self.shape)
+            dp = p.op.convolve(self._k_inv, tu, np.empty(self.shape))
+            mean_t = self._sum(float(tu.sum())) / self.n
+            mean_dp = self._sum(float(np.dot(self.curvature.ravel(), 1.0 - (tu.ravel() - mean_t)))) / self.n
+            dp += mean_dp
+            area = self.grid.lengths[0] * self.grid.lengths[1]
+            return dp, mean_dp * area
+        finally:
+            for obj in (ksp, H, b, t):
                 obj.destroy()
 
     def _write_state(self, u: np.ndarray, at_bound: np.ndarray | None) -> None:
