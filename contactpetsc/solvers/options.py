@@ -87,6 +87,9 @@ ADHESION = (
     Option(("predictor",), (True,), "tangent predictor under displacement control"),
     Option(("stiffness",), (True,),
            "every displacement-controlled state's tangent stiffness (false: NaN, the tangent only for the predictor)"),
+    Option(("tangent_hessian",), (True,),
+           "the tangent by CG on the energy's Hessian where the descent applies to the full LJ curve (false: "
+           "the Jacobian's Krylov solve, as on hard walls)"),
     Option(("load_from_rest", "initial_step"), (False, 0.25),
            "first solve: load from separation in steps of at most this many z0"),
     Option(("strategy",), "descent (the full LJ curve on periodic grids with the nodal rule) or newton",

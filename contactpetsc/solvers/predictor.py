@@ -4,9 +4,10 @@ path along its branch (docs/formulation.md, "Adhesive contact: unknowns and Newt
 At a converged state the tangent t = dx/d delta solves J_II t = -dF/d delta on the inactive
 set I (contact nodes keep zero gap: dq from it, da from the law), one Krylov solve (options
 under ``<prefix>tangent_``; code default rtol 1e-2).  With the full LJ curve on a periodic grid
-(nodal rule) it is CG on the energy's Hessian instead (``EnergyDescent.tangent``, rtol 1e-3:
-a fifth fewer FFT pairs than the Jacobian's solve at 1e-2, and a stiffness to about 1e-3 where
-that one's was off by up to 15 %; docs/performance.md, "The tangent").  It gives
+(nodal rule) it is CG on the energy's Hessian instead (``EnergyDescent.tangent``, rtol 1e-3;
+``-<prefix>tangent_hessian false`` keeps the Jacobian's): fewer FFT pairs than the Jacobian's
+solve at 1e-2, and a stiffness to about 1e-3 where that one's was off by up to 15 %
+(docs/performance.md, "The tangent").  It gives
 
 * the Euler predictor of the next step, x + t (delta - delta_prev) (``-<prefix>predictor``);
 * the tangent stiffness dF/d delta [N/m] = sum(t) dA of every displacement-controlled state
@@ -33,6 +34,7 @@ class TangentPredictor:
         opts = PETSc.Options(problem.prefix)
         self.predicts = opts.getBool("predictor", code_default("adhesion", "predictor"))
         self.stiffness_each_state = opts.getBool("stiffness", code_default("adhesion", "stiffness"))
+        self.by_hessian = opts.getBool("tangent_hessian", code_default("adhesion", "tangent_hessian"))
         #: whether converged states get a tangent at all (the nested iteration's coarse levels: no)
         self.wanted = True
         self.value = None    # (approach [m], dx/d delta, dF/d delta [N/m]) at the last converged state
@@ -96,7 +98,7 @@ class TangentPredictor:
         """(dx/d delta, dF/d delta [N/m]) at the problem's present unknowns."""
         pb = self.problem
         grid = pb.grid
-        if not pb.hard_wall and descent_applies(pb):
+        if self.by_hessian and not pb.hard_wall and descent_applies(pb):
             # the full LJ curve: CG on the energy's Hessian, preconditioned as the descent's
             # steps; a stable state's Hessian is positive definite, an unstable one's falls
             # back on the Jacobian's Krylov solve below

@@ -69,12 +69,13 @@ def calibrate(grid, h, law, areas, steps=40, max_n=128):
         grid, h = coarse, hc
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UnderResolvedWarning)   # coarser than the case by design
-        # one preconditioner and one strategy (its descent fallback's too) whatever the defaults:
-        # the approaches stay those of earlier tables
+        # one preconditioner, one strategy (its descent fallback's too) and one tangent (the
+        # Newton steps' predictor) whatever the defaults: the approaches stay those of earlier tables
         pb = AdhesiveProblem(grid, h, 1.0, law, prefix="cal_", tol=1e-6, stability_check=False,
                              preconditioner="spectral",
                              petsc_options={"strategy": "newton", "descent_pc_contact_factor": 0,
-                                            "descent_tao_bnk_ksp_max_it": 10000})
+                                            "descent_tao_bnk_ksp_max_it": 10000, "tangent_hessian": False,
+                                            "descent_tao_bnk_psfac": 0.4})
     lo, hi = float(h.min()[1]) - law.length_scale(), float(h.max()[1])
     deltas, fractions = [], []
     for d in np.linspace(lo, hi, steps):
