@@ -173,29 +173,42 @@ def test_the_descent_strategy_follows_newtons_path(coll, law_name):
 
 
 @pytest.mark.parametrize("hessian", [True, False])
-def test_the_energy_tangent_is_the_force_slope(coll, hessian):
+def test_the_energy_tangent_is_the_force_slope(coll, monkeypatch, hessian):
     """The full LJ curve's tangent from the energy's Hessian (``EnergyDescent.tangent``, what a
-    periodic full-LJ state's stiffness is) is dF/d delta: the central difference of the force
-    over two further solves agrees to the difference's own error, on any rank count; so does
-    the Jacobian's (``-<prefix>tangent_hessian false``), and the two methods agree."""
+    periodic full-LJ state's tangent is) is dp/d delta and dF/d delta: the central differences
+    of the pressure field and of the force over two further solves agree to the differences'
+    own error, on any rank count; so does the Jacobian's (``-<prefix>tangent_hessian false``,
+    which then solves it alone), and the two methods agree."""
     law = make_law("lj", work_of_adhesion=0.05, z0=1.0)
     grid, h = rough(PETSc.COMM_WORLD)
     prefix = f"etan{int(hessian)}_"
     opts = PETSc.Options(prefix)
     for name, value in dict(tol=1e-11, tangent_ksp_rtol=1e-10, tangent_hessian=hessian).items():
         opts.setValue(name, value)
+    calls = []
+    energy_tangent = EnergyDescent.tangent
+    monkeypatch.setattr(EnergyDescent, "tangent", lambda self, d: calls.append(d) or energy_tangent(self, d))
     try:
         pb = AdhesiveProblem(grid, h, 1.0, law, prefix=prefix)
         d, step = h.min()[1] + 0.75, 1e-3
         st = pb.solve(approach=d)
         assert st.converged and st.stable and np.isfinite(st.stiffness)
-        tangent = EnergyDescent(pb).tangent(d)
-        assert tangent is not None
-        assert tangent[1] == pytest.approx(st.stiffness, rel=1e-12 if hessian else 1e-7)
+        assert len(calls) == int(hessian)
+        _, tv, stiffness = pb.predictor.copy()
+        dp = pb.blocks(tv, readonly=True)[0].copy()
+        tv.destroy()
+        other = energy_tangent(EnergyDescent(pb), d)
+        assert other is not None
+        assert other[1] == pytest.approx(stiffness, rel=1e-12 if hessian else 1e-7)
+        scale = coll.max(np.abs(dp))
+        assert coll.max(np.abs(other[0] - dp)) < (1e-12 if hessian else 1e-6) * scale
         lo, hi = pb.solve(approach=d - step), pb.solve(approach=d + step)
+        # second-order differences: their error is step^2 times the third derivative / 6,
+        # below 1e-5 of the slopes here
         slope = (hi.force - lo.force) / (2 * step)
-        # second-order differences: the slope's error is step^2 F''' / 6, far below 1e-5 here
-        assert coll.max(abs(slope / st.stiffness - 1)) < 1e-5
+        assert coll.max(abs(slope / stiffness - 1)) < 1e-5
+        fd = (grid.rows(hi.pressure, readonly=True) - grid.rows(lo.pressure, readonly=True)) / (2 * step)
+        assert coll.max(np.abs(fd - dp)) < 1e-4 * scale
     finally:
         for name in ("tol", "tangent_ksp_rtol", "tangent_hessian"):
             opts.delValue(name)

@@ -72,8 +72,9 @@ TAO_DEFAULTS = {
     # iterations for a direction the line search then cut (docs/performance.md)
     "tao_bnk_ksp_max_it": "50",
     # the Hessian's shift, put on where CG meets negative curvature (a snap), is taken off at
-    # the next Newton step that succeeds: BNK's default only shrinks it by 0.4 a step (its floor
-    # is 1e-12), and what was left of it damped the Newton steps after the snap (docs/performance.md)
+    # the next Newton step that succeeds: BNK's default only shrinks it, to min(0.4 shift,
+    # 0.1 |gradient|) a step (its floor 1e-12), and what was left of it damped the Newton
+    # steps after the snap (docs/performance.md)
     "tao_bnk_psfac": "0",
     "tao_max_it": "500",
 }
@@ -434,9 +435,12 @@ class EnergyDescent:
         G(u, delta) = K^-1 u - P0 a(g) the energy's gradient, the branch's tangent t = du/d delta
         solves H t = -dG/d delta = P0 Phi''(g) (CG, ``-<problem prefix>tangent_ksp_*``, code
         default rtol 1e-3), and dp/d delta = K^-1 t + mean(Phi''(g) (1 - P0 t)), the force's
-        derivative the area times its mean.  None where CG does not converge (an unstable
-        state's indefinite H)."""
+        derivative the area times its mean.  None where CG does not converge (it may not on an
+        unstable state's indefinite H; where it converges its solution is the tangent whatever
+        H's inertia).  Full LJ curve only (a hard wall's contact rows are the Jacobian's)."""
         p = self.p
+        if p.hard_wall:
+            raise ValueError("EnergyDescent.tangent: the full LJ curve only (a hard wall's tangent is the Jacobian's)")
         self.delta = float(approach)
         self._fields = None
         u = p.op.apply(total_pressure(p.blocks(p._x, readonly=True)), np.empty(self.shape))
@@ -444,19 +448,19 @@ class EnergyDescent:
         self._fields = None
         H = self.shell((self.grid.n_local, self.n), _Hessian(self))
         b, t = H.createVecs()
-        rhs = b.getArray().reshape(self.shape)
-        # the scaled Hessian K_ii H acts on t = du/d delta, dimensionless as v = u / z0 is
-        rhs[...] = self.curvature - self._sum(float(self.curvature.sum())) / self.n
-        rhs *= self.kappa
         ksp = PETSc.KSP().create(comm=self.grid.comm)
-        ksp.setOptionsPrefix(p.prefix + "tangent_")
-        ksp.setType("cg")
-        ksp.setTolerances(rtol=1e-3, max_it=1000)
-        ksp.getPC().setType("python")
-        ksp.getPC().setPythonContext(_Compliance(self))
-        ksp.setOperators(H, H)
-        ksp.setFromOptions()
         try:
+            rhs = b.getArray().reshape(self.shape)
+            # the scaled Hessian K_ii H acts on t = du/d delta, dimensionless as v = u / z0 is
+            rhs[...] = self.curvature - self._sum(float(self.curvature.sum())) / self.n
+            rhs *= self.kappa
+            ksp.setOptionsPrefix(p.prefix + "tangent_")
+            ksp.setType("cg")
+            ksp.setTolerances(rtol=1e-3, max_it=1000)
+            ksp.getPC().setType("python")
+            ksp.getPC().setPythonContext(_Compliance(self))
+            ksp.setOperators(H, H)
+            ksp.setFromOptions()
             ksp.solve(b, t)
             if ksp.getConvergedReason() <= 0:
                 return None
