@@ -14,7 +14,7 @@ from contactpetsc.geometry.surfaces import self_affine
 from contactpetsc.physics.interactions import make_law
 from contactpetsc.physics.traction import AdhesiveTraction
 from contactpetsc.solvers.adhesive import AdhesiveProblem
-from contactpetsc.solvers.adhesive_residual import total_pressure
+from contactpetsc.solvers import energy_tangent
 from contactpetsc.solvers.descent import EnergyDescent
 
 
@@ -74,9 +74,7 @@ def test_the_descents_hessian_is_symmetric_and_its_preconditioner_positive(coll,
     state = pb.solve(approach=approach)
     assert 0.01 < state.contact_fraction < 0.5
     descent = EnergyDescent(pb)
-    descent.delta = approach
-    u = pb.op.apply(total_pressure(pb.blocks(pb._x, readonly=True)), np.empty(descent.shape))
-    descent.set_curvature(descent.fields(u)[0])
+    descent.at_state()
     if not pb.hard_wall:
         assert (descent.curvature > 0).any()    # nodes in repulsive contact: S < 1 there
     n = descent.n
@@ -174,7 +172,7 @@ def test_the_descent_strategy_follows_newtons_path(coll, law_name):
 
 @pytest.mark.parametrize("hessian", [True, False])
 def test_the_energy_tangent_is_the_force_slope(coll, monkeypatch, hessian):
-    """The full LJ curve's tangent from the energy's Hessian (``EnergyDescent.tangent``, what a
+    """The full LJ curve's tangent from the energy's Hessian (``energy_tangent.tangent``, what a
     periodic full-LJ state's tangent is) is dp/d delta and dF/d delta: the central differences
     of the pressure field and of the force over two further solves agree to the differences'
     own error, on any rank count; so does the Jacobian's (``-<prefix>tangent_hessian false``,
@@ -186,8 +184,8 @@ def test_the_energy_tangent_is_the_force_slope(coll, monkeypatch, hessian):
     for name, value in dict(tol=1e-11, tangent_ksp_rtol=1e-10, tangent_hessian=hessian).items():
         opts.setValue(name, value)
     calls = []
-    energy_tangent = EnergyDescent.tangent
-    monkeypatch.setattr(EnergyDescent, "tangent", lambda self, d: calls.append(d) or energy_tangent(self, d))
+    solve_tangent = energy_tangent.tangent
+    monkeypatch.setattr(energy_tangent, "tangent", lambda descent: calls.append(descent) or solve_tangent(descent))
     try:
         pb = AdhesiveProblem(grid, h, 1.0, law, prefix=prefix)
         d, step = h.min()[1] + 0.75, 1e-3
@@ -197,7 +195,7 @@ def test_the_energy_tangent_is_the_force_slope(coll, monkeypatch, hessian):
         _, tv, stiffness = pb.predictor.copy()
         dp = pb.blocks(tv, readonly=True)[0].copy()
         tv.destroy()
-        other = energy_tangent(EnergyDescent(pb), d)
+        other = solve_tangent(EnergyDescent(pb))
         assert other is not None
         assert other[1] == pytest.approx(stiffness, rel=1e-12 if hessian else 1e-7)
         scale = coll.max(np.abs(dp))

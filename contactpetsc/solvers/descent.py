@@ -9,12 +9,8 @@ over the surface displacement u [m] (docs/formulation.md, "Energy descent"), wit
 bound-constrained Newton line search (``bnls``: Hessian K^-1 + diag Phi''(g), truncated CG,
 negative curvature handled by the line search's shift) preconditioned by the compliance K,
 diagonal in Fourier space (one FFT pair), scaled down on the nodes in repulsive contact:
-P = S K S, S_ii = (1 + f min(1, K_ii Phi''(g_i)))^-1/2 where Phi'' > 0.  There the Hessian's
-diagonal term holds the node at its gap, which K alone ignores: the top of the preconditioned
-spectrum is the contact patches' (docs/performance.md, "The descent's preconditioner").  f
-stands for a node's compliance within a contact patch, several times K_ii; the min keeps the
-nodes pushed deep into the wall during a snap, whose Phi'' is orders larger, at the same
-factor (scaled by 1 / (K_ii Phi'') their CG solves stagnated).  Every accepted step lowers
+P = S K S, S_ii = (1 + f min(1, K_ii Phi''(g_i)))^-1/2 where Phi'' > 0, the Hessian's diagonal
+term that K alone ignores (why f and the min: docs/formulation.md, "Energy descent").  Every accepted step lowers
 the energy, so the state reached is a minimum next to the start: across a snap the path
 does not climb, and no pseudo-time is spent on it.  The gradient is p - a(g) per node [Pa],
 p = K^-1 u (+ the mean pressure): zero where the state is an equilibrium.  TAO itself sees the dimensionless
@@ -284,6 +280,14 @@ class EnergyDescent:
         else:
             self.pc_scale = None
 
+    def at_state(self) -> np.ndarray:
+        """The Hessian's diagonal term and the preconditioner's scaling at the problem's present
+        state, from its own gaps (``AdhesiveCallbacks._gap``, one FFT pair); returns those [m]."""
+        p = self.p
+        g = p._gap(p.blocks(p._x, readonly=True), p._g)
+        self.set_curvature(g)
+        return g
+
     def hessian_mult(self, x: np.ndarray, y: np.ndarray) -> None:
         """y = H x on rows of the dimensionless v = u / z0 (the scaled energy's Hessian)."""
         self.p.op.convolve(self._k_inv, x, y)
@@ -427,52 +431,6 @@ class EnergyDescent:
             return converged, reason, iterations, linear
         finally:
             for obj in (tao, H, x, gradient) + bounds:
-                obj.destroy()
-
-    def tangent(self, approach: float) -> tuple[np.ndarray, float] | None:
-        """(dp/d delta rows [Pa/m], dF/d delta [N/m]) of the problem's present state (full LJ
-        curve) at approach delta [m], from the descent's own Hessian and preconditioner: with
-        G(u, delta) = K^-1 u - P0 a(g) the energy's gradient, the branch's tangent t = du/d delta
-        solves H t = -dG/d delta = P0 Phi''(g) (CG, ``-<problem prefix>tangent_ksp_*``, code
-        default rtol 1e-3), and dp/d delta = K^-1 t + mean(Phi''(g) (1 - P0 t)), the force's
-        derivative the area times its mean.  None where CG does not converge (it may not on an
-        unstable state's indefinite H; where it converges its solution is the tangent whatever
-        H's inertia).  Full LJ curve only (a hard wall's contact rows are the Jacobian's)."""
-        p = self.p
-        if p.hard_wall:
-            raise ValueError("EnergyDescent.tangent: the full LJ curve only (a hard wall's tangent is the Jacobian's)")
-        self.delta = float(approach)
-        self._fields = None
-        u = p.op.apply(total_pressure(p.blocks(p._x, readonly=True)), np.empty(self.shape))
-        self.set_curvature(self.fields(u)[0])
-        self._fields = None
-        H = self.shell((self.grid.n_local, self.n), _Hessian(self))
-        b, t = H.createVecs()
-        ksp = PETSc.KSP().create(comm=self.grid.comm)
-        try:
-            rhs = b.getArray().reshape(self.shape)
-            # the scaled Hessian K_ii H acts on t = du/d delta, dimensionless as v = u / z0 is
-            rhs[...] = self.curvature - self._sum(float(self.curvature.sum())) / self.n
-            rhs *= self.kappa
-            ksp.setOptionsPrefix(p.prefix + "tangent_")
-            ksp.setType("cg")
-            ksp.setTolerances(rtol=1e-3, max_it=1000)
-            ksp.getPC().setType("python")
-            ksp.getPC().setPythonContext(_Compliance(self))
-            ksp.setOperators(H, H)
-            ksp.setFromOptions()
-            ksp.solve(b, t)
-            if ksp.getConvergedReason() <= 0:
-                return None
-            tu = t.getArray(readonly=True).reshape(self.shape)
-            dp = p.op.convolve(self._k_inv, tu, np.empty(self.shape))
-            mean_t = self._sum(float(tu.sum())) / self.n
-            mean_dp = self._sum(float(np.dot(self.curvature.ravel(), 1.0 - (tu.ravel() - mean_t)))) / self.n
-            dp += mean_dp
-            area = self.grid.lengths[0] * self.grid.lengths[1]
-            return dp, mean_dp * area
-        finally:
-            for obj in (ksp, H, b, t):
                 obj.destroy()
 
     def _write_state(self, u: np.ndarray, at_bound: np.ndarray | None) -> None:

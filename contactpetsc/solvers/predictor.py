@@ -4,7 +4,7 @@ path along its branch (docs/formulation.md, "Adhesive contact: unknowns and Newt
 At a converged state the tangent t = dx/d delta solves J_II t = -dF/d delta on the inactive
 set I (contact nodes keep zero gap: dq from it, da from the law), one Krylov solve (options
 under ``<prefix>tangent_``; code default rtol 1e-2).  With the full LJ curve on a periodic grid
-(nodal rule) it is CG on the energy's Hessian instead (``EnergyDescent.tangent``, rtol 1e-3;
+(nodal rule) it is CG on the energy's Hessian instead (``energy_tangent.py``, rtol 1e-3;
 ``-<prefix>tangent_hessian false`` keeps the Jacobian's): fewer FFT pairs than the Jacobian's
 solve at 1e-2, and a stiffness to about 1e-3 where that one's was off by up to 15 %
 (docs/performance.md, "The tangent").  It gives
@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 from petsc4py import PETSc
 
+from . import energy_tangent
 from .descent import EnergyDescent, descent_applies
 from .newton import newton_ksp_type
 from .options import code_default
@@ -102,7 +103,7 @@ class TangentPredictor:
             # the full LJ curve: CG on the energy's Hessian, preconditioned as the descent's
             # steps; a stable state's Hessian is positive definite, an unstable one's falls
             # back on the Jacobian's Krylov solve below
-            found = EnergyDescent(pb).tangent(pb._approach)
+            found = energy_tangent.tangent(EnergyDescent(pb))
             if found is not None:
                 tv = pb.create_unknown()
                 pb.blocks(tv)[0] = found[0]

@@ -34,7 +34,6 @@ import numpy as np  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
 from contactpetsc.solvers.adhesive import AdhesiveProblem  # noqa: E402
-from contactpetsc.solvers.adhesive_residual import total_pressure  # noqa: E402
 from contactpetsc.solvers.descent import EnergyDescent, _Compliance, _Hessian  # noqa: E402
 
 sys.path.insert(0, HERE)
@@ -50,10 +49,7 @@ def main():
     pb = AdhesiveProblem(grid, h, 1.0, law, prefix="spec_", petsc_options={"stiffness": False})
     st = pb.solve(approach=approach, raise_on_failure=False, check_stability=False)
     descent = EnergyDescent(pb)
-    descent.delta = approach
-    u = pb.op.apply(total_pressure(pb.blocks(pb._x, readonly=True)), np.empty(descent.shape))
-    g = descent.fields(u)[0]
-    descent.set_curvature(g)
+    g = descent.at_state()
     stiff = descent.kappa * descent.curvature      # K_ii Phi''(g)
     for f in args.factors:
         descent.pc_contact_factor = f
