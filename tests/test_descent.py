@@ -61,6 +61,41 @@ def test_descent_reaches_newtons_state_on_any_rank_count(coll, law_name, pc_fact
     assert coll.max(np.abs(pressures[0] - pressures[1])) / float(law.peak_attraction) < 1e-9
 
 
+def test_the_gap_floor_does_not_hold_the_state(coll):
+    """The full LJ curve's gap floor (``-<prefix>descent_floor_factor``) caps the steps of nodes
+    that snap, never the state: with a floor far above the gaps the state needs (the repulsion
+    there a quarter of the start's largest pressure) the descent lowers it until it holds no
+    node, and lands in Newton's state, as without a floor, on one rank as on all."""
+    law = make_law("lj", work_of_adhesion=0.05, z0=1.0)
+    scale = float(law.peak_attraction)
+    pressures = []
+    for comm in (PETSc.COMM_WORLD, PETSc.COMM_SELF):
+        grid, h = rough(comm)
+        d0, d1 = h.min()[1] + 0.5, h.min()[1] + 1.0
+        newton = AdhesiveProblem(grid, h, 1.0, law, prefix="floornewt_")
+        newton.solve(approach=d0)
+        start = newton._x.copy()
+        reference = newton.solve(approach=d1)
+        for factor in (0.25, 0.0):
+            prefix = f"floor{int(100 * factor)}_"
+            opts = PETSc.Options(prefix)
+            opts.setValue("descent_floor_factor", factor)
+            opts.setValue("descent_tol", 1e-9)
+            try:
+                pb = AdhesiveProblem(grid, h, 1.0, law, prefix=prefix)
+                pb.prepare(d0)
+                ok, reason, _, _ = EnergyDescent(pb).descend(d1, start)
+            finally:
+                opts.delValue("descent_floor_factor")
+                opts.delValue("descent_tol")
+            assert ok, reason
+            assert ("gap floor lowered" in reason) == (factor > 0), reason
+            p = pb.blocks(pb._x, readonly=True)[0]
+            assert coll.max(np.abs(p - grid.rows(reference.pressure, readonly=True))) / scale < 1e-6
+        pressures.append(grid.gather(_as_vec(grid, p)))
+    assert coll.max(np.abs(pressures[0] - pressures[1])) / scale < 1e-9
+
+
 @pytest.mark.serial
 @pytest.mark.parametrize("law_name", ["lj", "hardwall-lj"])
 def test_the_descents_hessian_is_symmetric_and_its_preconditioner_positive(coll, law_name):
@@ -97,6 +132,8 @@ def test_the_descents_hessian_is_symmetric_and_its_preconditioner_positive(coll,
 @pytest.mark.parametrize("option, value, message", [
     ("descent_pc_contact_factor", "-1", "descent_pc_contact_factor must be finite and >= 0"),
     ("descent_pc_contact_factor", "nan", "descent_pc_contact_factor must be finite and >= 0"),
+    ("descent_floor_factor", "-4", "descent_floor_factor must be finite and >= 0"),
+    ("descent_floor_factor", "inf", "descent_floor_factor must be finite and >= 0"),
     ("descent_tao_bnk_max_cg_its", "5", "descent_tao_bnk_max_cg_its must be 0")])
 def test_bad_descent_options_are_refused_by_name(coll, option, value, message):
     grid, h = rough(PETSc.COMM_WORLD, n=16)

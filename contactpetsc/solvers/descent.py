@@ -21,6 +21,12 @@ the same in nanometres as in metres.
 * Full LJ curve (no wall): the mean of u, which K^-1 does not see and the approach fixes,
   is projected out exactly: g = h + (u - mean u) - delta, p = K^-1 u + mean a(g); the
   Hessian is K^-1 + P0 diag Phi'' P0 (P0 takes out the mean) + 1 / K_ii on the mean.
+  The gaps are held above a floor, TAO's bound: the gap where the law's repulsion is F times
+  the start's largest pressure (at least the peak attraction).  A node that snaps in is
+  stopped there by the line search's projection, each node on its own, instead of cutting
+  the one step length of the whole grid short; where the floor holds a node (at the bound,
+  pushed below it) the cap is raised 8x, the third time the floor goes, and the descent
+  goes on: the state reached has no node on the floor, an unconstrained minimum.
 * Hard wall: the bound u >= delta - h is TAO's variable bound (the contact nodes are its
   active set; the multiplier q = p - a(g) >= 0).  The mean of u is held by a penalty
   c/2 N mean(u)^2 + W N mean(u) (c the largest modal stiffness, W the mean-pressure
@@ -36,7 +42,8 @@ K^-1 is then diagonal in Fourier space and Phi is the law's energy at the nodes.
 
 Options (prefix ``<problem prefix>descent_``): ``tol`` (error measure, z0), ``max_rounds``
 (Uzawa rounds of a hard wall), ``offset_tol`` (z0; default a tenth of the problem's ``tol``),
-``pc_contact_factor`` (f above, default 10; 0: the compliance alone), and every ``tao_*``
+``pc_contact_factor`` (f above, default 10; 0: the compliance alone), ``floor_factor`` (F above,
+default 4; 0: no floor), and every ``tao_*``
 option (code defaults: ``tao_type bnls``, ``tao_bnk_as_type none``, ``tao_bnk_ksp_rtol 0.1``,
 ``tao_bnk_ksp_max_it 50``, ``tao_bnk_psfac 0``, ``tao_max_it 500``; ``-<prefix>descent_tao_monitor`` prints its
 iterations).
@@ -76,19 +83,23 @@ TAO_DEFAULTS = {
 }
 
 
-def descent_options(prefix: str) -> float:
+def descent_options(prefix: str) -> tuple[float, float]:
     """Check the descent's options under the problem prefix ``prefix``; returns
-    ``-<prefix>descent_pc_contact_factor`` (f of the module doc: finite, >= 0)."""
+    ``-<prefix>descent_pc_contact_factor`` (f of the module doc) and
+    ``-<prefix>descent_floor_factor`` (F of the module doc), both finite and >= 0."""
     opts = PETSc.Options(prefix)
-    value = opts.getReal("descent_pc_contact_factor", code_default("adhesion", "descent_pc_contact_factor"))
-    if not (np.isfinite(value) and value >= 0):
-        raise ValueError(f"-{prefix}descent_pc_contact_factor must be finite and >= 0, got {value}")
+    values = []
+    for name in ("descent_pc_contact_factor", "descent_floor_factor"):
+        value = opts.getReal(name, code_default("adhesion", name))
+        if not (np.isfinite(value) and value >= 0):
+            raise ValueError(f"-{prefix}{name} must be finite and >= 0, got {value}")
+        values.append(value)
     # BNK's embedded CG steps call the convergence test without its Python context (petsc4py
     # then fails inside TAOSolve with a TypeError): refused here, by name
     if opts.getInt("descent_tao_bnk_max_cg_its", 0) != 0:
         raise ValueError(f"-{prefix}descent_tao_bnk_max_cg_its must be 0 (BNK's CG steps are not supported "
                          f"by the descent's convergence test)")
-    return value
+    return values[0], values[1]
 
 
 def descent_applies(problem) -> bool:
@@ -133,7 +144,11 @@ class _Hessian:
         self.shift_value += s
 
     def createSubMatrix(self, mat, isrow, iscol=None, reuse=None, submat=None):
-        ctx = _Hessian(self.d, isrow.getIndices() - self.d.offset)
+        index = isrow.getIndices()
+        # a bounded TAO asks for the inactive set's matrix where no node is active (the full LJ
+        # curve's gap floor, a hard wall out of contact): this rank's whole block, no embedding
+        whole = len(index) == self.d.shape[0] * self.d.shape[1]
+        ctx = _Hessian(self.d, None if whole else index - self.d.offset)
         ctx.shift_value = self.shift_value
         return python_submatrix(ctx, mat)
 
@@ -188,7 +203,7 @@ class EnergyDescent:
         self.tol = opts.getReal("tol", (0.5 if problem.hard_wall else 1.0) * problem.tol)
         self.offset_tol = opts.getReal("offset_tol", 0.1 * problem.tol)
         self.max_rounds = opts.getInt("max_rounds", code_default("adhesion", "descent_max_rounds"))
-        self.pc_contact_factor = descent_options(problem.prefix)
+        self.pc_contact_factor, self.floor_factor = descent_options(problem.prefix)
         for key, value in TAO_DEFAULTS.items():
             problem.set_default(key, value, self.prefix)
         op = problem.op
@@ -313,6 +328,27 @@ class EnergyDescent:
             y *= s
         y /= self.kappa
 
+    def _set_floor(self, lower: np.ndarray, v: np.ndarray) -> None:
+        """TAO's lower bound (rows ``lower`` of v = u / z0) for the full LJ curve: the gap where
+        the law's repulsion is ``self._floor`` [Pa] (none where that is infinite), at the
+        present mean of v (the rows ``v``)."""
+        if not np.isfinite(self._floor):
+            lower[...] = PETSc.NINFINITY
+            return
+        floor = float(self.p.traction.repulsive_gap(np.array([self._floor]))[0][0])
+        mean_v = self._sum(float(v.sum())) / self.n
+        lower[...] = (floor - self.h + self.delta) / self.length + mean_v
+
+    def _held_by_floor(self, tao, pressure, a) -> bool:
+        """Whether the gap floor holds a node: at its bound with the gradient p - a pushing it
+        below (collective).  A node that snaps onto the floor is pushed back up (its repulsion
+        there is F times the start's largest pressure); one that is held needs a lower floor,
+        and the bounded Newton steps, which do not drop it from the system, would crawl."""
+        lower = tao.getVariableBounds()[0]
+        v = self.grid.rows(tao.getSolution(), readonly=True)
+        held = bool(np.any((v <= self.grid.rows(lower, readonly=True)) & (pressure > a)))
+        return self.comm.allreduce(held, op=MPI.LOR)
+
     # -- measures ----------------------------------------------------------------------
     def error(self, g, pressure, a) -> float:
         """The problem's error measures (``AdhesiveProblem._measures``) on (g, p, a), their max."""
@@ -343,6 +379,9 @@ class EnergyDescent:
         if tao.getConvergedReason() < 0:
             return       # TAO's own failure (line search, ...)
         if err <= self.tol:
+            tao.setConvergedReason(TAO_REASON.CONVERGED_USER)
+        elif self._floor is not None and np.isfinite(self._floor) and self._held_by_floor(tao, pressure, a):
+            self.pinned = True
             tao.setConvergedReason(TAO_REASON.CONVERGED_USER)
         elif it >= tao.getMaximumIterations() or not np.isfinite(err) or p.out_of_time():
             tao.setConvergedReason(TAO_REASON.DIVERGED_MAXITS)
@@ -381,10 +420,16 @@ class EnergyDescent:
         tao.setObjectiveGradient(self.objective_gradient, gradient)
         tao.setHessian(self.hessian, H)
         bounds = ()
-        if p.hard_wall:
+        self._floor = None
+        if p.hard_wall or self.floor_factor:
             lower, upper = x.duplicate(), x.duplicate()
-            grid.rows(lower)[...] = (approach - self.h) / self.length
             upper.set(PETSc.INFINITY)
+            if p.hard_wall:
+                grid.rows(lower)[...] = (approach - self.h) / self.length
+            else:
+                largest = self.comm.allreduce(float(pressure0.max(initial=0.0)), op=MPI.MAX)
+                self._floor = self.floor_factor * max(p.pressure_scale, largest)
+                self._set_floor(grid.rows(lower), u)
             tao.setVariableBounds((lower, upper))
             bounds = (lower, upper)
         tao.setSolution(x)
@@ -397,15 +442,23 @@ class EnergyDescent:
             pc.setType("python")
             pc.setPythonContext(_Compliance(self))
         self._lin0 = p.history[-1].linear_iterations if len(p.history) else 0
-        iterations = linear = rounds = 0
+        iterations = linear = rounds = floors = 0
         last = None     # (W, mean u) of the round before
         self.last_error = np.inf
         try:
             while True:
+                self.pinned = False
                 tao.solve()
                 rounds += 1
                 iterations += tao.getIterationNumber()
                 code = tao.getConvergedReason()
+                if self.pinned:
+                    # the floor held nodes that the state needs below it: lowered (the cap
+                    # 8x, the third time gone), the descent goes on from where it stopped
+                    floors += 1
+                    self._floor = self._floor * 8.0 if floors < 3 else np.inf
+                    self._set_floor(grid.rows(bounds[0]), grid.rows(x, readonly=True))
+                    continue
                 mean_u = self.fields(self.displacement(x))[3]
                 if not p.hard_wall or code < 0 or rounds >= self.max_rounds or abs(mean_u) <= self.offset_tol * p.z0:
                     break
@@ -423,7 +476,7 @@ class EnergyDescent:
             linear = self.pc_applies
             converged = code > 0
             reason = f"descent {reason_text(code)} ({iterations} TAO iterations"
-            reason += f", {rounds} rounds)" if p.hard_wall else ")"
+            reason += f", {rounds} rounds)" if p.hard_wall else (f", the gap floor lowered {floors}x)" if floors else ")")
             at_bound = None
             if p.hard_wall:
                 at_bound = grid.rows(x, readonly=True) <= grid.rows(bounds[0], readonly=True)

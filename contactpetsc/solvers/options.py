@@ -100,6 +100,9 @@ ADHESION = (
     Option(("descent_max_rounds",), (40,), "energy descent: a hard wall's mean-pressure rounds"),
     Option(("descent_pc_contact_factor",), (10.0,),
            "energy descent: its compliance preconditioner's scaling on nodes in repulsive contact (0: none)"),
+    Option(("descent_floor_factor",), (4.0,),
+           "energy descent, full LJ curve: its gaps held above the one where the repulsion is this times "
+           "the start's largest pressure (at least the peak attraction), lowered where a state needs it (0: none)"),
     Option(("descent_tol", "descent_offset_tol"), "tol (full LJ) or tol / 2, tol / 10",
            "energy descent: error measure reached before Newton polishes, a hard wall's mean offset (z0)"),
     Option(("descent_tao_*",), "bnls, bnk_as_type none, bnk_ksp_rtol 0.1, bnk_ksp_max_it 50, max_it 500",
