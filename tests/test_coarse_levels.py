@@ -35,3 +35,50 @@ def test_an_anchored_level_is_the_coarse_equilibrium_at_the_fine_state(coll, law
         assert abs(4 * coll.comm.allreduce(float(xc[0].sum())) - fine_sum) <= 1e-12 * fine_sum
     f.destroy()
     pb.destroy()
+
+
+def test_levels_the_descent_no_longer_needs_are_freed_and_remade_as_new(coll, monkeypatch):
+    """With the energy descent as the strategy (the full LJ curve on a periodic grid) the coarse
+    levels give only the first state: after it they are freed (no coarse problem survives a
+    collection, their FFT pairs stay counted), and where they are wanted again they are made
+    anew: the first state they give equals a fresh problem's."""
+    import gc
+    import weakref
+
+    from petsc4py import PETSc
+
+    from contactpetsc.geometry.surfaces import self_affine
+    from contactpetsc.grid import SurfaceGrid
+    from contactpetsc.physics.interactions import make_law
+    from contactpetsc.solvers.adhesive import AdhesiveProblem
+    from contactpetsc.solvers.adhesive_levels import CoarseLevels
+
+    grid = SurfaceGrid(64, 64, 1.0, periodic=True, comm=PETSc.COMM_WORLD)
+    h = self_affine(grid, hurst=0.8, rms_height=1.0, seed=7)
+    law = make_law("lj", work_of_adhesion=0.05, z0=1.0)
+    released = []
+    release = CoarseLevels.release
+
+    def watched(levels):
+        if levels._coarse:
+            released.append(weakref.ref(levels._coarse))
+        release(levels)
+    monkeypatch.setattr(CoarseLevels, "release", watched)
+    pb = AdhesiveProblem(grid, h, 1.0, law, prefix="release_")
+    d = float(h.min()[1]) + 0.75
+    st = pb.solve(approach=d)
+    assert st.converged and pb.strategy == "descent"
+    assert released and pb.coarse_levels._coarse is None
+    pairs = pb.coarse_levels.fft_pairs()
+    assert pairs > 0
+    gc.collect()
+    assert all(ref() is None for ref in released)
+    assert pb.coarse_levels.first_state(d)
+    again = pb.blocks(pb._x, readonly=True).copy()
+    assert pb.coarse_levels.fft_pairs() > pairs
+    fresh = AdhesiveProblem(grid, h, 1.0, law, prefix="release_")
+    fresh.snes()
+    assert fresh.coarse_levels.first_state(d)
+    assert coll.max(np.abs(again - fresh.blocks(fresh._x, readonly=True))) == 0.0
+    pb.destroy()
+    fresh.destroy()

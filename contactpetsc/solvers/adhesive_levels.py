@@ -175,6 +175,20 @@ class CoarseLevels:
         self._dropped_pairs += self._coarse.fft_pairs() / 4.0
         self._coarse, self.dropped = False, True
 
+    def release(self) -> None:
+        """Free the levels (problems, solvers, arrays) where the strategy will not use them again:
+        made anew if they are wanted after all, with the levels dropped so far dropped again
+        (``state``); their FFT pairs stay counted."""
+        if not self._coarse:
+            return
+        self._pending = self.state()
+        self._dropped_pairs += self._coarse.fft_pairs() / 4.0
+        self._coarse.coarse_levels.release()
+        # its Jacobian's context holds it, a cycle through PETSc that Python's collector
+        # cannot see: destroyed, not only its solvers
+        self._coarse.destroy()
+        self._coarse = None
+
     def state(self) -> list[bool]:
         """Which levels were dropped, from this one down (JSON-able; a level not made yet keeps
         what ``restore`` gave it): a restarted path that drops them again predicts as the
@@ -191,7 +205,7 @@ class CoarseLevels:
         self._pending = [bool(b) for b in state]
 
     def fft_pairs(self) -> float:
-        """FFT pairs of the levels below, kept and dropped, in the problem's grid units."""
+        """FFT pairs of the levels below, kept, dropped and released, in the problem's grid units."""
         return (self._coarse.fft_pairs() / 4.0 if self._coarse else 0.0) + self._dropped_pairs
 
     def destroy(self) -> None:
