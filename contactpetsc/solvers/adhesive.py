@@ -375,7 +375,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         if not converged:
             x_start.copy(self._x)   # keep the last good state as the next start
         x_start.destroy()
-        if self.strategy == "descent" and self._started:
+        if self.strategy == "descent":
             # the levels gave the first state; every later state is descended from the last
             # (they were a third of the memory a path holds)
             self.coarse_levels.release()

@@ -171,8 +171,10 @@ class CoarseLevels:
         return st.converged
 
     def _drop(self) -> None:
-        """Stop using the level after a failed solve there; its FFT pairs stay counted."""
+        """Stop using the level after a failed solve there (freed); its FFT pairs stay counted."""
         self._dropped_pairs += self._coarse.fft_pairs() / 4.0
+        self._coarse.coarse_levels.release()
+        self._coarse.destroy()
         self._coarse, self.dropped = False, True
 
     def release(self) -> None:
@@ -183,6 +185,7 @@ class CoarseLevels:
             return
         self._pending = self.state()
         self._dropped_pairs += self._coarse.fft_pairs() / 4.0
+        # a safeguard: a level's own solves release the levels below it already
         self._coarse.coarse_levels.release()
         # its Jacobian's context holds it, a cycle through PETSc that Python's collector
         # cannot see: destroyed, not only its solvers

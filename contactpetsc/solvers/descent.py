@@ -21,12 +21,14 @@ the same in nanometres as in metres.
 * Full LJ curve (no wall): the mean of u, which K^-1 does not see and the approach fixes,
   is projected out exactly: g = h + (u - mean u) - delta, p = K^-1 u + mean a(g); the
   Hessian is K^-1 + P0 diag Phi'' P0 (P0 takes out the mean) + 1 / K_ii on the mean.
-  The gaps are held above a floor, TAO's bound: the gap where the law's repulsion is F times
-  the start's largest pressure (at least the peak attraction).  A node that snaps in is
+  The gaps are held above a floor, TAO's lower bound on v: the gap where the law's repulsion
+  is F times the start's largest pressure (at least the peak attraction), at the start's
+  mean of v (the energy does not see the mean, which drifts during the descent and moves
+  the floor's gap with it; the start is projected onto the bound).  A node that snaps in is
   stopped there by the line search's projection, each node on its own, instead of cutting
   the one step length of the whole grid short; where the floor holds a node (at the bound,
-  pushed below it) the cap is raised 8x, the third time the floor goes, and the descent
-  goes on: the state reached has no node on the floor, an unconstrained minimum.
+  pushed below it) it is lowered, its pressure 8x, the third time removed, and the descent
+  goes on.  The stopping test is the unconstrained error, so a state reached is never held.
 * Hard wall: the bound u >= delta - h is TAO's variable bound (the contact nodes are its
   active set; the multiplier q = p - a(g) >= 0).  The mean of u is held by a penalty
   c/2 N mean(u)^2 + W N mean(u) (c the largest modal stiffness, W the mean-pressure
@@ -146,8 +148,11 @@ class _Hessian:
     def createSubMatrix(self, mat, isrow, iscol=None, reuse=None, submat=None):
         index = isrow.getIndices()
         # a bounded TAO asks for the inactive set's matrix where no node is active (the full LJ
-        # curve's gap floor, a hard wall out of contact): this rank's whole block, no embedding
-        whole = len(index) == self.d.shape[0] * self.d.shape[1]
+        # curve's gap floor, a hard wall out of contact): this rank's whole block in order, no
+        # embedding
+        n, offset = self.d.shape[0] * self.d.shape[1], self.d.offset
+        whole = len(index) == n and (n == 0 or (isrow.isSorted() and index[0] == offset
+                                                and index[-1] == offset + n - 1))
         ctx = _Hessian(self.d, None if whole else index - self.d.offset)
         ctx.shift_value = self.shift_value
         return python_submatrix(ctx, mat)
@@ -244,8 +249,11 @@ class EnergyDescent:
         return self.comm.allreduce(value)
 
     def fields(self, u: np.ndarray):
-        """(g, p, a, mean u, K^-1 u) of the displacement rows u: one FFT pair."""
-        if self._fields is not None and np.array_equal(self._fields[0], u):
+        """(g, p, a, mean u, K^-1 u) of the displacement rows u: one FFT pair (collective)."""
+        # the cache is used by all ranks or none: a rank whose rows did not change while
+        # another's did would skip the FFT's and the sums' collectives (a hang on 3 ranks)
+        same = self._fields is not None and np.array_equal(self._fields[0], u)
+        if self.comm.allreduce(same, op=MPI.LAND):
             return self._fields[1:]
         p = self.p
         mean_u = self._sum(float(u.sum())) / self.n
@@ -345,7 +353,7 @@ class EnergyDescent:
         there is F times the start's largest pressure); one that is held needs a lower floor,
         and the bounded Newton steps, which do not drop it from the system, would crawl."""
         lower = tao.getVariableBounds()[0]
-        v = self.grid.rows(tao.getSolution(), readonly=True)
+        v = self.grid.rows(tao.getSolution(), readonly=True)   # rank-local rows: reduced below
         held = bool(np.any((v <= self.grid.rows(lower, readonly=True)) & (pressure > a)))
         return self.comm.allreduce(held, op=MPI.LOR)
 
@@ -453,8 +461,8 @@ class EnergyDescent:
                 iterations += tao.getIterationNumber()
                 code = tao.getConvergedReason()
                 if self.pinned:
-                    # the floor held nodes that the state needs below it: lowered (the cap
-                    # 8x, the third time gone), the descent goes on from where it stopped
+                    # the floor held nodes that the state needs below it: lowered (its
+                    # pressure 8x, the third time removed), the descent goes on from there
                     floors += 1
                     self._floor = self._floor * 8.0 if floors < 3 else np.inf
                     self._set_floor(grid.rows(bounds[0]), grid.rows(x, readonly=True))
