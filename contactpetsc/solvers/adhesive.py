@@ -377,7 +377,6 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         x_start.destroy()
         if self.strategy == "descent":
             # the levels gave the first state; every later state is descended from the last
-            # (they were a third of the memory a path holds)
             self.coarse_levels.release()
         self.centre_owner = None
         PETSc.garbage_cleanup(self.grid.comm)

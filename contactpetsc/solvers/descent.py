@@ -60,7 +60,7 @@ from ..collective import max_error
 from ..log_events import log_event
 from .adhesive_residual import total_pressure
 from .options import code_default
-from .reduced import python_submatrix
+from .descent_contexts import Compliance, Hessian
 
 #: TAO's converged reasons (petsc4py >= 3.20 also names them ConvergedReason)
 TAO_REASON = getattr(PETSc.TAO, "ConvergedReason", None) or PETSc.TAO.Reason
@@ -115,72 +115,6 @@ def require_descent(problem, what: str) -> None:
     if not descent_applies(problem):
         raise ValueError(f"{what} needs the energy descent, which needs a periodic grid and the nodal rule "
                          f"(-{problem.prefix}element_integration false): K^-1 diagonal in Fourier space")
-
-
-class _Hessian:
-    """Python-context Mat: H = K_ii (K^-1 + diag Phi''(g)) on v = u / z0 (the mean as the
-    penalty of a hard wall, 1 on the projected-out mean of the full LJ curve).  Its
-    principal sub-matrices (TAO's inactive set) embed, apply and extract rank-locally."""
-
-    def __init__(self, descent, index=None):
-        self.d, self.index = descent, index
-        self.shift_value = 0.0
-        if index is not None:
-            shape = descent.shape
-            self._x, self._y = np.zeros(shape), np.zeros(shape)
-
-    def mult(self, mat, x, y):
-        xa, ya = x.getArray(readonly=True), y.getArray()
-        if self.index is None:
-            self.d.hessian_mult(xa.reshape(self.d.shape), ya.reshape(self.d.shape))
-        else:
-            self._x[...] = 0.0
-            self._x.reshape(-1)[self.index] = xa
-            self.d.hessian_mult(self._x, self._y)
-            ya[:] = self._y.reshape(-1)[self.index]
-        if self.shift_value:
-            ya += self.shift_value * xa
-
-    def shift(self, mat, s):
-        # BNLS's perturbation of an indefinite Hessian
-        self.shift_value += s
-
-    def createSubMatrix(self, mat, isrow, iscol=None, reuse=None, submat=None):
-        index = isrow.getIndices()
-        # a bounded TAO asks for the inactive set's matrix where no node is active (the full LJ
-        # curve's gap floor, a hard wall out of contact): this rank's whole block in order, no
-        # embedding
-        n, offset = self.d.shape[0] * self.d.shape[1], self.d.offset
-        whole = len(index) == n and (n == 0 or (isrow.isSorted() and index[0] == offset
-                                                and index[-1] == offset + n - 1))
-        ctx = _Hessian(self.d, None if whole else index - self.d.offset)
-        ctx.shift_value = self.shift_value
-        return python_submatrix(ctx, mat)
-
-    @property
-    def n_local(self) -> int:
-        return self.d.shape[0] * self.d.shape[1] if self.index is None else len(self.index)
-
-
-class _Compliance:
-    """Python-context PC: the compliance K (the inverse of the Hessian's elastic part), on TAO's
-    inactive set by embedding."""
-
-    def __init__(self, descent):
-        self.d = descent
-
-    def apply(self, pc, x, y):
-        d = self.d
-        d.pc_applies += 1      # one per Krylov iteration: the descent's linear iterations
-        xa, ya = x.getArray(readonly=True), y.getArray()
-        index = pc.getOperators()[1].getPythonContext().index
-        if index is None:
-            d.precondition(xa.reshape(d.shape), ya.reshape(d.shape))
-            return
-        d.work[...] = 0.0
-        d.work.reshape(-1)[index] = xa
-        d.precondition(d.work, d.work2)
-        ya[:] = d.work2.reshape(-1)[index]
 
 
 class EnergyDescent:
@@ -422,7 +356,7 @@ class EnergyDescent:
             np.maximum(u, approach - self.h, out=u)
         u /= self.length
         gradient = x.duplicate()
-        H = self.shell((grid.n_local, self.n), _Hessian(self))
+        H = self.shell((grid.n_local, self.n), Hessian(self))
         tao = PETSc.TAO().create(comm=grid.comm)
         tao.setOptionsPrefix(self.prefix)
         tao.setObjectiveGradient(self.objective_gradient, gradient)
@@ -448,7 +382,7 @@ class EnergyDescent:
         if ksp is not None:
             pc = ksp.getPC()
             pc.setType("python")
-            pc.setPythonContext(_Compliance(self))
+            pc.setPythonContext(Compliance(self))
         self._lin0 = p.history[-1].linear_iterations if len(p.history) else 0
         iterations = linear = rounds = floors = 0
         last = None     # (W, mean u) of the round before

@@ -12,7 +12,8 @@ from __future__ import annotations
 import numpy as np
 from petsc4py import PETSc
 
-from .descent import EnergyDescent, _Compliance, _Hessian
+from .descent import EnergyDescent
+from .descent_contexts import Compliance, Hessian
 
 
 def tangent(descent: EnergyDescent) -> tuple[np.ndarray, float] | None:
@@ -24,7 +25,7 @@ def tangent(descent: EnergyDescent) -> tuple[np.ndarray, float] | None:
     if p.hard_wall:
         raise ValueError("energy_tangent: the full LJ curve only (a hard wall's tangent is the Jacobian's)")
     descent.at_state()
-    H = descent.shell((descent.grid.n_local, descent.n), _Hessian(descent))
+    H = descent.shell((descent.grid.n_local, descent.n), Hessian(descent))
     b, t = H.createVecs()
     ksp = PETSc.KSP().create(comm=descent.grid.comm)
     try:
@@ -36,7 +37,7 @@ def tangent(descent: EnergyDescent) -> tuple[np.ndarray, float] | None:
         ksp.setType("cg")
         ksp.setTolerances(rtol=1e-3, max_it=1000)
         ksp.getPC().setType("python")
-        ksp.getPC().setPythonContext(_Compliance(descent))
+        ksp.getPC().setPythonContext(Compliance(descent))
         ksp.setOperators(H, H)
         ksp.setFromOptions()
         ksp.solve(b, t)

@@ -34,7 +34,8 @@ import numpy as np  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
 from contactpetsc.solvers.adhesive import AdhesiveProblem  # noqa: E402
-from contactpetsc.solvers.descent import EnergyDescent, _Compliance, _Hessian  # noqa: E402
+from contactpetsc.solvers.descent import EnergyDescent  # noqa: E402
+from contactpetsc.solvers.descent_contexts import Compliance, Hessian  # noqa: E402
 
 sys.path.insert(0, HERE)
 from rough_surface import adhesive_law, calibrate, rough_surface  # noqa: E402
@@ -54,13 +55,13 @@ def main():
     for f in args.factors:
         descent.pc_contact_factor = f
         descent.set_curvature(g)
-        H = descent.shell((grid.n_local, descent.n), _Hessian(descent))
+        H = descent.shell((grid.n_local, descent.n), Hessian(descent))
         ksp = PETSc.KSP().create(comm=grid.comm)
         ksp.setType("cg")
         ksp.setOperators(H)
         pc = ksp.getPC()
         pc.setType("python")
-        pc.setPythonContext(_Compliance(descent))
+        pc.setPythonContext(Compliance(descent))
         ksp.setTolerances(rtol=1e-8, max_it=5000)
         ksp.setComputeEigenvalues(True)
         b, x = H.createVecs()

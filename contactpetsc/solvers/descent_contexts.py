@@ -1,0 +1,77 @@
+"""The energy descent's Python-context Mat and PC (``descent.EnergyDescent``): the scaled
+energy's Hessian H = K_ii (K^-1 + diag Phi''(g)) on v = u / z0 and the compliance
+preconditioner S K S / K_ii, each on TAO's inactive set by embedding.  They hold no physics
+of their own: the products are ``EnergyDescent.hessian_mult`` and ``precondition``.
+Also used by the energy's tangent (``energy_tangent.py``) and the spectrum benchmark.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .reduced import python_submatrix
+
+
+class Hessian:
+    """Python-context Mat: H = K_ii (K^-1 + diag Phi''(g)) on v = u / z0 (the mean as the
+    penalty of a hard wall, 1 on the projected-out mean of the full LJ curve).  Its
+    principal sub-matrices (TAO's inactive set) embed, apply and extract rank-locally."""
+
+    def __init__(self, descent, index=None):
+        self.d, self.index = descent, index
+        self.shift_value = 0.0
+        if index is not None:
+            shape = descent.shape
+            self._x, self._y = np.zeros(shape), np.zeros(shape)
+
+    def mult(self, mat, x, y):
+        xa, ya = x.getArray(readonly=True), y.getArray()
+        if self.index is None:
+            self.d.hessian_mult(xa.reshape(self.d.shape), ya.reshape(self.d.shape))
+        else:
+            self._x[...] = 0.0
+            self._x.reshape(-1)[self.index] = xa
+            self.d.hessian_mult(self._x, self._y)
+            ya[:] = self._y.reshape(-1)[self.index]
+        if self.shift_value:
+            ya += self.shift_value * xa
+
+    def shift(self, mat, s):
+        # BNLS's perturbation of an indefinite Hessian
+        self.shift_value += s
+
+    def createSubMatrix(self, mat, isrow, iscol=None, reuse=None, submat=None):
+        index = isrow.getIndices()
+        # a bounded TAO asks for the inactive set's matrix where no node is active (the full LJ
+        # curve's gap floor, a hard wall out of contact): this rank's whole block in order, no
+        # embedding
+        n, offset = self.d.shape[0] * self.d.shape[1], self.d.offset
+        whole = len(index) == n and (n == 0 or (isrow.isSorted() and index[0] == offset
+                                                and index[-1] == offset + n - 1))
+        ctx = Hessian(self.d, None if whole else index - self.d.offset)
+        ctx.shift_value = self.shift_value
+        return python_submatrix(ctx, mat)
+
+    @property
+    def n_local(self) -> int:
+        return self.d.shape[0] * self.d.shape[1] if self.index is None else len(self.index)
+
+
+class Compliance:
+    """Python-context PC: the compliance K (the inverse of the Hessian's elastic part), on TAO's
+    inactive set by embedding."""
+
+    def __init__(self, descent):
+        self.d = descent
+
+    def apply(self, pc, x, y):
+        d = self.d
+        d.pc_applies += 1      # one per Krylov iteration: the descent's linear iterations
+        xa, ya = x.getArray(readonly=True), y.getArray()
+        index = pc.getOperators()[1].getPythonContext().index
+        if index is None:
+            d.precondition(xa.reshape(d.shape), ya.reshape(d.shape))
+            return
+        d.work[...] = 0.0
+        d.work.reshape(-1)[index] = xa
+        d.precondition(d.work, d.work2)
+        ya[:] = d.work2.reshape(-1)[index]
