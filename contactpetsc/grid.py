@@ -203,7 +203,6 @@ class SurfaceGrid:
         self.ys, self.ye = self.y_ranges[rank // self.px]
         self._stencil_width = int(stencil_width)
         self._da = None
-        self._halo = None    # (global, local) work Vecs of halo_rows
 
     @staticmethod
     def _ranges(ownership, parts: int, n: int, name: str, what: str) -> list[tuple[int, int]]:
@@ -385,8 +384,8 @@ class SurfaceGrid:
         """Fill ``lo`` with row ys - 1 and ``hi`` with row ye of a (ny_loc, nx_loc) array, and
         ``left``/``right`` (if given) with columns xs - 1 and xe.
 
-        Rows and columns come from the neighbouring ranks through the DMDA's ghost exchange
-        (``globalToLocal``; periodic wrap-around on a periodic grid).  Beyond an isolated grid's edge: zeros
+        Rows and columns come from the neighbouring ranks (periodic wrap-around on a periodic
+        grid), point to point.  Beyond an isolated grid's edge: zeros
         (``edge="zero"``) or the edge row (column) repeated (``edge="repeat"``).
         Collective; ``lo`` and ``hi`` are caller-owned buffers of length nx_loc, ``left`` and
         ``right`` of length ny_loc.
@@ -404,36 +403,34 @@ class SurfaceGrid:
             if right is not None:
                 right[...] = rows[:, 0] if wrap else (0.0 if edge == "zero" else rows[:, -1])
             return lo, hi
-        # the DMDA's own ghost exchange (periodic wrap-around included); its work Vecs are
-        # made once per grid
-        da = self.da
-        if self._halo is None:
-            self._halo = (da.createGlobalVec(), da.createLocalVec())
-        global_vec, local_vec = self._halo
-        self.rows(global_vec)[...] = rows
-        da.globalToLocal(global_vec, local_vec)
-        (gxs, gxe), (gys, gye) = da.getGhostRanges()
-        ghosted = local_vec.getArray(readonly=True).reshape(gye - gys, gxe - gxs)
-        x0 = self.xs - gxs
-        if gys < self.ys:
-            lo[...] = ghosted[self.ys - 1 - gys, x0:x0 + self.nx_local]
-        else:
-            lo[...] = 0.0 if edge == "zero" else rows[0]
-        if gye > self.ye:
-            hi[...] = ghosted[self.ye - gys, x0:x0 + self.nx_local]
-        else:
-            hi[...] = 0.0 if edge == "zero" else rows[-1]
-        y0 = self.ys - gys
-        if left is not None:
-            if gxs < self.xs:
-                left[...] = ghosted[y0:y0 + self.ny_local, x0 - 1]
-            else:
-                left[...] = 0.0 if edge == "zero" else rows[:, 0]
-        if right is not None:
-            if gxe > self.xe:
-                right[...] = ghosted[y0:y0 + self.ny_local, x0 + self.nx_local]
-            else:
-                right[...] = 0.0 if edge == "zero" else rows[:, -1]
+        # point to point with the four neighbouring blocks (rank = b + px a; periodic: wrapped):
+        # edge rows and columns only, where the DMDA's ghost exchange took two grid-sized Vecs
+        comm = self.mpi_comm
+        rank = comm.Get_rank()
+        b, a = rank % self.px, rank // self.px
+
+        def neighbour(db: int, da: int) -> int:
+            bb, aa = b + db, a + da
+            if self.periodic:
+                return bb % self.px + self.px * (aa % self.py)
+            return bb + self.px * aa if (0 <= bb < self.px and 0 <= aa < self.py) else MPI.PROC_NULL
+
+        def exchange(first, last, before, after, db, da, tag):
+            # ``before`` gets the previous block's last line, ``after`` the next block's first
+            prev, nxt = neighbour(-db, -da), neighbour(db, da)
+            comm.Sendrecv(np.ascontiguousarray(last), dest=nxt, sendtag=tag, recvbuf=before, source=prev, recvtag=tag)
+            comm.Sendrecv(np.ascontiguousarray(first), dest=prev, sendtag=tag + 1, recvbuf=after, source=nxt,
+                          recvtag=tag + 1)
+            if prev == MPI.PROC_NULL:
+                before[...] = 0.0 if edge == "zero" else first
+            if nxt == MPI.PROC_NULL:
+                after[...] = 0.0 if edge == "zero" else last
+
+        exchange(rows[0], rows[-1], lo, hi, 0, 1, 7301)
+        if left is not None or right is not None:
+            left = np.empty(rows.shape[0]) if left is None else left
+            right = np.empty(rows.shape[0]) if right is None else right
+            exchange(rows[:, 0], rows[:, -1], left, right, 1, 0, 7303)
         return lo, hi
 
     def gather(self, vec: PETSc.Vec, root: int | None = None) -> np.ndarray | None:

@@ -34,12 +34,14 @@ def test_vec_from_array_gather_round_trip(coll, periodic):
 
 @pytest.mark.parametrize("periodic", [True, False])
 @pytest.mark.parametrize("edge", ["zero", "repeat"])
-def test_halo_rows_are_the_neighbouring_rows_of_the_whole_array(coll, periodic, edge):
+@pytest.mark.parametrize("blocks", [False, True])
+def test_halo_rows_are_the_neighbouring_rows_of_the_whole_array(coll, periodic, edge, blocks):
     """halo_rows gives the rows ys - 1, ye and columns xs - 1, xe of the global array: the
     wrap-around on a periodic cell, zeros or the edge repeated beyond an isolated one (the
-    truth: the global array padded by numpy), on any split."""
+    truth: the global array padded by numpy), on any split: slabs, or every rank a block
+    along x."""
     nx, ny = 11, 17
-    g = SurfaceGrid(nx, ny, 1.0, periodic=periodic)
+    g = SurfaceGrid(nx, ny, 1.0, periodic=periodic, px=coll.size if blocks else 1)
     full = np.random.default_rng(3).standard_normal((ny, nx))   # rows j, columns i
     mode = "wrap" if periodic else ("constant" if edge == "zero" else "edge")
     padded = np.pad(full, 1, mode=mode)

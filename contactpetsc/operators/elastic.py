@@ -91,8 +91,16 @@ class HalfSpaceOperator:
         return type(self)(grid, self.e_star, **kw)
 
     def _set_pairs(self):
+        # the kernels are kept only as views of their pairs (one double per point less each)
         self._kernel_pairs = self.as_pairs(self.kernel)
-        self._inverse_pairs = None  # built on first use of K^-1
+        self.kernel = self._kernel_pairs[..., 0]
+        self._inverse_pairs = self.as_pairs(self.inverse_kernel)
+        self.inverse_kernel = self._inverse_pairs[..., 0]
+
+    @property
+    def inverse_pairs(self) -> np.ndarray:
+        """K^-1's spectrum in the pair layout of ``convolve`` (read-only use)."""
+        return self._inverse_pairs
 
     @property
     def fft_pairs(self) -> int:
@@ -131,8 +139,6 @@ class HalfSpaceOperator:
         """Pressure p = K^-1 v [Pa] (see the class notes for where K^-1 is exact)."""
         ev = log_event("CPElasticSolve")
         ev.begin()
-        if self._inverse_pairs is None:
-            self._inverse_pairs = self.as_pairs(self.inverse_kernel)
         self.convolve(self._inverse_pairs, displacement_rows, out_rows)
         ev.end()
         return out_rows

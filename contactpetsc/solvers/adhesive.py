@@ -139,9 +139,18 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self.fallback = None            # the fallback chain (``FallbackChain``), made with the solvers
         self._prev_approach = None
         self._budget_start = None       # time.monotonic() at the first solve under a time budget
-        self._g = np.zeros((grid.ny_local, grid.nx))
-        self._v = np.zeros_like(self._g)
-        self._v2 = np.zeros_like(self._g)
+        self._scratch = None            # (gap, displacement, product) rows: ``_g``, ``_v``, ``_v2``
+
+    # -- scratch rows (made on demand, freed by ``release``) ----------------------------------
+    def _scratch_rows(self, k: int) -> np.ndarray:
+        if self._scratch is None:
+            shape = (self.grid.ny_local, self.grid.nx)
+            self._scratch = (np.zeros(shape), np.zeros(shape), np.zeros(shape))
+        return self._scratch[k]
+
+    _g = property(lambda self: self._scratch_rows(0), doc="the gap [m] of the last residual or Jacobian")
+    _v = property(lambda self: self._scratch_rows(1), doc="the displacement K p [m] of the last residual")
+    _v2 = property(lambda self: self._scratch_rows(2), doc="scratch of the Jacobian's products")
 
     # -- layout ------------------------------------------------------------------------
     def set_control_node(self, node: tuple[int, int] | None = None) -> None:
@@ -241,20 +250,40 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
                                                      self._jac, comm=self.grid.comm))
         J.setUp()
         self._x, self._f = self.create_unknown(), self.create_unknown()
-        self._x_solve_best = self.create_unknown()   # the iterate of smallest error of the running solve
+        self._x_solve_best = None   # the iterate of smallest error of the running solve
         self._solve_best = (np.inf, "")
-        lower, upper = self.create_unknown(), self.create_unknown()
-        upper.set(PETSc.INFINITY)
-        lower.set(PETSc.NINFINITY)
+        # the full LJ curve has no bound: SNES VI makes its infinite ones at set-up and frees
+        # them with its work vectors (``VINewton.release``)
+        self._bounds = None
         if self.hard_wall:
+            lower, upper = self.create_unknown(), self.create_unknown()
+            upper.set(PETSc.INFINITY)
+            lower.set(PETSc.NINFINITY)
             self.blocks(lower)[0] = 0.0
-        self._bounds = (lower, upper)
+            self._bounds = (lower, upper)
         self._J = J
         self.newton = VINewton(self, self.prefix, newton_linesearch(self.hard_wall), self.max_it,
                                1000 if self.hard_wall else 30)
         self._snes = self.newton.snes
         self.fallback.build()
         return self._snes
+
+    def release(self) -> None:
+        """Free what only a running solve needs (memory between states; docs/performance.md,
+        "Memory of an adhesive path"): the best iterates, the preconditioners' levels and
+        arrays, the products' scratch (each Newton run frees its SNES's work vectors); under the descent strategy the nested iteration's
+        levels too (they gave the first state; every later state is descended from the last).
+        All are made again on demand.  Collective."""
+        self.newton.release()
+        if self.fallback.ptc is not None:
+            self.fallback.ptc.release()
+        self._jac.release()
+        self._scratch = None
+        if self._x_solve_best is not None:
+            self._x_solve_best.destroy()
+            self._x_solve_best = None
+        if self.strategy == "descent":
+            self.coarse_levels.release()
 
     # -- public API --------------------------------------------------------------------------
     def solve_force(self, force: float, *, rel_tol: float = 1e-8, max_updates: int = 30,
@@ -332,6 +361,9 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         descend = self.strategy == "descent" and approach is not None
         if descend:
             ok, d_reason, d_newton, d_linear = EnergyDescent(self).descend(float(approach), x_start)
+            # the descent's PETSc objects (and through their contexts its arrays) are freed
+            # here, not at the end of the solve: Newton and the check come first
+            PETSc.garbage_cleanup(self.grid.comm)
         coarse_predicted = (not descend and approach is not None
                             and self.coarse_levels.predict(float(approach), self._prev_approach))
         if not (coarse_predicted or descend) and approach is not None:
@@ -375,10 +407,8 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         if not converged:
             x_start.copy(self._x)   # keep the last good state as the next start
         x_start.destroy()
-        if self.strategy == "descent":
-            # the levels gave the first state; every later state is descended from the last
-            self.coarse_levels.release()
         self.centre_owner = None
+        self.release()
         PETSc.garbage_cleanup(self.grid.comm)
         if not converged and raise_on_failure:
             ksp_reason = reason_name(self.newton.last_ksp_reason, PETSc.KSP.ConvergedReason)

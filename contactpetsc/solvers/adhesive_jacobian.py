@@ -36,22 +36,29 @@ class AdhesiveJacobian:
         self.grid = problem.grid
         self.prefix = problem.prefix
         self.pc_data = PreconditionerData()   # shared by the preconditioners of every solve
-        grid = self.grid
-        shape = (grid.ny_local, grid.nx)
-        self.w = np.zeros(shape)
-        self.aw = np.zeros(shape)
+        self._work = None                     # (K p, a'(g) K p) of a product: made on demand
+
+    def release(self) -> None:
+        """Free the products' and the preconditioners' arrays between solves (made again on
+        demand)."""
+        self._work = None
+        self.pc_data.release()
 
     def apply_full(self, blocks_in: np.ndarray, blocks_out: np.ndarray) -> np.ndarray:
         """J on (nb, ny_loc, nx) arrays."""
         pb = self.problem
-        w = self.op.apply(total_pressure(blocks_in), self.w)
+        if self._work is None:
+            shape = (self.grid.ny_local, self.grid.nx)
+            self._work = (np.zeros(shape), np.zeros(shape))
+        w_rows, aw = self._work
+        w = self.op.apply(total_pressure(blocks_in), w_rows)
         if pb.centre_owner is not None:
             w -= pb.centre_value(w)
         if pb.hard_wall:
             blocks_out[0] = w
         a_out = blocks_out[-1]
-        pb.traction.apply_derivative(w, self.aw)
-        np.subtract(blocks_in[-1], self.aw, out=a_out)
+        pb.traction.apply_derivative(w, aw)
+        np.subtract(blocks_in[-1], aw, out=a_out)
         a_out *= pb.kappa
         if pb._gap_rows is not None:
             at, slope = pb._gap_at

@@ -278,7 +278,12 @@ class AdhesiveMLMIPC:
     _data = None
 
     def view(self, pc, viewer=None):
-        cyc = self.cycle
+        cyc = getattr(self, "cycle", None)
+        if cyc is None:
+            view_context(viewer, [
+                "contactpetsc AdhesiveMLMIPC: V-cycle on K + diag(alpha / beta), the whole reduced adhesive Jacobian",
+                "  not set up: its levels are made at the next solve's set-up (freed after each Newton run)"])
+            return
         view_context(viewer, [
             "contactpetsc AdhesiveMLMIPC: V-cycle on K + diag(alpha / beta), the whole reduced adhesive Jacobian",
             f"  {cyc.describe()}; K-dominated rows: {cyc.n_kdom} of {self.cycle.grid.nx * self.cycle.grid.ny}"])

@@ -172,6 +172,8 @@ class AdhesiveCallbacks:
         far (an infinite error, a NaN's, never is)."""
         if error < self._solve_best[0]:
             self._solve_best = (error, label)
+            if self._x_solve_best is None:   # made on demand, freed by ``release``
+                self._x_solve_best = x.duplicate()
             x.copy(self._x_solve_best)
 
     @property

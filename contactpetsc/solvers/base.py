@@ -201,13 +201,20 @@ class VIProblem:
         snes = destroy_at_exit(PETSc.SNES().create(comm=self.grid.comm))
         snes.setOptionsPrefix(prefix)
         snes.setType(VI_SNES)
-        snes.setFunction(self._residual, self._f)
-        snes.setVariableBounds(*bounds)
-        snes.setJacobian(self._jacobian, self._J, self._J)
+        self.attach_vi_snes(snes, bounds)
         snes.setTolerances(rtol=0.0, atol=0.0, stol=0.0, max_it=max_it)
         snes.setConvergenceTest(self._converged)
         self.set_default("snes_vi_zero_tolerance", VI_ZERO_TOLERANCE, prefix)
         return snes
+
+    def attach_vi_snes(self, snes: PETSc.SNES, bounds) -> None:
+        """Give ``snes`` the problem's residual, Jacobian and ``bounds`` (lower, upper; None: the
+        VI's own infinite ones): at creation, and again after ``SNESReset`` (which drops them
+        with the work vectors)."""
+        snes.setFunction(self._residual, self._f)
+        if bounds is not None:
+            snes.setVariableBounds(*bounds)
+        snes.setJacobian(self._jacobian, self._J, self._J)
 
     def gap(self, pressure: np.ndarray, out: np.ndarray, displacement: np.ndarray | None = None) -> np.ndarray:
         """g = h + K p - delta [m] on this rank's rows for pressure rows ``p`` [Pa]; K p goes

@@ -155,7 +155,7 @@ class EnergyDescent:
         # Hessian's scale there (a unit would be off by the units' scale in metres and pascals)
         mean_value = 1.0 / self.c if self.c else problem.kappa
         compliance = np.where(mean_mode, mean_value, 1.0 / np.where(mean_mode, 1.0, stiffness))
-        self._k_inv = op.as_pairs(op.inverse_kernel)
+        self._k_inv = op.inverse_pairs
         self._compliance = op.as_pairs(compliance * norm)
         self.h = grid.rows(problem.heights, readonly=True)
         # TAO works in v = u / z0 on the energy times K_ii / z0^2: gradient, Hessian and steps of
@@ -167,8 +167,10 @@ class EnergyDescent:
         self.delta = 0.0
         self.curvature = np.zeros(self.shape)
         self.pc_scale = None         # S of the preconditioner (None: S = 1)
-        self.work, self.work2 = np.zeros(self.shape), np.zeros(self.shape)
-        self._fields = None          # (u copy, g, p, a, mean u, K^-1 u) of the last evaluation
+        self._embed = None           # the preconditioner's full (input, output) on a proper inactive set
+        # the last evaluation's fields, overwritten by the next one (never two sets alive):
+        # (v copy, u, g, p, a, K^-1 u) rows and mean u; ``_valid`` whether they are v's
+        self._rows, self._mean_u, self._valid = None, 0.0, False
         self.pc_applies = 0
 
     # -- PETSc objects ------------------------------------------------------------------
@@ -182,37 +184,43 @@ class EnergyDescent:
     def _sum(self, value: float) -> float:
         return self.comm.allreduce(value)
 
-    def fields(self, u: np.ndarray):
-        """(g, p, a, mean u, K^-1 u) of the displacement rows u: one FFT pair (collective)."""
+    def fields(self, x: PETSc.Vec):
+        """(u, g, p, a, mean u, K^-1 u) at TAO's variable ``x`` (v = u / z0; rows [m] and [Pa]):
+        one FFT pair, or none where they are the last evaluation's (collective).  The rows are
+        the descent's own, valid until the next evaluation at another ``x``."""
+        v = x.getArray(readonly=True).reshape(self.shape)
         # the cache is used by all ranks or none: a rank whose rows did not change while
         # another's did would skip the FFT's and the sums' collectives (a hang on 3 ranks)
-        same = self._fields is not None and np.array_equal(self._fields[0], u)
+        same = self._valid and np.array_equal(self._rows[0], v)
         if self.comm.allreduce(same, op=MPI.LAND):
-            return self._fields[1:]
+            return self._rows[1:5] + (self._mean_u, self._rows[5])
+        if self._rows is None:
+            self._rows = tuple(np.empty(self.shape) for _ in range(6))
+        v_copy, u, g, pressure, a, k_inv_u = self._rows
+        v_copy[...] = v
+        np.multiply(v, self.length, out=u)
         p = self.p
         mean_u = self._sum(float(u.sum())) / self.n
-        k_inv_u = p.op.convolve(self._k_inv, u, np.empty(self.shape))
+        p.op.convolve(self._k_inv, u, k_inv_u)
         if p.hard_wall:
-            g = self.h + u - self.delta
-            a = p.traction.pressure(g)
-            pressure = k_inv_u + (self.c * mean_u + self.W)
+            np.add(self.h, u, out=g)
+            g -= self.delta
+            p.traction.pressure(g, out=a)
+            np.add(k_inv_u, self.c * mean_u + self.W, out=pressure)
         else:
-            g = self.h + (u - mean_u) - self.delta
-            a = p.traction.pressure(g)
-            pressure = k_inv_u + self._sum(float(a.sum())) / self.n
-        self._fields = (u.copy(), g, pressure, a, mean_u, k_inv_u)
-        return self._fields[1:]
-
-    def displacement(self, x: PETSc.Vec) -> np.ndarray:
-        """u = z0 v [m], this rank's rows, of TAO's variable ``x``."""
-        return self.length * x.getArray(readonly=True).reshape(self.shape)
+            np.subtract(u, mean_u, out=g)
+            np.add(self.h, g, out=g)
+            g -= self.delta
+            p.traction.pressure(g, out=a)
+            np.add(k_inv_u, self._sum(float(a.sum())) / self.n, out=pressure)
+        self._mean_u, self._valid = mean_u, True
+        return u, g, pressure, a, mean_u, k_inv_u
 
     def objective_gradient(self, tao, x, gradient) -> float:
         """TAO's objective at v = u / z0: E(u) / dA (1/2 u . K^-1 u + sum Phi(g), [J/m^2] summed
         over the nodes) times K_ii / z0^2, and its gradient (p - a(g)) K_ii / z0."""
-        u = self.displacement(x)
         grad = gradient.getArray().reshape(self.shape)
-        g, pressure, a, mean_u, k_inv_u = self.fields(u)
+        u, g, pressure, a, mean_u, k_inv_u = self.fields(x)
         local = 0.5 * float(np.dot(u.ravel(), k_inv_u.ravel())) + float(self.p.traction.energy(g).sum())
         energy = self._sum(local)
         np.subtract(pressure, a, out=grad)
@@ -224,16 +232,19 @@ class EnergyDescent:
         return energy * self.kappa / self.length ** 2
 
     def hessian(self, tao, x, H, P):
-        self.set_curvature(self.fields(self.displacement(x))[0])
+        self.set_curvature(self.fields(x)[1])
         H.getPythonContext().shift_value = 0.0
 
     def set_curvature(self, g: np.ndarray) -> None:
         """The Hessian's diagonal term Phi''(g) = -da/dg at the gaps g [m], and the
         preconditioner's scaling S from it."""
-        self.curvature = -self.p.traction.nodal_derivative(g)
+        np.negative(self.p.traction.nodal_derivative(g), out=self.curvature)
         if self.pc_contact_factor:
-            stiff = np.clip(self.kappa * self.curvature, 0.0, 1.0)
-            self.pc_scale = 1.0 / np.sqrt(1.0 + self.pc_contact_factor * stiff)
+            s = np.clip(self.kappa * self.curvature, 0.0, 1.0, out=self.pc_scale)
+            s *= self.pc_contact_factor
+            s += 1.0
+            np.sqrt(s, out=s)
+            self.pc_scale = np.divide(1.0, s, out=s)
         else:
             self.pc_scale = None
 
@@ -305,8 +316,7 @@ class EnergyDescent:
         return max_error(self.comm, local)
 
     def _converged(self, tao):
-        u = self.displacement(tao.getSolution())
-        g, pressure, a, mean_u, _ = self.fields(u)
+        _, g, pressure, a, mean_u, _ = self.fields(tao.getSolution())
         err = self.error(g, pressure, a)
         it = tao.getIterationNumber()
         p = self.p
@@ -345,7 +355,7 @@ class EnergyDescent:
     def _descend(self, approach, start):
         p, grid = self.p, self.grid
         self.delta = approach
-        self._fields = None
+        self._valid = False
         pressure0 = total_pressure(p.blocks(start, readonly=True))
         # the start's displacement: u = K p (zero mean), the bound projected
         x = grid.create_vec()
@@ -401,7 +411,7 @@ class EnergyDescent:
                     self._floor = self._floor * 8.0 if floors < 3 else np.inf
                     self._set_floor(grid.rows(bounds[0]), grid.rows(x, readonly=True))
                     continue
-                mean_u = self.fields(self.displacement(x))[3]
+                mean_u = self.fields(x)[4]
                 if not p.hard_wall or code < 0 or rounds >= self.max_rounds or abs(mean_u) <= self.offset_tol * p.z0:
                     break
                 # the measured mean pressure, W + c m, is the next round's multiplier; from the
@@ -414,7 +424,7 @@ class EnergyDescent:
                         step = -mean_u / slope
                 last = (self.W, mean_u)
                 self.W += step
-                self._fields = None
+                self._valid = False
             linear = self.pc_applies
             converged = code > 0
             reason = f"descent {reason_text(code)} ({iterations} TAO iterations"
@@ -422,19 +432,19 @@ class EnergyDescent:
             at_bound = None
             if p.hard_wall:
                 at_bound = grid.rows(x, readonly=True) <= grid.rows(bounds[0], readonly=True)
-            self._write_state(self.displacement(x), at_bound)
+            self._write_state(x, at_bound)
             return converged, reason, iterations, linear
         finally:
             for obj in (tao, H, x, gradient) + bounds:
                 obj.destroy()
 
-    def _write_state(self, u: np.ndarray, at_bound: np.ndarray | None) -> None:
-        """The problem's unknowns from the displacement u: a = a(g), q = p - a >= 0 (hard wall)
+    def _write_state(self, x: PETSc.Vec, at_bound: np.ndarray | None) -> None:
+        """The problem's unknowns from TAO's variable x: a = a(g), q = p - a >= 0 (hard wall)
         on the nodes ``at_bound``, those TAO holds at its bound (compared in TAO's own scaled
         variable: u = z0 v rounds, and a contact node read as one ulp above the wall in metres
         lost its multiplier and sent Newton's confirmation off)."""
         p = self.p
-        g, pressure, a = self.fields(u)[:3]
+        g, pressure, a = self.fields(x)[1:4]
         xb = p.blocks(p._x)
         if p.hard_wall:
             # the multiplier lives on the contact nodes, where u sits on its bound: elsewhere
@@ -444,7 +454,7 @@ class EnergyDescent:
             xb[1] = a
         else:
             xb[0] = pressure
-        self._fields = None
+        self._valid = False
 
 
 def reason_text(code: int) -> str:

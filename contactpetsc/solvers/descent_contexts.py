@@ -71,7 +71,10 @@ class Compliance:
         if index is None:
             d.precondition(xa.reshape(d.shape), ya.reshape(d.shape))
             return
-        d.work[...] = 0.0
-        d.work.reshape(-1)[index] = xa
-        d.precondition(d.work, d.work2)
-        ya[:] = d.work2.reshape(-1)[index]
+        if d._embed is None:
+            d._embed = (np.zeros(d.shape), np.zeros(d.shape))
+        full_in, full_out = d._embed
+        full_in[...] = 0.0
+        full_in.reshape(-1)[index] = xa
+        d.precondition(full_in, full_out)
+        ya[:] = full_out.reshape(-1)[index]

@@ -123,20 +123,38 @@ class VINewton:
         self.stalled = False
         self.snes.solve(None, pb._x)
         pb.record_solve()
-        # the Krylov basis (GMRES: up to restart + 2 inactive-set vectors, the largest item of a
-        # state's memory) is freed between solves, as SNES VI frees it whenever the inactive
-        # set changes (docs/performance.md, "Memory of an adhesive path")
-        ksp = self.snes.getKSP()
-        self.last_ksp_reason = ksp.getConvergedReason()
-        ksp.reset()
+        self.last_ksp_reason = self.snes.getKSP().getConvergedReason()
         code = self.snes.getConvergedReason()
+        steps, linear = self.snes.getIterationNumber(), self.snes.getLinearSolveIterations()
+        # the work vectors and the Krylov basis (GMRES: up to restart + 2 inactive-set vectors)
+        # are not wanted again until the next run: the check and the tangent come first
+        # (docs/performance.md, "Memory of an adhesive path")
+        self._reset()
         name = pb.budget_reason if code < 0 and pb.out_of_time() else reason_name(code)
         if self.stalled:
             below = ("a smaller error" if self.stall_progress == 1.0
                      else f"an error below {self.stall_progress:g} of the smallest")
             name = (f"STALLED (no {below} in {self.stall_steps} Newton steps; smallest "
                     f"{self.best[0]:.3e} z0 at step {self.best[1]})")
-        return code > 0, name, self.snes.getIterationNumber(), self.snes.getLinearSolveIterations()
+        return code > 0, name, steps, linear
+
+    def release(self) -> None:
+        """Free what a run kept for the fallback after it: the best iterate."""
+        if self.x_best is not None:
+            self.x_best.destroy()
+            self.x_best = None
+
+    def _reset(self) -> None:
+        """Free the SNES's work vectors after a run (``SNESReset``: its update, work and
+        line-search vectors, the VI's index arrays and infinite bounds); its type, options and
+        callbacks stay, and the residual, Jacobian and bounds are attached again.  Collective."""
+        pb = self.problem
+        self.snes.reset()
+        pb.attach_vi_snes(self.snes, pb._bounds)
+        pc = self.snes.getKSP().getPC()
+        if pc.getType() == "python":
+            # a fresh context: the last one's references (levels, kernels, cycles) go with it
+            pc.setPythonType(pc.getPythonType())
 
     def destroy(self) -> None:
         """Destroy the SNES (its callbacks hold the problem) and the best iterate."""

@@ -30,6 +30,14 @@ class PreconditionerData:
         self.mlmi_work = None            #: the adhesive cycle's work arrays, per level
         self.stability_cycle = None      #: the stability check's adhesive cycle (``stability_pc.AdhesiveCyclePreconditioner``)
 
+    def release(self) -> None:
+        """Drop everything here (rebuilt on demand by the next preconditioner that needs it):
+        an adhesive problem's memory between solves.  The non-adhesive problem keeps its
+        hierarchy (``ContactProblem`` owns it)."""
+        if self.stability_cycle is not None:
+            self.stability_cycle.release()
+        self.__init__()
+
     def claim_full_arrays(self, owner, shape) -> tuple[np.ndarray, np.ndarray]:
         """The full (input, output) arrays of one problem's reduced products and
         preconditioners, its input zero off ``owner``'s set (zeroed when another reduced

@@ -143,8 +143,8 @@ def stability_margin(problem, gap: np.ndarray, q_rows: np.ndarray | None, steps:
     # from node to node by a fixed hash of the global index (rank-count independent), so
     # that it has every Fourier mode: a uniform start is in the null space of the
     # periodic compliance (the mean mode)
-    index = (np.arange(grid.ys, grid.ye)[:, None] * grid.nx + np.arange(grid.nx)[None, :]).astype(float)
-    v = np.maximum(d, 0.0) * (1.0 + 0.5 * np.modf(np.abs(np.sin(index * 12.9898)) * 43758.5453)[0])
+    v = np.maximum(d, 0.0) * (1.0 + 0.5 * np.modf(np.abs(np.sin(
+        (np.arange(grid.ys, grid.ye)[:, None] * grid.nx + np.arange(grid.nx)[None, :]) * 12.9898)) * 43758.5453)[0])
     if method == "auto":
         method = "lobpcg" if grid.periodic else "lanczos"
     if method == "lobpcg":
@@ -277,10 +277,10 @@ def _lobpcg(op, comm, d, contact, v, steps, residual_tol, precondition=None):
     preconditioned residual, previous direction), so the top Ritz value never decreases
     whatever the preconditioner; the stopping test is the K-norm of the residual in both."""
     shape = v.shape
-    free = np.where(contact, 0.0, 1.0).reshape(-1)   # a mask by multiplication: indexing copies
-    n_free = comm.allreduce(float(free.sum()))
-    # without contact nodes (the full LJ curve) the mask is all ones: two passes a projection less
-    masked = n_free < comm.allreduce(free.size)
+    n_free = comm.allreduce(float(v.size - np.count_nonzero(contact)))
+    # without contact nodes (the full LJ curve) no mask: two passes a projection less
+    masked = n_free < comm.allreduce(v.size)
+    free = np.where(contact, 0.0, 1.0).reshape(-1) if masked else None   # by multiplication: indexing copies
     a = d.reshape(-1)
 
     def on_w(x):
@@ -296,32 +296,26 @@ def _lobpcg(op, comm, d, contact, v, steps, residual_tol, precondition=None):
         f(x.reshape(shape), out.reshape(shape))
         return on_w(out)
 
-    def dots(pairs):
-        """<u, v> of each pair, one reduction (of an array: a list would be concatenated)"""
-        return comm.allreduce(np.array([u @ v for u, v in pairs]))
-
-    # rows: the iterate x, the preconditioned residual w, the direction p; M times each; and
-    # A times each (A diagonal: one product a row, cheaper than carrying it through the
-    # updates), all three kept M-normalised so that the Gram matrices need only their
-    # off-diagonal M products and the A products
-    basis, mbasis, abasis = np.zeros((3, a.size)), np.zeros((3, a.size)), np.zeros((3, a.size))
+    # rows: the iterate x, the preconditioned residual w, the direction p, and M times each,
+    # all three kept M-normalised so that the Gram matrices need only their off-diagonal M
+    # products and the A products (A diagonal: made a row at a time in t, not kept)
+    basis, mbasis = np.zeros((3, a.size)), np.zeros((3, a.size))
     x, w, p = basis
     mx, mw, mp = mbasis
-    ax, aw, ap = abasis
-    x[...] = on_w(v.reshape(-1).copy())
+    x[...] = v.reshape(-1)
+    on_w(x)
     mult(op.apply_inverse, x, mx)
     nrm = np.sqrt(comm.allreduce(float(x @ mx)))
     if not nrm > 0.0:
         return 0.0, True
     x /= nrm
     mx /= nrm
-    np.multiply(a, x, out=ax)
-    theta = comm.allreduce(float(x @ ax))
-    r = np.empty_like(x)
+    r, t = np.empty_like(x), np.empty_like(x)
+    theta = comm.allreduce(float(x @ np.multiply(a, x, out=t)))
     m = 2   # rows of the basis in use (p joins after the first step)
     for _ in range(steps):
         np.multiply(mx, -theta, out=r)
-        r += ax
+        r += np.multiply(a, x, out=t)
         on_w(r)
         mult(op.apply, r, w)
         res = np.sqrt(max(comm.allreduce(float(r @ w)), 0.0))
@@ -339,12 +333,16 @@ def _lobpcg(op, comm, d, contact, v, steps, residual_tol, precondition=None):
             nw = np.sqrt(comm.allreduce(float(w @ mw)))
         w /= nw
         mw /= nw
-        np.multiply(a, w, out=aw)
         # Gram matrices of the M-normalised basis: A products in full, M products off the
         # diagonal (ones on it)
         ij = [(0, 1), (0, 2), (1, 2)][:1 if m == 2 else 3]
-        g = dots([(basis[i], abasis[i]) for i in range(m)] + [(basis[i], abasis[j]) for i, j in ij]
-                 + [(basis[i], mbasis[j]) for i, j in ij])
+        a_pairs = [(i, i) for i in range(m)] + ij
+        a_dots = {}
+        for j in range(m):
+            np.multiply(a, basis[j], out=t)
+            a_dots.update({(i, j): basis[i] @ t for i, jj in a_pairs if jj == j})
+        # one reduction, of an array (a list would be concatenated)
+        g = comm.allreduce(np.array([a_dots[pair] for pair in a_pairs] + [basis[i] @ mbasis[j] for i, j in ij]))
         ga, gm = np.diag(g[:m]), np.eye(m)
         for k, (i, j) in enumerate(ij):
             ga[i, j] = ga[j, i] = g[m + k]
@@ -357,19 +355,18 @@ def _lobpcg(op, comm, d, contact, v, steps, residual_tol, precondition=None):
         th, y = np.linalg.eigh(z.T @ ga @ z)
         c = z @ y[:, -1]
         theta = float(th[-1])
-        new_p, new_mp = c[1:m] @ basis[1:m], c[1:m] @ mbasis[1:m]
+        # the new direction and M times it in r and t (both free until the next step)
+        new_p, new_mp = np.matmul(c[1:m], basis[1:m], out=r), np.matmul(c[1:m], mbasis[1:m], out=t)
         for row, new in ((x, new_p), (mx, new_mp)):
             row *= c[0]
             row += new
         nrm = np.sqrt(comm.allreduce(float(x @ mx)))
         x /= nrm
         mx /= nrm
-        np.multiply(a, x, out=ax)
         nrm = np.sqrt(comm.allreduce(float(new_p @ new_mp)))
         if nrm > 0.0:
             np.divide(new_p, nrm, out=p)
             np.divide(new_mp, nrm, out=mp)
-            np.multiply(a, p, out=ap)
             m = 3
         else:
             m = 2

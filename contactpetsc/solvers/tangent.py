@@ -72,6 +72,15 @@ class TangentAndState:
         pairs and history time at the start of the solve."""
         grid = self.grid
         comm = grid.mpi_comm
+        # the tangent first: its solve's memory and the state's five fields do not add up
+        stiffness = float("nan")
+        if tangent and converged:
+            self.predictor.due()
+            t_check = self.history.elapsed()
+            stiffness = self.predictor.stiffness()
+            self.check_time += self.history.elapsed() - t_check
+        else:
+            self.predictor.drop()
         xb = self.blocks(self._x, readonly=True)
         q, a, p, gap, v = (grid.create_vec(0.0) for _ in range(5))
         if self.hard_wall:
@@ -90,15 +99,9 @@ class TangentAndState:
         beyond = comm.allreduce(self.traction.beyond_safe_range(gap_rows), op=MPI.LOR)
         if beyond and converged:
             converged, reason = False, "LJ_BEYOND_SAFE_RANGE (z < 0.5 z0: pressure beyond the law's sane range)"
-        stable = None if not np.isfinite(margin) else bool(margin > 0)
-        stiffness = float("nan")
-        if tangent and converged:
-            self.predictor.due()
-            t_check = self.history.elapsed()
-            stiffness = self.predictor.stiffness()
-            self.check_time += self.history.elapsed() - t_check
-        else:
+            stiffness = float("nan")
             self.predictor.drop()
+        stable = None if not np.isfinite(margin) else bool(margin > 0)
         area = grid.lengths[0] * grid.lengths[1]
         energy = float("nan") if self.element_integration else grid.element_area * comm.allreduce(
             0.5 * float(np.sum(prow * self._v)) + float(np.sum(self.traction.energy(gap_rows))))

@@ -1,0 +1,50 @@
+"""What a solve frees between states changes no state.
+
+An adhesive problem frees after each Newton run its SNES's work vectors and Krylov basis, and
+after each solve its preconditioners' levels, its products' scratch and its best iterates
+(``AdhesiveProblem.release``, docs/performance.md, "Memory of an adhesive path").  The truth:
+the same path solved by a problem that keeps them all lands in the same states (the same
+verdicts, gaps within the solver's tolerance: a preconditioner made anew starts its power
+iterations afresh, so the Krylov iterates differ at round-off) on 1, 2 or 3 ranks, for the full LJ curve (the descent strategy)
+and a hard wall (VI Newton, the multilevel preconditioner).  Units: z0 = rho = 1, E* = 1.
+"""
+import numpy as np
+import pytest
+from petsc4py import PETSc
+
+from contactpetsc.geometry.surfaces import self_affine
+from contactpetsc.grid import SurfaceGrid
+from contactpetsc.physics.interactions import make_law
+from contactpetsc.solvers.adhesive import AdhesiveProblem
+from contactpetsc.solvers.newton import VINewton
+
+
+@pytest.mark.parametrize("law_name, preconditioner", [("lj", "auto"), ("exponential", "mlmi")])
+def test_freeing_between_states_changes_no_state(coll, monkeypatch, law_name, preconditioner):
+    grid = SurfaceGrid(64, 64, 1.0, periodic=True, comm=PETSc.COMM_WORLD)
+    h = self_affine(grid, hurst=0.8, rms_height=1.0, seed=11)
+    law = make_law(law_name, work_of_adhesion=0.05, **({"z0": 1.0} if law_name == "lj" else {"rho": 1.0}))
+    top = float(h.min()[1])
+    # loading into contact and back: jumps both ways on the rough surface
+    path = [top + d for d in (0.5, 1.0, 1.5, 1.0, 0.5)]
+
+    def states(prefix):
+        pb = AdhesiveProblem(grid, h, 1.0, law, prefix=prefix, preconditioner=preconditioner)
+        out = []
+        for d in path:
+            st = pb.solve(approach=d, raise_on_failure=False)
+            out.append((st.converged, st.stable, grid.rows(st.gap, readonly=True).copy()))
+        return pb, out
+
+    freed, freeing = states(f"free_{law_name}_")
+    # what the solve frees is gone between states ...
+    assert freed._scratch is None and freed._x_solve_best is None
+    assert freed._jac.pc_data.mlmi_levels is None and freed._jac.pc_data.full_pair is None
+    # ... and a problem that keeps everything lands in the same states
+    monkeypatch.setattr(AdhesiveProblem, "release", lambda self: None)
+    monkeypatch.setattr(VINewton, "_reset", lambda self: None)
+    kept, keeping = states(f"keep_{law_name}_")
+    assert kept._scratch is not None
+    for (c1, s1, g1), (c2, s2, g2) in zip(freeing, keeping):
+        assert coll.all(c1 and c2 and s1 == s2)
+        assert coll.max(np.abs(g1 - g2).max(initial=0.0)) <= freed.tol * freed.z0
