@@ -61,6 +61,28 @@ def test_descent_reaches_newtons_state_on_any_rank_count(coll, law_name, pc_fact
     assert coll.max(np.abs(pressures[0] - pressures[1])) / float(law.peak_attraction) < 1e-9
 
 
+def test_a_step_in_increments_is_the_step_in_sub_steps(coll):
+    """``-<prefix>descent_max_step``: a step of 2 z0 descended in 16 increments (each but the
+    last to an error of 1e-2) lands in the state the same 16 sub-steps reach when each is
+    solved in full (a quasi-static path's), to the solver's tolerance, for a third of their
+    FFT pairs; the state's solver names the increments."""
+    law = make_law("lj", work_of_adhesion=0.05, z0=1.0)
+    grid = SurfaceGrid(64, 64, 1.0, periodic=True, comm=PETSc.COMM_WORLD)
+    h = self_affine(grid, hurst=0.8, rms_height=2.0, seed=11)
+    d0 = float(h.min()[1]) + 0.5
+    ends = np.linspace(d0, d0 + 2.0, 17)
+    full = AdhesiveProblem(grid, h, 1.0, law, prefix="incfull_")
+    full.solve(approach=d0)
+    pairs = sum(full.solve(approach=float(d)).fft_pairs for d in ends[1:])
+    reference = grid.rows(full.solve(approach=float(ends[-1])).gap, readonly=True).copy()
+    inc = AdhesiveProblem(grid, h, 1.0, law, prefix="incstep_", petsc_options={"descent_max_step": 0.125})
+    inc.solve(approach=d0)
+    st = inc.solve(approach=float(ends[-1]))
+    assert st.converged and st.stable and st.solver.startswith("descent in 16 increments+"), st.solver
+    assert coll.max(np.abs(grid.rows(st.gap, readonly=True) - reference)) <= inc.tol * inc.z0
+    assert st.fft_pairs < pairs / 2
+
+
 def test_the_gap_floor_does_not_hold_the_state(coll):
     """The full LJ curve's gap floor (``-<prefix>descent_floor_factor``) caps the steps of nodes
     that snap, never the state: with a floor far above the gaps the state needs (the repulsion
@@ -136,7 +158,9 @@ def test_the_descents_hessian_is_symmetric_and_its_preconditioner_positive(coll,
     ("descent_pc_contact_factor", "nan", "descent_pc_contact_factor must be finite and >= 0"),
     ("descent_floor_factor", "-4", "descent_floor_factor must be finite and >= 0"),
     ("descent_floor_factor", "inf", "descent_floor_factor must be finite and >= 0"),
-    ("descent_tao_bnk_max_cg_its", "5", "descent_tao_bnk_max_cg_its must be 0")])
+    ("descent_tao_bnk_max_cg_its", "5", "descent_tao_bnk_max_cg_its must be 0"),
+    ("descent_max_step", "-0.1", "descent_max_step must be finite and >= 0"),
+    ("descent_step_tol", "0", "descent_step_tol must be finite and > 0")])
 def test_bad_descent_options_are_refused_by_name(coll, option, value, message):
     grid, h = rough(PETSc.COMM_WORLD, n=16)
     pb = AdhesiveProblem(grid, h, 1.0, make_law("lj", work_of_adhesion=0.05, z0=1.0), prefix="descbad_",
@@ -260,7 +284,9 @@ def test_the_energy_tangent_is_the_force_slope(coll, monkeypatch, hessian):
         st = pb.solve(approach=d)
         assert st.converged and st.stable and np.isfinite(st.stiffness)
         assert len(calls) == int(hessian)
-        _, tv, stiffness = pb.predictor.copy()
+        # (under the descent strategy the predictor keeps the stiffness, not the field: the
+        # tangent's solve at the state gives both)
+        tv, stiffness = pb.predictor.solve()
         dp = pb.blocks(tv, readonly=True)[0].copy()
         tv.destroy()
         other = solve_tangent(EnergyDescent(pb))

@@ -44,7 +44,7 @@ from .adhesive_levels import CoarseLevels
 from .adhesive_residual import AdhesiveCallbacks
 from .base import AdhesiveSolveError, VIProblem, check_tolerance, reason_name, with_options
 from .continuation import Continuation
-from .descent import EnergyDescent, descent_applies, descent_options, require_descent
+from .descent import EnergyDescent, descent_applies, descent_increments, descent_options, require_descent
 from .fallback import FallbackChain
 from .history import SolveHistory
 from .load_control import solve_force
@@ -137,6 +137,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self._pressure_residual = np.nan  # local max |a - a(g)| / (P + |a(g)|) there
         self.coarse_levels = None       # the nested iteration (``CoarseLevels``), made with the solvers
         self.fallback = None            # the fallback chain (``FallbackChain``), made with the solvers
+        self._increments = 1            # the last descended step's increments (``_descend``)
         self._prev_approach = None
         self._budget_start = None       # time.monotonic() at the first solve under a time budget
         self._scratch = None            # (gap, displacement, product) rows: ``_g``, ``_v``, ``_v2``
@@ -220,6 +221,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         if self.strategy == "descent":
             require_descent(self, f"-{self.prefix}strategy descent")
         descent_options(self.prefix)    # bad input is refused at set-up, not at the first descent
+        self.descent_max_step, self.descent_step_tol = descent_increments(self.prefix)
         # past the wall-time budget every solve stops (WALL_TIME_BUDGET): a batch job ends
         # cleanly with its finished steps written, an unresolvable case in bounded time
         self.time_budget = opts.getReal("time_budget", code_default("adhesion", "time_budget"))
@@ -284,6 +286,31 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
             self._x_solve_best = None
         if self.strategy == "descent":
             self.coarse_levels.release()
+
+    def _descend(self, approach: float, start: PETSc.Vec) -> tuple[bool, str, int, int]:
+        """The descent strategy's step from ``start`` (the last state) to ``approach`` [m]: in
+        increments of at most ``-<prefix>descent_max_step`` z0, each but the last descended only
+        to ``-<prefix>descent_step_tol`` (a continuation in the approach: the snaps of the
+        asperities come one increment at a time, in the order a quasi-static path meets them),
+        the last to the descent's tolerance.  (converged, reason, iterations, Krylov
+        iterations) of them all; the increments taken in ``_increments``."""
+        prev = self._prev_approach
+        increments = 1
+        if prev is not None and self.descent_max_step > 0:
+            # equal increments; a step of exactly max_step, give or take a rounding, is one
+            increments = max(int(np.ceil(abs(approach - prev) / (self.descent_max_step * self.z0) * (1 - 1e-9))), 1)
+        iterations = linear = 0
+        for k in range(1, increments):
+            if self.out_of_time():
+                break
+            _, _, it, lin = EnergyDescent(self, tol=self.descent_step_tol).descend(
+                prev + (approach - prev) * k / increments, start)
+            PETSc.garbage_cleanup(self.grid.comm)   # its TAO's contexts hold its arrays
+            start = self._x     # the increment's state: the next one's start
+            iterations, linear = iterations + it, linear + lin
+        ok, reason, it, lin = EnergyDescent(self).descend(approach, start)
+        self._increments = increments
+        return ok, reason, iterations + it, linear + lin
 
     # -- public API --------------------------------------------------------------------------
     def solve_force(self, force: float, *, rel_tol: float = 1e-8, max_updates: int = 30,
@@ -360,7 +387,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         # -<prefix>strategy descent: the energy descent from the last state, Newton polishes
         descend = self.strategy == "descent" and approach is not None
         if descend:
-            ok, d_reason, d_newton, d_linear = EnergyDescent(self).descend(float(approach), x_start)
+            ok, d_reason, d_newton, d_linear = self._descend(float(approach), x_start)
             # the descent's PETSc objects (and through their contexts its arrays) are freed
             # here, not at the end of the solve: Newton and the check come first
             PETSc.garbage_cleanup(self.grid.comm)
@@ -375,7 +402,8 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self.newton.watch_stalls = False
         solver = self.solver_name
         if descend:
-            solver, newton, linear = "descent+" + solver, newton + d_newton, linear + d_linear
+            steps = f" in {self._increments} increments" if self._increments > 1 else ""
+            solver, newton, linear = f"descent{steps}+{solver}", newton + d_newton, linear + d_linear
             if not ok:
                 reason += f" (after {d_reason})"
         if callable(check):

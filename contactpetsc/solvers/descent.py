@@ -104,6 +104,20 @@ def descent_options(prefix: str) -> tuple[float, float]:
     return values[0], values[1]
 
 
+def descent_increments(prefix: str) -> tuple[float, float]:
+    """``-<prefix>descent_max_step`` (the largest increment of the approach a descent takes
+    at once [z0], finite and >= 0; 0: the whole step) and ``-<prefix>descent_step_tol`` (the
+    error its increments but the last are descended to, > 0), checked."""
+    opts = PETSc.Options(prefix)
+    max_step = opts.getReal("descent_max_step", code_default("adhesion", "descent_max_step"))
+    step_tol = opts.getReal("descent_step_tol", code_default("adhesion", "descent_step_tol"))
+    if not (np.isfinite(max_step) and max_step >= 0):
+        raise ValueError(f"-{prefix}descent_max_step must be finite and >= 0 (z0; 0: no increments), got {max_step}")
+    if not (np.isfinite(step_tol) and step_tol > 0):
+        raise ValueError(f"-{prefix}descent_step_tol must be finite and > 0, got {step_tol}")
+    return max_step, step_tol
+
+
 def descent_applies(problem) -> bool:
     """Whether ``EnergyDescent`` can drive ``problem``: a periodic grid (K^-1 diagonal in
     Fourier space) and the nodal rule (the law's energy at the nodes)."""
@@ -124,7 +138,7 @@ class EnergyDescent:
     ([q,] a) and returns (converged, reason, iterations, linear iterations).
     """
 
-    def __init__(self, problem):
+    def __init__(self, problem, tol: float | None = None):
         require_descent(problem, "EnergyDescent")
         self.p = problem
         grid = problem.grid
@@ -139,7 +153,7 @@ class EnergyDescent:
         # line search failed from hard-wall states descended to 1e-4 - 1e-7, or to tol with an
         # offset of tol, and handed them on to the relaxation's cycles.  The full LJ curve has
         # no offset: tol itself (half of it cost more descent, in the coarse levels too)
-        self.tol = opts.getReal("tol", (0.5 if problem.hard_wall else 1.0) * problem.tol)
+        self.tol = tol if tol is not None else opts.getReal("tol", (0.5 if problem.hard_wall else 1.0) * problem.tol)
         self.offset_tol = opts.getReal("offset_tol", 0.1 * problem.tol)
         self.max_rounds = opts.getInt("max_rounds", code_default("adhesion", "descent_max_rounds"))
         self.pc_contact_factor, self.floor_factor = descent_options(problem.prefix)

@@ -103,6 +103,9 @@ ADHESION = (
     Option(("descent_floor_factor",), (4.0,),
            "energy descent, full LJ curve: its gaps held above the one where the repulsion is this times "
            "the start's largest pressure (at least the peak attraction), lowered where a state needs it (0: none)"),
+    Option(("descent_max_step", "descent_step_tol"), (0.0, 1e-2),
+           "energy descent strategy: the step's approach followed in increments of at most this (z0; 0: the "
+           "whole step at once), each but the last descended to this error only"),
     Option(("descent_tol", "descent_offset_tol"), "tol (full LJ) or tol / 2, tol / 10",
            "energy descent: error measure reached before Newton polishes, a hard wall's mean offset (z0)"),
     Option(("descent_tao_*",), "bnls, bnk_as_type none, bnk_ksp_rtol 0.1, bnk_ksp_max_it 50, max_it 500",

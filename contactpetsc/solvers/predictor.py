@@ -38,12 +38,14 @@ class TangentPredictor:
         self.by_hessian = opts.getBool("tangent_hessian", code_default("adhesion", "tangent_hessian"))
         #: whether converged states get a tangent at all (the nested iteration's coarse levels: no)
         self.wanted = True
-        self.value = None    # (approach [m], dx/d delta, dF/d delta [N/m]) at the last converged state
+        #: (approach [m], dx/d delta (None under the descent strategy), dF/d delta [N/m]) at the
+        #: last converged state
+        self.value = None
         self._due = None     # approach of the present state when its tangent is not solved yet
 
     def drop(self) -> None:
         """Forget the tangent (the state changed)."""
-        if self.value is not None:
+        if self.value is not None and self.value[1] is not None:
             self.value[1].destroy()
         self.value = self._due = None
 
@@ -62,6 +64,10 @@ class TangentPredictor:
         here, pb._approach = pb._approach, approach   # the state's own approach
         tv, stiffness = self.solve()
         pb._approach = here
+        if pb.strategy == "descent":
+            # each state is descended from the last: no step is predicted, the stiffness is all
+            tv.destroy()
+            tv = None
         self.value = (approach, tv, stiffness)
 
     def stiffness(self) -> float:
@@ -77,7 +83,7 @@ class TangentPredictor:
         if not self.predicts:
             return
         self.ensure()
-        if self.value is None:
+        if self.value is None or self.value[1] is None:
             return
         pb = self.problem
         pb._x.axpy(float(approach) - self.value[0], self.value[1])
@@ -88,12 +94,15 @@ class TangentPredictor:
     def copy(self):
         """The tangent as a tuple with its own Vec (a snapshot's), or None."""
         self.ensure()
-        return None if self.value is None else (self.value[0], self.value[1].copy(), self.value[2])
+        if self.value is None:
+            return None
+        approach, tv, stiffness = self.value
+        return approach, None if tv is None else tv.copy(), stiffness
 
     def restore(self, value) -> None:
         """Make ``value`` (from ``copy``) the tangent; it is copied."""
         self.drop()
-        self.value = None if value is None else (value[0], value[1].copy(), value[2])
+        self.value = None if value is None else (value[0], None if value[1] is None else value[1].copy(), value[2])
 
     def solve(self) -> tuple[PETSc.Vec, float]:
         """(dx/d delta, dF/d delta [N/m]) at the problem's present unknowns."""

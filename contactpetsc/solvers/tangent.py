@@ -24,7 +24,7 @@ class Snapshot:
         """Free the Vecs (collective); safe to call twice."""
         if self.x is not None:
             self.x.destroy()
-        if self.tangent is not None:
+        if self.tangent is not None and self.tangent[1] is not None:
             self.tangent[1].destroy()
         self.x = self.tangent = None
 
