@@ -61,11 +61,13 @@ def test_descent_reaches_newtons_state_on_any_rank_count(coll, law_name, pc_fact
     assert coll.max(np.abs(pressures[0] - pressures[1])) / float(law.peak_attraction) < 1e-9
 
 
-def test_a_step_in_increments_is_the_step_in_sub_steps(coll):
+def test_a_step_in_increments_is_the_step_in_sub_steps(coll, monkeypatch):
     """``-<prefix>descent_max_step``: a step of 2 z0 descended in 16 increments (each but the
     last to an error of 1e-2) lands in the state the same 16 sub-steps reach when each is
     solved in full (a quasi-static path's), to the solver's tolerance, for a third of their
-    FFT pairs; the state's solver names the increments."""
+    FFT pairs; the state's solver names the increments.  After a failed solve the step is
+    taken again from the last converged state, in as many increments."""
+    from contactpetsc.solvers.newton import VINewton
     law = make_law("lj", work_of_adhesion=0.05, z0=1.0)
     grid = SurfaceGrid(64, 64, 1.0, periodic=True, comm=PETSc.COMM_WORLD)
     h = self_affine(grid, hurst=0.8, rms_height=2.0, seed=11)
@@ -77,6 +79,11 @@ def test_a_step_in_increments_is_the_step_in_sub_steps(coll):
     reference = grid.rows(full.solve(approach=float(ends[-1])).gap, readonly=True).copy()
     inc = AdhesiveProblem(grid, h, 1.0, law, prefix="incstep_", petsc_options={"descent_max_step": 0.125})
     inc.solve(approach=d0)
+    run = VINewton.run
+    with monkeypatch.context() as m:
+        m.setattr(VINewton, "run", lambda self: (False, "FAILED_ON_PURPOSE") + run(self)[2:])
+        failed = inc.solve(approach=float(ends[-1]), raise_on_failure=False, fallback=False)
+    assert not failed.converged
     st = inc.solve(approach=float(ends[-1]))
     assert st.converged and st.stable and st.solver.startswith("descent in 16 increments+"), st.solver
     assert coll.max(np.abs(grid.rows(st.gap, readonly=True) - reference)) <= inc.tol * inc.z0

@@ -138,6 +138,8 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self.coarse_levels = None       # the nested iteration (``CoarseLevels``), made with the solvers
         self.fallback = None            # the fallback chain (``FallbackChain``), made with the solvers
         self._increments = 1            # the last descended step's increments (``_descend``)
+        self._start_approach = None     # approach [m] of the state in the unknowns (its last solve's if converged)
+        self._released_pairs = 0.0      # weighted FFT pairs of the preconditioner levels ``release`` freed
         self._prev_approach = None
         self._budget_start = None       # time.monotonic() at the first solve under a time budget
         self._scratch = None            # (gap, displacement, product) rows: ``_g``, ``_v``, ``_v2``
@@ -276,10 +278,12 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         arrays, the products' scratch (each Newton run frees its SNES's work vectors); under the descent strategy the nested iteration's
         levels too (they gave the first state; every later state is descended from the last).
         All are made again on demand.  Collective."""
+        if self.newton is None:
+            return      # not built: nothing made yet
         self.newton.release()
         if self.fallback.ptc is not None:
             self.fallback.ptc.release()
-        self._jac.release()
+        self._released_pairs += self._jac.release()
         self._scratch = None
         if self._x_solve_best is not None:
             self._x_solve_best.destroy()
@@ -294,22 +298,28 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         asperities come one increment at a time, in the order a quasi-static path meets them),
         the last to the descent's tolerance.  (converged, reason, iterations, Krylov
         iterations) of them all; the increments taken in ``_increments``."""
-        prev = self._prev_approach
+        prev = self._start_approach     # the start's own (after a failed solve: the last converged)
         increments = 1
         if prev is not None and self.descent_max_step > 0:
             # equal increments; a step of exactly max_step, give or take a rounding, is one
             increments = max(int(np.ceil(abs(approach - prev) / (self.descent_max_step * self.z0) * (1 - 1e-9))), 1)
         iterations = linear = 0
+        first = start
+        self._increments = 1
         for k in range(1, increments):
             if self.out_of_time():
                 break
-            _, _, it, lin = EnergyDescent(self, tol=self.descent_step_tol).descend(
+            ok, _, it, lin = EnergyDescent(self, tol=self.descent_step_tol).descend(
                 prev + (approach - prev) * k / increments, start)
             PETSc.garbage_cleanup(self.grid.comm)   # its TAO's contexts hold its arrays
-            start = self._x     # the increment's state: the next one's start
             iterations, linear = iterations + it, linear + lin
+            if not ok:
+                # (a NaN, a failed line search): the whole step from the start instead
+                start, self._increments = first, 1
+                break
+            start = self._x     # the increment's state: the next one's start
+            self._increments += 1
         ok, reason, it, lin = EnergyDescent(self).descend(approach, start)
-        self._increments = increments
         return ok, reason, iterations + it, linear + lin
 
     # -- public API --------------------------------------------------------------------------
@@ -432,6 +442,8 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
                            f"spacings, the criterion is {RESOLUTION_NODES:g}]")
         state = self.make_state(converged, reason, newton, linear, pairs0, t0, margin,
                             solver, tangent=approach is not None and converged)
+        if converged:
+            self._start_approach = self._approach
         if not converged:
             x_start.copy(self._x)   # keep the last good state as the next start
         x_start.destroy()

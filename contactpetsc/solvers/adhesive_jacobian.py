@@ -38,11 +38,17 @@ class AdhesiveJacobian:
         self.pc_data = PreconditionerData()   # shared by the preconditioners of every solve
         self._work = None                     # (K p, a'(g) K p) of a product: made on demand
 
-    def release(self) -> None:
+    def release(self) -> float:
         """Free the products' and the preconditioners' arrays between solves (made again on
-        demand)."""
+        demand, into new ``PreconditionerData``, so that no context can mistake the old for
+        it); returns the FFT pairs of the freed coarse levels in fine-grid units."""
+        n0 = self.grid.nx * self.grid.ny
+        pairs = sum(lev.op.fft_pairs * lev.grid.nx * lev.grid.ny / n0
+                    for lev in (self.pc_data.mlmi_levels or ()) if lev.op is not self.op)
         self._work = None
         self.pc_data.release()
+        self.pc_data = PreconditionerData()
+        return float(pairs)
 
     def apply_full(self, blocks_in: np.ndarray, blocks_out: np.ndarray) -> np.ndarray:
         """J on (nb, ny_loc, nx) arrays."""

@@ -122,14 +122,14 @@ class AdhesiveCallbacks:
 
     def fft_pairs(self) -> float:
         """FFT pairs so far in fine-grid units: the operator's, plus those of the coarse
-        levels of any MLMI cycle (preconditioner or relaxation) and of the nested iteration,
-        weighted by their size."""
+        levels of any MLMI cycle (preconditioner or relaxation; those freed between solves
+        too) and of the nested iteration, weighted by their size."""
         ops = {id(self.op): self.op}
         levels = (self._jac.pc_data.mlmi_levels or ()) if self._snes is not None else ()
         for lev in levels:
             ops[id(lev.op)] = lev.op
         n0 = self.grid.nx * self.grid.ny
-        pairs = float(sum(op.fft_pairs * op.grid.nx * op.grid.ny / n0 for op in ops.values()))
+        pairs = float(sum(op.fft_pairs * op.grid.nx * op.grid.ny / n0 for op in ops.values())) + self._released_pairs
         return pairs + (self.coarse_levels.fft_pairs() if self.coarse_levels is not None else 0.0)
 
     @collective_guard

@@ -67,7 +67,7 @@ class Continuation:
         if self.hard_wall:
             xb[0] = grid.rows(contact_pressure, readonly=True)
         xb[-1] = grid.rows(adhesive_pressure, readonly=True)
-        self._approach = float(approach)
+        self._approach = self._start_approach = float(approach)
         self._started = True
         # the next step's predictor from this state's tangent, as after the solve that
         # reached it: a restarted path takes the uninterrupted one's steps
@@ -114,7 +114,7 @@ class Continuation:
         if not self._started:
             self._initial_guess(approach)
             self._started = True
-        self._approach = float(approach)
+        self._approach = self._start_approach = float(approach)
 
     def record_solve(self) -> None:
         """Count one solve (the ``solve`` column of the history)."""

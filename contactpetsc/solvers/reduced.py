@@ -31,9 +31,9 @@ class PreconditionerData:
         self.stability_cycle = None      #: the stability check's adhesive cycle (``stability_pc.AdhesiveCyclePreconditioner``)
 
     def release(self) -> None:
-        """Drop everything here (rebuilt on demand by the next preconditioner that needs it):
-        an adhesive problem's memory between solves.  The non-adhesive problem keeps its
-        hierarchy (``ContactProblem`` owns it)."""
+        """Free the stability cycle's set-up and drop the references held here (an adhesive
+        problem's memory between solves; its Jacobian then starts new data).  The non-adhesive
+        problem keeps its hierarchy (``ContactProblem`` owns it)."""
         if self.stability_cycle is not None:
             self.stability_cycle.release()
         self.__init__()

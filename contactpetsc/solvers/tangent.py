@@ -48,7 +48,7 @@ class TangentAndState:
     def restore(self, snap: Snapshot) -> None:
         """Make ``snap`` the present state (``snap`` stays valid: it is copied)."""
         snap.x.copy(self._x)
-        self._approach = snap.approach
+        self._approach = self._start_approach = snap.approach
         self.predictor.restore(snap.tangent)
         self._started = True
 
@@ -72,7 +72,14 @@ class TangentAndState:
         pairs and history time at the start of the solve."""
         grid = self.grid
         comm = grid.mpi_comm
-        # the tangent first: its solve's memory and the state's five fields do not add up
+        xb = self.blocks(self._x, readonly=True)
+        # the gap and K p in arrays of their own: the tangent's solve reuses the scratch rows
+        gap_rows = self._gap(xb, np.empty((grid.ny_local, grid.nx)))
+        v_rows = self._v.copy()
+        beyond = comm.allreduce(self.traction.beyond_safe_range(gap_rows), op=MPI.LOR)
+        if beyond and converged:
+            converged, reason = False, "LJ_BEYOND_SAFE_RANGE (z < 0.5 z0: pressure beyond the law's sane range)"
+        # the tangent before the state's five fields: its solve's memory and theirs do not add up
         stiffness = float("nan")
         if tangent and converged:
             self.predictor.due()
@@ -81,14 +88,14 @@ class TangentAndState:
             self.check_time += self.history.elapsed() - t_check
         else:
             self.predictor.drop()
-        xb = self.blocks(self._x, readonly=True)
         q, a, p, gap, v = (grid.create_vec(0.0) for _ in range(5))
         if self.hard_wall:
             grid.rows(q)[...] = xb[0]
         grid.rows(a)[...] = xb[-1]
         grid.rows(p)[...] = xb.sum(axis=0)
-        gap_rows = self._gap(xb, grid.rows(gap))
-        grid.rows(v)[...] = self._v
+        grid.rows(gap)[...] = gap_rows
+        grid.rows(v)[...] = v_rows
+        del v_rows
         f = self.create_unknown()
         self._residual(None, self._x, f)
         err_c, err_a, err_p, mean_p, frac = self._measures(self._x, f)
@@ -96,15 +103,10 @@ class TangentAndState:
         total = self.total_error(a_rows=xb[-1], gap_rows=gap_rows)
         prow = grid.rows(p, readonly=True)
         adhesive_force = comm.allreduce(float(prow[prow < 0].sum())) * grid.element_area
-        beyond = comm.allreduce(self.traction.beyond_safe_range(gap_rows), op=MPI.LOR)
-        if beyond and converged:
-            converged, reason = False, "LJ_BEYOND_SAFE_RANGE (z < 0.5 z0: pressure beyond the law's sane range)"
-            stiffness = float("nan")
-            self.predictor.drop()
         stable = None if not np.isfinite(margin) else bool(margin > 0)
         area = grid.lengths[0] * grid.lengths[1]
         energy = float("nan") if self.element_integration else grid.element_area * comm.allreduce(
-            0.5 * float(np.sum(prow * self._v)) + float(np.sum(self.traction.energy(gap_rows))))
+            0.5 * float(np.sum(prow * grid.rows(v, readonly=True))) + float(np.sum(self.traction.energy(gap_rows))))
         return AdhesiveState(
             pressure=p, contact_pressure=q, adhesive_pressure=a, gap=gap, displacement=v,
             approach=self._approach, central_gap=self.centre_value(gap_rows),
