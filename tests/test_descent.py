@@ -64,7 +64,7 @@ def test_descent_reaches_newtons_state_on_any_rank_count(coll, law_name, pc_fact
 def test_a_step_in_increments_is_the_step_in_sub_steps(coll, monkeypatch):
     """``-<prefix>descent_max_step``: a step of 2 z0 descended in 16 increments (each but the
     last to an error of 1e-2) lands in the state the same 16 sub-steps reach when each is
-    solved in full (a quasi-static path's), to the solver's tolerance, for a third of their
+    solved in full (a quasi-static path's), to the solver's tolerance, for less than half their
     FFT pairs; the state's solver names the increments.  After a failed solve the step is
     taken again from the last converged state, in as many increments."""
     from contactpetsc.solvers.newton import VINewton
