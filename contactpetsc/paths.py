@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .fold_watch import FoldWatch
+from .solvers.base import pieces
 from .solvers.stability import leaves_checks_out
 
 
@@ -213,14 +214,6 @@ def keep_for_search(path: Path, problem, last: tuple | None) -> tuple | None:
                 best[1].destroy()
             path._best = (i, problem.snapshot())
     return last
-
-
-def pieces(step: float, max_step: float) -> int:
-    """The equal sub-steps of at most ``max_step`` [m] (0: any) a step of ``step`` [m] is taken
-    in (``sweep``); a step of exactly max_step, give or take a rounding, is one."""
-    if not (max_step > 0 and np.isfinite(step)):
-        return 1
-    return max(int(np.ceil(abs(step) / max_step * (1.0 - 1e-9))), 1)
 
 
 def _advance(problem, target, prev, path, jump_tol, refine, substeps, max_step=0.0):

@@ -60,7 +60,7 @@ def _protocol_line(scene: dict, law) -> str:
         return line
     if scene["solver"]["method"] == "relaxation":
         return line
-    from ..paths import pieces
+    from ..solvers.base import pieces
     values = proto["values"]
     counts = [pieces(b - a, proto["max_step"] * law.length_scale()) for a, b in zip(values, values[1:])]
     long = [n for n in counts if n > 1]

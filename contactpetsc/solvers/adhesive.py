@@ -44,7 +44,8 @@ from .adhesive_levels import CoarseLevels
 from .adhesive_residual import AdhesiveCallbacks
 from .base import AdhesiveSolveError, VIProblem, check_tolerance, reason_name, with_options
 from .continuation import Continuation
-from .descent import EnergyDescent, descent_applies, descent_increments, descent_options, require_descent
+from .descent import descend_step
+from .descent_options import descent_applies, descent_options, require_descent
 from .fallback import FallbackChain
 from .history import SolveHistory
 from .load_control import solve_force
@@ -137,7 +138,6 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self._pressure_residual = np.nan  # local max |a - a(g)| / (P + |a(g)|) there
         self.coarse_levels = None       # the nested iteration (``CoarseLevels``), made with the solvers
         self.fallback = None            # the fallback chain (``FallbackChain``), made with the solvers
-        self._increments = 1            # the last descended step's increments (``_descend``)
         self._start_approach = None     # approach [m] of the state in the unknowns (its last solve's if converged)
         self._released_pairs = 0.0      # weighted FFT pairs of the preconditioner levels ``release`` freed
         self._prev_approach = None
@@ -223,7 +223,6 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         if self.strategy == "descent":
             require_descent(self, f"-{self.prefix}strategy descent")
         descent_options(self.prefix)    # bad input is refused at set-up, not at the first descent
-        self.descent_max_step, self.descent_step_tol = descent_increments(self.prefix)
         # past the wall-time budget every solve stops (WALL_TIME_BUDGET): a batch job ends
         # cleanly with its finished steps written, an unresolvable case in bounded time
         self.time_budget = opts.getReal("time_budget", code_default("adhesion", "time_budget"))
@@ -275,9 +274,10 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
     def release(self) -> None:
         """Free what only a running solve needs (memory between states; docs/performance.md,
         "Memory of an adhesive path"): the best iterates, the preconditioners' levels and
-        arrays, the products' scratch (each Newton run frees its SNES's work vectors); under the descent strategy the nested iteration's
-        levels too (they gave the first state; every later state is descended from the last).
-        All are made again on demand.  Collective."""
+        arrays, the products' scratch (each Newton run frees its SNES's work vectors); under
+        the descent strategy the nested iteration's levels too (they gave the first state;
+        every later state is descended from the last).  All are made again on demand.
+        Collective."""
         if self.newton is None:
             return      # not built: nothing made yet
         self.newton.release()
@@ -290,37 +290,6 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
             self._x_solve_best = None
         if self.strategy == "descent":
             self.coarse_levels.release()
-
-    def _descend(self, approach: float, start: PETSc.Vec) -> tuple[bool, str, int, int]:
-        """The descent strategy's step from ``start`` (the last state) to ``approach`` [m]: in
-        increments of at most ``-<prefix>descent_max_step`` z0, each but the last descended only
-        to ``-<prefix>descent_step_tol`` (a continuation in the approach: the snaps of the
-        asperities come one increment at a time, in the order a quasi-static path meets them),
-        the last to the descent's tolerance.  (converged, reason, iterations, Krylov
-        iterations) of them all; the increments taken in ``_increments``."""
-        prev = self._start_approach     # the start's own (after a failed solve: the last converged)
-        increments = 1
-        if prev is not None and self.descent_max_step > 0:
-            # equal increments; a step of exactly max_step, give or take a rounding, is one
-            increments = max(int(np.ceil(abs(approach - prev) / (self.descent_max_step * self.z0) * (1 - 1e-9))), 1)
-        iterations = linear = 0
-        first = start
-        self._increments = 1
-        for k in range(1, increments):
-            if self.out_of_time():
-                break
-            ok, _, it, lin = EnergyDescent(self, tol=self.descent_step_tol).descend(
-                prev + (approach - prev) * k / increments, start)
-            PETSc.garbage_cleanup(self.grid.comm)   # its TAO's contexts hold its arrays
-            iterations, linear = iterations + it, linear + lin
-            if not ok:
-                # (a NaN, a failed line search): the whole step from the start instead
-                start, self._increments = first, 1
-                break
-            start = self._x     # the increment's state: the next one's start
-            self._increments += 1
-        ok, reason, it, lin = EnergyDescent(self).descend(approach, start)
-        return ok, reason, iterations + it, linear + lin
 
     # -- public API --------------------------------------------------------------------------
     def solve_force(self, force: float, *, rel_tol: float = 1e-8, max_updates: int = 30,
@@ -397,7 +366,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         # -<prefix>strategy descent: the energy descent from the last state, Newton polishes
         descend = self.strategy == "descent" and approach is not None
         if descend:
-            ok, d_reason, d_newton, d_linear = self._descend(float(approach), x_start)
+            ok, d_reason, d_newton, d_linear, increments = descend_step(self, float(approach), x_start)
             # the descent's PETSc objects (and through their contexts its arrays) are freed
             # here, not at the end of the solve: Newton and the check come first
             PETSc.garbage_cleanup(self.grid.comm)
@@ -412,7 +381,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self.newton.watch_stalls = False
         solver = self.solver_name
         if descend:
-            steps = f" in {self._increments} increments" if self._increments > 1 else ""
+            steps = f" in {increments} increments" if increments > 1 else ""
             solver, newton, linear = f"descent{steps}+{solver}", newton + d_newton, linear + d_linear
             if not ok:
                 reason += f" (after {d_reason})"
@@ -444,7 +413,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
                             solver, tangent=approach is not None and converged)
         if converged:
             self._start_approach = self._approach
-        if not converged:
+        else:
             x_start.copy(self._x)   # keep the last good state as the next start
         x_start.destroy()
         self.centre_owner = None

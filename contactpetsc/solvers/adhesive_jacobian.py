@@ -24,6 +24,7 @@ from petsc4py import PETSc
 
 from ..collective import collective_guard
 from .adhesive_residual import total_pressure
+from .base import weighted_pairs
 from .reduced import InactiveSet, PreconditionerData, ReducedContext, python_submatrix, view_context
 
 
@@ -42,13 +43,12 @@ class AdhesiveJacobian:
         """Free the products' and the preconditioners' arrays between solves (made again on
         demand, into new ``PreconditionerData``, so that no context can mistake the old for
         it); returns the FFT pairs of the freed coarse levels in fine-grid units."""
-        n0 = self.grid.nx * self.grid.ny
-        pairs = sum(lev.op.fft_pairs * lev.grid.nx * lev.grid.ny / n0
-                    for lev in (self.pc_data.mlmi_levels or ()) if lev.op is not self.op)
+        pairs = weighted_pairs([lev.op for lev in self.pc_data.mlmi_levels or () if lev.op is not self.op],
+                               self.grid)
         self._work = None
         self.pc_data.release()
         self.pc_data = PreconditionerData()
-        return float(pairs)
+        return pairs
 
     def apply_full(self, blocks_in: np.ndarray, blocks_out: np.ndarray) -> np.ndarray:
         """J on (nb, ny_loc, nx) arrays."""

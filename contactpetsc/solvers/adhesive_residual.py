@@ -7,7 +7,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..collective import collective_guard, max_error
-from .base import convergence_verdict
+from .base import convergence_verdict, weighted_pairs
 
 
 def total_pressure(blocks: np.ndarray) -> np.ndarray:
@@ -128,8 +128,7 @@ class AdhesiveCallbacks:
         levels = (self._jac.pc_data.mlmi_levels or ()) if self._snes is not None else ()
         for lev in levels:
             ops[id(lev.op)] = lev.op
-        n0 = self.grid.nx * self.grid.ny
-        pairs = float(sum(op.fft_pairs * op.grid.nx * op.grid.ny / n0 for op in ops.values())) + self._released_pairs
+        pairs = weighted_pairs(ops.values(), self.grid) + self._released_pairs
         return pairs + (self.coarse_levels.fft_pairs() if self.coarse_levels is not None else 0.0)
 
     @collective_guard

@@ -83,6 +83,15 @@ def weighted_pairs(ops, fine: SurfaceGrid) -> float:
     return float(sum(op.fft_pairs * (op.grid.nx * op.grid.ny) / n0 for op in ops))
 
 
+def pieces(step: float, max_step: float) -> int:
+    """The equal pieces of at most ``max_step`` (0: any) a step of ``step`` is taken in (a
+    path's sub-steps, a descent's increments); a step of exactly max_step, give or take a
+    rounding, is one."""
+    if not (max_step > 0 and np.isfinite(step)):
+        return 1
+    return max(int(np.ceil(abs(step) / max_step * (1.0 - 1e-9))), 1)
+
+
 def with_options(method):
     """Run a public method with the problem's options inserted (``VIProblem.inserted_options``),
     its grid and heights checked first (collective) when it is called from outside: a user who

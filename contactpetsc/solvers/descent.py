@@ -45,10 +45,10 @@ K^-1 is then diagonal in Fourier space and Phi is the law's energy at the nodes.
 Options (prefix ``<problem prefix>descent_``): ``tol`` (error measure, z0), ``max_rounds``
 (Uzawa rounds of a hard wall), ``offset_tol`` (z0; default a tenth of the problem's ``tol``),
 ``pc_contact_factor`` (f above, default 10; 0: the compliance alone), ``floor_factor`` (F above,
-default 4; 0: no floor), and every ``tao_*``
+default 4; 0: no floor), ``max_step`` and ``step_tol`` (``descend_step``), and every ``tao_*``
 option (code defaults: ``tao_type bnls``, ``tao_bnk_as_type none``, ``tao_bnk_ksp_rtol 0.1``,
 ``tao_bnk_ksp_max_it 50``, ``tao_bnk_psfac 0``, ``tao_max_it 500``; ``-<prefix>descent_tao_monitor`` prints its
-iterations).
+iterations); read and checked in ``descent_options.py``.
 """
 from __future__ import annotations
 
@@ -59,76 +59,13 @@ from petsc4py import PETSc
 from ..collective import max_error
 from ..log_events import log_event
 from .adhesive_residual import total_pressure
-from .options import code_default
+from .base import pieces
 from .descent_contexts import Compliance, Hessian
+from .descent_options import TAO_DEFAULTS, descent_options, require_descent
+from .options import code_default
 
 #: TAO's converged reasons (petsc4py >= 3.20 also names them ConvergedReason)
 TAO_REASON = getattr(PETSc.TAO, "ConvergedReason", None) or PETSc.TAO.Reason
-
-#: TAO's code defaults (set under the strategy's prefix unless the user gave them)
-TAO_DEFAULTS = {
-    "tao_type": "bnls",
-    # BNK's default active-set estimate (a projected gradient step) collapsed its trust region
-    # on every hard-wall state, measured in unit-scale problems (docs/journal/descent_probe.md)
-    "tao_bnk_as_type": "none",
-    # inexact Newton: a tenth of the gradient per step is cheapest (docs/journal/descent_probe.md)
-    "tao_bnk_ksp_rtol": "0.1",
-    # a truncated Newton step: across a large snap single CG solves ran to hundreds of
-    # iterations for a direction the line search then cut (docs/performance.md)
-    "tao_bnk_ksp_max_it": "50",
-    # the Hessian's shift, put on where CG meets negative curvature (a snap), is taken off at
-    # the next Newton step that succeeds: BNK's default only shrinks it, to min(0.4 shift,
-    # 0.1 |gradient|) a step (its floor 1e-12), and what was left of it damped the Newton
-    # steps after the snap (docs/performance.md)
-    "tao_bnk_psfac": "0",
-    "tao_max_it": "500",
-}
-
-
-def descent_options(prefix: str) -> tuple[float, float]:
-    """Check the descent's options under the problem prefix ``prefix``; returns
-    ``-<prefix>descent_pc_contact_factor`` (f of the module doc) and
-    ``-<prefix>descent_floor_factor`` (F of the module doc), both finite and >= 0."""
-    opts = PETSc.Options(prefix)
-    values = []
-    for name in ("descent_pc_contact_factor", "descent_floor_factor"):
-        value = opts.getReal(name, code_default("adhesion", name))
-        if not (np.isfinite(value) and value >= 0):
-            raise ValueError(f"-{prefix}{name} must be finite and >= 0, got {value}")
-        values.append(value)
-    # BNK's embedded CG steps call the convergence test without its Python context (petsc4py
-    # then fails inside TAOSolve with a TypeError): refused here, by name
-    if opts.getInt("descent_tao_bnk_max_cg_its", 0) != 0:
-        raise ValueError(f"-{prefix}descent_tao_bnk_max_cg_its must be 0 (BNK's CG steps are not supported "
-                         f"by the descent's convergence test)")
-    return values[0], values[1]
-
-
-def descent_increments(prefix: str) -> tuple[float, float]:
-    """``-<prefix>descent_max_step`` (the largest increment of the approach a descent takes
-    at once [z0], finite and >= 0; 0: the whole step) and ``-<prefix>descent_step_tol`` (the
-    error its increments but the last are descended to, > 0), checked."""
-    opts = PETSc.Options(prefix)
-    max_step = opts.getReal("descent_max_step", code_default("adhesion", "descent_max_step"))
-    step_tol = opts.getReal("descent_step_tol", code_default("adhesion", "descent_step_tol"))
-    if not (np.isfinite(max_step) and max_step >= 0):
-        raise ValueError(f"-{prefix}descent_max_step must be finite and >= 0 (z0; 0: no increments), got {max_step}")
-    if not (np.isfinite(step_tol) and step_tol > 0):
-        raise ValueError(f"-{prefix}descent_step_tol must be finite and > 0, got {step_tol}")
-    return max_step, step_tol
-
-
-def descent_applies(problem) -> bool:
-    """Whether ``EnergyDescent`` can drive ``problem``: a periodic grid (K^-1 diagonal in
-    Fourier space) and the nodal rule (the law's energy at the nodes)."""
-    return bool(problem.grid.periodic and not problem.element_integration)
-
-
-def require_descent(problem, what: str) -> None:
-    """Refuse ``what`` (an option naming the descent) where ``descent_applies`` is false."""
-    if not descent_applies(problem):
-        raise ValueError(f"{what} needs the energy descent, which needs a periodic grid and the nodal rule "
-                         f"(-{problem.prefix}element_integration false): K^-1 diagonal in Fourier space")
 
 
 class EnergyDescent:
@@ -156,7 +93,8 @@ class EnergyDescent:
         self.tol = tol if tol is not None else opts.getReal("tol", (0.5 if problem.hard_wall else 1.0) * problem.tol)
         self.offset_tol = opts.getReal("offset_tol", 0.1 * problem.tol)
         self.max_rounds = opts.getInt("max_rounds", code_default("adhesion", "descent_max_rounds"))
-        self.pc_contact_factor, self.floor_factor = descent_options(problem.prefix)
+        options = descent_options(problem.prefix)
+        self.pc_contact_factor, self.floor_factor = options.pc_contact_factor, options.floor_factor
         for key, value in TAO_DEFAULTS.items():
             problem.set_default(key, value, self.prefix)
         op = problem.op
@@ -469,6 +407,35 @@ class EnergyDescent:
         else:
             xb[0] = pressure
         self._valid = False
+
+
+def descend_step(problem, approach: float, start: PETSc.Vec) -> tuple[bool, str, int, int, int]:
+    """The descent strategy's step of ``problem`` from ``start`` (its last state) to ``approach``
+    [m]: in increments of at most ``-<prefix>descent_max_step`` z0, each but the last descended
+    only to ``-<prefix>descent_step_tol`` (a continuation in the approach: the asperities snap
+    one increment at a time, in the order a quasi-static path meets them), the last to the
+    descent's tolerance.  (converged, reason, iterations, Krylov iterations, increments taken)
+    of them all; the state reached is in the problem's unknowns.  Collective."""
+    prev = problem._start_approach    # the start's own (after a failed solve: the last converged)
+    options = descent_options(problem.prefix)
+    increments = 1 if prev is None else pieces(approach - prev, options.max_step * problem.z0)
+    iterations = linear = 0
+    first, taken = start, 1
+    for k in range(1, increments):
+        if problem.out_of_time():
+            break
+        ok, _, it, lin = EnergyDescent(problem, tol=options.step_tol).descend(
+            prev + (approach - prev) * k / increments, start)
+        PETSc.garbage_cleanup(problem.grid.comm)   # its TAO's contexts hold its arrays
+        iterations, linear = iterations + it, linear + lin
+        if not ok:
+            # (a NaN, a failed line search): the whole step from the start instead
+            start, taken = first, 1
+            break
+        start = problem._x      # the increment's state: the next one's start
+        taken += 1
+    ok, reason, it, lin = EnergyDescent(problem).descend(approach, start)
+    return ok, reason, iterations + it, linear + lin, taken
 
 
 def reason_text(code: int) -> str:

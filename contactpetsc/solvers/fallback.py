@@ -19,7 +19,8 @@ from __future__ import annotations
 
 from petsc4py import PETSc
 
-from .descent import EnergyDescent, descent_applies, require_descent
+from .descent import EnergyDescent
+from .descent_options import descent_applies, require_descent
 from .newton import VINewton
 from .options import code_default
 from .relaxation import RelaxationSolver

@@ -20,7 +20,8 @@ import numpy as np
 from petsc4py import PETSc
 
 from . import energy_tangent
-from .descent import EnergyDescent, descent_applies
+from .descent import EnergyDescent
+from .descent_options import descent_applies
 from .newton import newton_ksp_type
 from .options import code_default
 from .pc_registry import ADHESIVE_PRECONDITIONERS

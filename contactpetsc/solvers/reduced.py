@@ -31,12 +31,10 @@ class PreconditionerData:
         self.stability_cycle = None      #: the stability check's adhesive cycle (``stability_pc.AdhesiveCyclePreconditioner``)
 
     def release(self) -> None:
-        """Free the stability cycle's set-up and drop the references held here (an adhesive
-        problem's memory between solves; its Jacobian then starts new data).  The non-adhesive
-        problem keeps its hierarchy (``ContactProblem`` owns it)."""
+        """Free the stability cycle's set-up: an adhesive problem's memory between solves, whose
+        Jacobian then starts new data (the non-adhesive problem keeps its hierarchy)."""
         if self.stability_cycle is not None:
             self.stability_cycle.release()
-        self.__init__()
 
     def claim_full_arrays(self, owner, shape) -> tuple[np.ndarray, np.ndarray]:
         """The full (input, output) arrays of one problem's reduced products and
