@@ -171,23 +171,50 @@ class LennardJones(InteractionLaw):
         """Largest adhesive stress 16 w / (9 sqrt(3) z0) [Pa], at z = 3^(1/6) z0."""
         return 16.0 * self.work_of_adhesion / (9.0 * np.sqrt(3.0) * self.z0)
 
-    def _s(self, gap):
-        z = np.asarray(gap, dtype=float) + self.z0
-        if np.any(z <= 0):
-            raise FloatingPointError(f"{self.name}: atomic separation z = g + z0 <= 0 (min {z.min():.3e} m)")
-        return self.z0 / z
+    def _s(self, gap) -> np.ndarray:
+        """s = z0 / (g + z0), a new array (0-d for a scalar gap)."""
+        s = np.add(gap, self.z0, out=np.empty(np.shape(gap)))
+        # min with an initial value: a rank's local rows may be empty
+        if np.min(s, initial=np.inf) <= 0:
+            raise FloatingPointError(f"{self.name}: atomic separation z = g + z0 <= 0 (min {s.min():.3e} m)")
+        return np.divide(self.z0, s, out=s)
 
+    # the powers of s as products, in place: np.power's pow() and a fresh array per operation
+    # cost several times the products, and the descent evaluates the law at every energy and
+    # Hessian (a scalar gap gives a scalar: ``[()]``)
     def pressure(self, gap):
+        """p_s (s^9 - s^3) = p_s s^3 (s^6 - 1) [Pa], eq. (8)."""
         s = self._s(gap)
-        return self.p_scale * (s**9 - s**3)
+        s3 = s * s
+        s3 *= s
+        np.multiply(s3, s3, out=s)
+        s -= 1.0
+        s *= s3
+        s *= self.p_scale
+        return s[()]
 
     def derivative(self, gap):
+        """dp/dg = (p_s / z0) (-9 s^10 + 3 s^4) = (3 p_s / z0) s^4 (1 - 3 s^6) [Pa/m]."""
         s = self._s(gap)
-        return self.p_scale / self.z0 * (-9.0 * s**10 + 3.0 * s**4)
+        s *= s
+        s4 = s * s
+        s *= s4
+        s *= -3.0
+        s += 1.0
+        s *= s4
+        s *= 3.0 * self.p_scale / self.z0
+        return s[()]
 
     def energy(self, gap):
+        """Phi = (w / 3) (s^8 - 4 s^2) = (w / 3) s^2 (s^6 - 4) [J/m^2]."""
         s = self._s(gap)
-        return self.work_of_adhesion / 3.0 * (s**8 - 4.0 * s**2)
+        s *= s
+        s6 = s * s
+        s6 *= s
+        s6 -= 4.0
+        s *= s6
+        s *= self.work_of_adhesion / 3.0
+        return s[()]
 
 
 class HardWallLennardJones(LennardJones):

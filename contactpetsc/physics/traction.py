@@ -58,14 +58,30 @@ class AdhesiveTraction:
         self._coupling = None     # (dx-, dx+, dy-, dy+) d a_i / d g_j
 
     # -- pointwise law with the guards above -------------------------------------
+    def _continued(self, g, values, order: int):
+        """``values`` of the law at max(g, g_safe), below g_safe replaced by the law's Taylor
+        polynomial there in t = g - g_safe: pressure (order 1: p + p' t), energy (order 2: the
+        integral of the former, Phi - t (p + p' t / 2)), derivative (order 0: p').  Only the
+        nodes below are touched: a full-grid np.where cost as much as the law itself."""
+        g = np.asarray(g)
+        below = g < self.g_safe
+        if not below.any():
+            return values
+        values = np.asarray(values)
+        if order == 0:
+            values[below] = self._d_safe
+        else:
+            t = g[below] - self.g_safe
+            values[below] = (self._p_safe + self._d_safe * t if order == 1
+                             else self._e_safe - t * (self._p_safe + 0.5 * self._d_safe * t))
+        return values[()]
+
     def _pressure(self, g):
         if self.hard_wall:
             return self.law.pressure(np.maximum(g, 0.0))
         if self.g_safe is None:
             return self.law.pressure(g)
-        gs = np.maximum(g, self.g_safe)
-        return np.where(g < self.g_safe, self._p_safe + self._d_safe * (g - self.g_safe),
-                        self.law.pressure(gs))
+        return self._continued(g, self.law.pressure(np.maximum(g, self.g_safe)), 1)
 
     def nodal_derivative(self, g):
         """da/dg [Pa/m] of the guarded pointwise law at the gaps ``g`` [m] (zero on a hard wall's
@@ -74,16 +90,14 @@ class AdhesiveTraction:
             return np.where(g > 0, self.law.derivative(np.maximum(g, 0.0)), 0.0)
         if self.g_safe is None:
             return self.law.derivative(g)
-        return np.where(g < self.g_safe, self._d_safe, self.law.derivative(np.maximum(g, self.g_safe)))
+        return self._continued(g, self.law.derivative(np.maximum(g, self.g_safe)), 0)
 
     def _energy(self, g):
         if self.hard_wall:
             return self.law.energy(np.maximum(g, 0.0))
         if self.g_safe is None:
             return self.law.energy(g)
-        t = g - self.g_safe
-        return np.where(g < self.g_safe, self._e_safe - t * (self._p_safe + 0.5 * self._d_safe * t),
-                        self.law.energy(np.maximum(g, self.g_safe)))
+        return self._continued(g, self.law.energy(np.maximum(g, self.g_safe)), 2)
 
     def _segment(self, a, b):
         """(m, dm/da, dm/db) of the mean pressure along a linear profile from gap a to b."""

@@ -108,7 +108,8 @@ class EnergyDescent:
         mean_value = 1.0 / self.c if self.c else problem.kappa
         compliance = np.where(mean_mode, mean_value, 1.0 / np.where(mean_mode, 1.0, stiffness))
         self._k_inv = op.inverse_pairs
-        self._compliance = op.as_pairs(compliance * norm)
+        # K / K_ii: the preconditioner's compliance in the dimensionless v
+        self._compliance = op.as_pairs(compliance * (norm / problem.kappa))
         self.h = grid.rows(problem.heights, readonly=True)
         # TAO works in v = u / z0 on the energy times K_ii / z0^2: gradient, Hessian and steps of
         # order one at any units (in metres and pascals BNK's gradient steps and shifts, of
@@ -120,6 +121,7 @@ class EnergyDescent:
         self.curvature = np.zeros(self.shape)
         self.pc_scale = None         # S of the preconditioner (None: S = 1)
         self._embed = None           # the preconditioner's full (input, output) on a proper inactive set
+        self._dx = None              # the Hessian product's diagonal term
         # the last evaluation's fields, overwritten by the next one (never two sets alive):
         # (v copy, u, g, p, a, K^-1 u) rows and mean u; ``_valid`` whether they are v's
         self._rows, self._mean_u, self._valid = None, 0.0, False
@@ -211,15 +213,24 @@ class EnergyDescent:
     def hessian_mult(self, x: np.ndarray, y: np.ndarray) -> None:
         """y = H x on rows of the dimensionless v = u / z0 (the scaled energy's Hessian)."""
         self.p.op.convolve(self._k_inv, x, y)
+        mean_x = self._sum(float(x.sum())) / self.n
+        if self._dx is None:
+            # lives as long as the descent: a fresh grid-sized array per product cost a page-
+            # faulting allocation each time, and the product's own temporary was alive at the
+            # descent's peak anyway
+            self._dx = np.empty(self.shape)
         if self.p.hard_wall:
-            y += self.curvature * x + self.c * self._sum(float(x.sum())) / self.n
+            dx = np.multiply(self.curvature, x, out=self._dx)
+            shift = self.c * mean_x
         else:
             # P0 D P0 + 1 / K_ii on the mean (the compliance's inverse there): symmetric on
             # every vector, a mean component included, which the scaled preconditioner's
             # output has
-            mean_x = self._sum(float(x.sum())) / self.n
-            dx = self.curvature * (x - mean_x)
-            y += dx + (mean_x / self.kappa - self._sum(float(dx.sum())) / self.n)
+            dx = np.subtract(x, mean_x, out=self._dx)
+            dx *= self.curvature
+            shift = mean_x / self.kappa - self._sum(float(dx.sum())) / self.n
+        y += dx
+        y += shift
         y *= self.kappa     # the Hessian in v = u / z0 of the scaled energy
 
     def precondition(self, x: np.ndarray, y: np.ndarray) -> None:
@@ -231,7 +242,6 @@ class EnergyDescent:
         else:
             self.p.op.convolve(self._compliance, np.multiply(s, x, out=y), y)
             y *= s
-        y /= self.kappa
 
     def _set_floor(self, lower: np.ndarray, v: np.ndarray) -> None:
         """TAO's lower bound (rows ``lower`` of v = u / z0) for the full LJ curve: the gap where
