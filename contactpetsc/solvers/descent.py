@@ -47,7 +47,7 @@ Options (prefix ``<problem prefix>descent_``): ``tol`` (error measure, z0), ``ma
 ``pc_contact_factor`` (f above, default 10; 0: the compliance alone), ``floor_factor`` (F above,
 default 4; 0: no floor), ``max_step`` and ``step_tol`` (``descend_step``), and every ``tao_*``
 option (code defaults: ``tao_type bnls``, ``tao_bnk_as_type none``, ``tao_bnk_ksp_rtol 0.1``,
-``tao_bnk_ksp_max_it 50``, ``tao_bnk_psfac 0``, ``tao_max_it 500``; ``-<prefix>descent_tao_monitor`` prints its
+``tao_bnk_ksp_norm_type natural``, ``tao_bnk_ksp_max_it 50``, ``tao_bnk_psfac 0``, ``tao_max_it 500``; ``-<prefix>descent_tao_monitor`` prints its
 iterations); read and checked in ``descent_options.py``.
 """
 from __future__ import annotations
@@ -123,7 +123,7 @@ class EnergyDescent:
         self._embed = None           # the preconditioner's full (input, output) on a proper inactive set
         self._dx = None              # the Hessian product's diagonal term
         # the last evaluation's fields, overwritten by the next one (never two sets alive):
-        # (v copy, u, g, p, a, K^-1 u) rows and mean u; ``_valid`` whether they are v's
+        # (v copy, g, p, a, K^-1 u) rows and mean u; ``_valid`` whether they are v's
         self._rows, self._mean_u, self._valid = None, 0.0, False
         self.pc_applies = 0
 
@@ -139,43 +139,44 @@ class EnergyDescent:
         return self.comm.allreduce(value)
 
     def fields(self, x: PETSc.Vec):
-        """(u, g, p, a, mean u, K^-1 u) at TAO's variable ``x`` (v = u / z0; rows [m] and [Pa]):
+        """(g, p, a, mean u, K^-1 u) at TAO's variable ``x`` (v = u / z0; rows [m] and [Pa]):
         one FFT pair, or none where they are the last evaluation's (collective).  The rows are
-        the descent's own, valid until the next evaluation at another ``x``."""
+        the descent's own, valid until the next evaluation at another ``x``; ``self._rows[0]``
+        is v (u = z0 v is not kept: every use of it is a product with z0)."""
         v = x.getArray(readonly=True).reshape(self.shape)
         # the cache is used by all ranks or none: a rank whose rows did not change while
         # another's did would skip the FFT's and the sums' collectives (a hang on 3 ranks)
         same = self._valid and np.array_equal(self._rows[0], v)
         if self.comm.allreduce(same, op=MPI.LAND):
-            return self._rows[1:5] + (self._mean_u, self._rows[5])
+            return self._rows[1:4] + (self._mean_u, self._rows[4])
         if self._rows is None:
-            self._rows = tuple(np.empty(self.shape) for _ in range(6))
-        v_copy, u, g, pressure, a, k_inv_u = self._rows
+            self._rows = tuple(np.empty(self.shape) for _ in range(5))
+        v_copy, g, pressure, a, k_inv_u = self._rows
         v_copy[...] = v
-        np.multiply(v, self.length, out=u)
         p = self.p
-        mean_u = self._sum(float(u.sum())) / self.n
-        p.op.convolve(self._k_inv, u, k_inv_u)
+        mean_u = self._sum(float(v_copy.sum())) * self.length / self.n
+        p.op.convolve(self._k_inv, v_copy, k_inv_u)
+        k_inv_u *= self.length
+        np.multiply(v_copy, self.length, out=g)
+        g += self.h
         if p.hard_wall:
-            np.add(self.h, u, out=g)
             g -= self.delta
             p.traction.pressure(g, out=a)
             np.add(k_inv_u, self.c * mean_u + self.W, out=pressure)
         else:
-            np.subtract(u, mean_u, out=g)
-            np.add(self.h, g, out=g)
-            g -= self.delta
+            g -= mean_u + self.delta
             p.traction.pressure(g, out=a)
             np.add(k_inv_u, self._sum(float(a.sum())) / self.n, out=pressure)
         self._mean_u, self._valid = mean_u, True
-        return u, g, pressure, a, mean_u, k_inv_u
+        return g, pressure, a, mean_u, k_inv_u
 
     def objective_gradient(self, tao, x, gradient) -> float:
         """TAO's objective at v = u / z0: E(u) / dA (1/2 u . K^-1 u + sum Phi(g), [J/m^2] summed
         over the nodes) times K_ii / z0^2, and its gradient (p - a(g)) K_ii / z0."""
         grad = gradient.getArray().reshape(self.shape)
-        u, g, pressure, a, mean_u, k_inv_u = self.fields(x)
-        local = 0.5 * float(np.dot(u.ravel(), k_inv_u.ravel())) + float(self.p.traction.energy(g).sum())
+        g, pressure, a, mean_u, k_inv_u = self.fields(x)
+        local = (0.5 * self.length * float(np.dot(self._rows[0].ravel(), k_inv_u.ravel()))
+                 + float(self.p.traction.energy(g).sum()))
         energy = self._sum(local)
         np.subtract(pressure, a, out=grad)
         if self.p.hard_wall:
@@ -186,7 +187,7 @@ class EnergyDescent:
         return energy * self.kappa / self.length ** 2
 
     def hessian(self, tao, x, H, P):
-        self.set_curvature(self.fields(x)[1])
+        self.set_curvature(self.fields(x)[0])
         H.getPythonContext().shift_value = 0.0
 
     def set_curvature(self, g: np.ndarray) -> None:
@@ -278,7 +279,7 @@ class EnergyDescent:
         return max_error(self.comm, local)
 
     def _converged(self, tao):
-        _, g, pressure, a, mean_u, _ = self.fields(tao.getSolution())
+        g, pressure, a, mean_u, _ = self.fields(tao.getSolution())
         err = self.error(g, pressure, a)
         it = tao.getIterationNumber()
         p = self.p
@@ -373,7 +374,7 @@ class EnergyDescent:
                     self._floor = self._floor * 8.0 if floors < 3 else np.inf
                     self._set_floor(grid.rows(bounds[0]), grid.rows(x, readonly=True))
                     continue
-                mean_u = self.fields(x)[4]
+                mean_u = self.fields(x)[3]
                 if not p.hard_wall or code < 0 or rounds >= self.max_rounds or abs(mean_u) <= self.offset_tol * p.z0:
                     break
                 # the measured mean pressure, W + c m, is the next round's multiplier; from the
@@ -406,7 +407,7 @@ class EnergyDescent:
         variable: u = z0 v rounds, and a contact node read as one ulp above the wall in metres
         lost its multiplier and sent Newton's confirmation off)."""
         p = self.p
-        g, pressure, a = self.fields(x)[1:4]
+        g, pressure, a = self.fields(x)[:3]
         xb = p.blocks(p._x)
         if p.hard_wall:
             # the multiplier lives on the contact nodes, where u sits on its bound: elsewhere

@@ -21,6 +21,9 @@ TAO_DEFAULTS = {
     # a truncated Newton step: across a large snap single CG solves ran to hundreds of
     # iterations for a direction the line search then cut (docs/performance.md)
     "tao_bnk_ksp_max_it": "50",
+    # CG's own norm, |r|_M = sqrt(r . K r): no extra product per iteration, and on the rough
+    # benchmark's paths and steps the same states in fewer FFT pairs (docs/performance.md)
+    "tao_bnk_ksp_norm_type": "natural",
     # the Hessian's shift, put on where CG meets negative curvature (a snap), is taken off at
     # the next Newton step that succeeds: BNK's default only shrinks it, to min(0.4 shift,
     # 0.1 |gradient|) a step (its floor 1e-12), and what was left of it damped the Newton

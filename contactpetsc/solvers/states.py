@@ -36,7 +36,7 @@ class ContactState:
 class AdhesiveState(ContactState):
     """A solved adhesive contact state; Vecs on the problem's grid (``pressure`` is p = q + a)."""
     contact_pressure: PETSc.Vec = None   #: q >= 0 [Pa] (zero for the full LJ curve)
-    adhesive_pressure: PETSc.Vec = None  #: a [Pa]
+    adhesive_pressure: PETSc.Vec = None  #: a [Pa] (the full LJ curve: the ``pressure`` Vec itself)
     central_gap: float = float("nan")    #: gap at the control node [m]
     adhesive_force: float = 0.0          #: sum of the negative pressures times the element area [N]
     adhesive_error: float = float("nan")  #: max K_ii |a - a(g)| [z0]

@@ -88,11 +88,17 @@ class TangentAndState:
             self.check_time += self.history.elapsed() - t_check
         else:
             self.predictor.drop()
-        q, a, p, gap, v = (grid.create_vec(0.0) for _ in range(5))
+        q, p, gap, v = (grid.create_vec(0.0) for _ in range(4))
         if self.hard_wall:
             grid.rows(q)[...] = xb[0]
-        grid.rows(a)[...] = xb[-1]
-        grid.rows(p)[...] = xb.sum(axis=0)
+            a = grid.create_vec()
+            grid.rows(a)[...] = xb[-1]
+            np.add(xb[0], xb[-1], out=grid.rows(p))
+        else:
+            # the full LJ curve carries all of p as a (q = 0): one Vec for both, read-only
+            # fields of the state, a grid-sized double per node less on the caller's side
+            grid.rows(p)[...] = xb[-1]
+            a = p
         grid.rows(gap)[...] = gap_rows
         grid.rows(v)[...] = v_rows
         del v_rows
