@@ -176,6 +176,26 @@ def test_bad_descent_options_are_refused_by_name(coll, option, value, message):
         pb.solve(approach=float(h.min()[1]) + 0.5)
 
 
+@pytest.mark.parametrize("ksp_type", ["minres", "gmres"])
+def test_a_users_krylov_method_for_the_descent_keeps_its_own_norm(coll, ksp_type):
+    """The descent's CG tests its natural norm by default; a Krylov method the user chose
+    that refuses that norm (MINRES, GMRES) keeps its own and reaches Newton's state (the
+    natural norm given to them had raised inside TAOSolve)."""
+    law = make_law("lj", work_of_adhesion=0.05, z0=1.0)
+    grid, h = rough(PETSc.COMM_WORLD, n=32)
+    d0, d1 = h.min()[1] + 0.5, h.min()[1] + 0.6
+    newton = AdhesiveProblem(grid, h, 1.0, law, prefix="kspnewt_", petsc_options={"strategy": "newton"})
+    newton.solve(approach=d0)
+    reference = newton.solve(approach=d1)
+    pb = AdhesiveProblem(grid, h, 1.0, law, prefix=f"ksp{ksp_type}_",
+                         petsc_options={"descent_tao_bnk_ksp_type": ksp_type})
+    pb.solve(approach=d0)
+    state = pb.solve(approach=d1, raise_on_failure=False)
+    assert state.converged and state.solver.startswith("descent"), (state.reason, state.solver)
+    p = grid.rows(state.pressure, readonly=True)
+    assert coll.max(np.abs(p - grid.rows(reference.pressure, readonly=True))) / float(law.peak_attraction) < 1e-6
+
+
 def test_a_short_hard_wall_descent_on_any_rank_count(coll):
     """A step of 0.1 z0 with a hard wall, where the bounded line search's trial points leave
     some ranks' rows unchanged: the descent's evaluations stay collective (a rank-local cache

@@ -174,9 +174,11 @@ class LennardJones(InteractionLaw):
     def _s(self, gap) -> np.ndarray:
         """s = z0 / (g + z0), a new array (0-d for a scalar gap)."""
         s = np.add(gap, self.z0, out=np.empty(np.shape(gap)))
-        # min with an initial value: a rank's local rows may be empty
-        if np.min(s, initial=np.inf) <= 0:
-            raise FloatingPointError(f"{self.name}: atomic separation z = g + z0 <= 0 (min {s.min():.3e} m)")
+        # min with an initial value: a rank's local rows may be empty; a NaN makes the min NaN,
+        # and the nodes beside it are then checked one by one (NaN itself passes, as it did)
+        smallest = np.min(s, initial=np.inf)
+        if smallest <= 0 or (np.isnan(smallest) and np.any(s <= 0)):
+            raise FloatingPointError(f"{self.name}: atomic separation z = g + z0 <= 0 (min {np.nanmin(s):.3e} m)")
         return np.divide(self.z0, s, out=s)
 
     # the powers of s as products, in place: np.power's pow() and a fresh array per operation

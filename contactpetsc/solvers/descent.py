@@ -47,8 +47,9 @@ Options (prefix ``<problem prefix>descent_``): ``tol`` (error measure, z0), ``ma
 ``pc_contact_factor`` (f above, default 10; 0: the compliance alone), ``floor_factor`` (F above,
 default 4; 0: no floor), ``max_step`` and ``step_tol`` (``descend_step``), and every ``tao_*``
 option (code defaults: ``tao_type bnls``, ``tao_bnk_as_type none``, ``tao_bnk_ksp_rtol 0.1``,
-``tao_bnk_ksp_norm_type natural``, ``tao_bnk_ksp_max_it 50``, ``tao_bnk_psfac 0``, ``tao_max_it 500``; ``-<prefix>descent_tao_monitor`` prints its
-iterations); read and checked in ``descent_options.py``.
+``tao_bnk_ksp_max_it 50``, ``tao_bnk_psfac 0``, ``tao_max_it 500``; ``-<prefix>descent_tao_monitor`` prints its
+iterations; CG-type Krylov methods test their natural norm unless ``tao_bnk_ksp_norm_type`` is
+given); read and checked in ``descent_options.py``.
 """
 from __future__ import annotations
 
@@ -61,7 +62,7 @@ from ..log_events import log_event
 from .adhesive_residual import total_pressure
 from .base import pieces
 from .descent_contexts import Compliance, Hessian
-from .descent_options import TAO_DEFAULTS, descent_options, require_descent
+from .descent_options import TAO_DEFAULTS, descent_options, natural_norm, require_descent
 from .options import code_default
 
 #: TAO's converged reasons (petsc4py >= 3.20 also names them ConvergedReason)
@@ -353,6 +354,7 @@ class EnergyDescent:
         tao.setFromOptions()
         ksp = tao.getKSP()
         if ksp is not None:
+            natural_norm(ksp, self.prefix)
             pc = ksp.getPC()
             pc.setType("python")
             pc.setPythonContext(Compliance(self))

@@ -21,9 +21,6 @@ TAO_DEFAULTS = {
     # a truncated Newton step: across a large snap single CG solves ran to hundreds of
     # iterations for a direction the line search then cut (docs/performance.md)
     "tao_bnk_ksp_max_it": "50",
-    # CG's own norm, |r|_M = sqrt(r . K r): no extra product per iteration, and on the rough
-    # benchmark's paths and steps the same states in fewer FFT pairs (docs/performance.md)
-    "tao_bnk_ksp_norm_type": "natural",
     # the Hessian's shift, put on where CG meets negative curvature (a snap), is taken off at
     # the next Newton step that succeeds: BNK's default only shrinks it, to min(0.4 shift,
     # 0.1 |gradient|) a step (its floor 1e-12), and what was left of it damped the Newton
@@ -31,6 +28,20 @@ TAO_DEFAULTS = {
     "tao_bnk_psfac": "0",
     "tao_max_it": "500",
 }
+
+
+#: the Krylov methods whose convergence test takes CG's natural norm |r|_P = sqrt(r . P r): the
+#: descent's default there (``natural_norm``), where GMRES or MINRES, which refuse it, keep theirs
+NATURAL_NORM_KSPS = ("stcg", "nash", "gltr", "cg")
+
+
+def natural_norm(ksp: PETSc.KSP, prefix: str) -> None:
+    """Set CG's natural norm on the descent's Krylov solver ``ksp`` (options prefix ``prefix``)
+    unless the user chose a norm or a method that refuses it: no extra product per iteration,
+    and on the rough benchmark's paths and steps the same states in fewer FFT pairs
+    (docs/performance.md, "Where the descent's time goes")."""
+    if ksp.getType() in NATURAL_NORM_KSPS and not PETSc.Options(prefix).hasName("tao_bnk_ksp_norm_type"):
+        ksp.setNormType(PETSc.KSP.NormType.NATURAL)
 
 
 class DescentOptions(NamedTuple):
