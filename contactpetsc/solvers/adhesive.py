@@ -44,7 +44,7 @@ from .adhesive_levels import CoarseLevels
 from .adhesive_residual import AdhesiveCallbacks
 from .base import AdhesiveSolveError, VIProblem, check_tolerance, reason_name, with_options
 from .continuation import Continuation
-from .descent import descend_step
+from .descent_step import descend_step
 from .descent_options import descent_applies, descent_options, require_descent
 from .fallback import FallbackChain
 from .history import SolveHistory

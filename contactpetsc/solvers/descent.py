@@ -45,11 +45,9 @@ K^-1 is then diagonal in Fourier space and Phi is the law's energy at the nodes.
 Options (prefix ``<problem prefix>descent_``): ``tol`` (error measure, z0), ``max_rounds``
 (Uzawa rounds of a hard wall), ``offset_tol`` (z0; default a tenth of the problem's ``tol``),
 ``pc_contact_factor`` (f above, default 10; 0: the compliance alone), ``floor_factor`` (F above,
-default 4; 0: no floor), ``max_step`` and ``step_tol`` (``descend_step``), and every ``tao_*``
-option (code defaults: ``tao_type bnls``, ``tao_bnk_as_type none``, ``tao_bnk_ksp_rtol 0.1``,
-``tao_bnk_ksp_max_it 50``, ``tao_bnk_psfac 0``, ``tao_max_it 500``; ``-<prefix>descent_tao_monitor`` prints its
-iterations; CG-type Krylov methods test their natural norm unless ``tao_bnk_ksp_norm_type`` is
-given); read and checked in ``descent_options.py``.
+default 4; 0: no floor), ``max_step`` and ``step_tol`` (``descent_step.py``), and every ``tao_*``
+option (code defaults: ``descent_options.TAO_DEFAULTS`` and ``natural_norm``;
+``-<prefix>descent_tao_monitor`` prints its iterations); read and checked in ``descent_options.py``.
 """
 from __future__ import annotations
 
@@ -60,7 +58,6 @@ from petsc4py import PETSc
 from ..collective import max_error
 from ..log_events import log_event
 from .adhesive_residual import total_pressure
-from .base import pieces
 from .descent_contexts import Compliance, Hessian
 from .descent_options import TAO_DEFAULTS, descent_options, natural_norm, require_descent
 from .options import code_default
@@ -420,35 +417,6 @@ class EnergyDescent:
         else:
             xb[0] = pressure
         self._valid = False
-
-
-def descend_step(problem, approach: float, start: PETSc.Vec) -> tuple[bool, str, int, int, int]:
-    """The descent strategy's step of ``problem`` from ``start`` (its last state) to ``approach``
-    [m]: in increments of at most ``-<prefix>descent_max_step`` z0, each but the last descended
-    only to ``-<prefix>descent_step_tol`` (a continuation in the approach: the asperities snap
-    one increment at a time, in the order a quasi-static path meets them), the last to the
-    descent's tolerance.  (converged, reason, iterations, Krylov iterations, increments taken)
-    of them all; the state reached is in the problem's unknowns.  Collective."""
-    prev = problem._start_approach    # the start's own (after a failed solve: the last converged)
-    options = descent_options(problem.prefix)
-    increments = 1 if prev is None else pieces(approach - prev, options.max_step * problem.z0)
-    iterations = linear = 0
-    first, taken = start, 1
-    for k in range(1, increments):
-        if problem.out_of_time():
-            break
-        ok, _, it, lin = EnergyDescent(problem, tol=options.step_tol).descend(
-            prev + (approach - prev) * k / increments, start)
-        PETSc.garbage_cleanup(problem.grid.comm)   # its TAO's contexts hold its arrays
-        iterations, linear = iterations + it, linear + lin
-        if not ok:
-            # (a NaN, a failed line search): the whole step from the start instead
-            start, taken = first, 1
-            break
-        start = problem._x      # the increment's state: the next one's start
-        taken += 1
-    ok, reason, it, lin = EnergyDescent(problem).descend(approach, start)
-    return ok, reason, iterations + it, linear + lin, taken
 
 
 def reason_text(code: int) -> str:

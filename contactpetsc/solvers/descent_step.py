@@ -1,0 +1,38 @@
+"""The energy descent strategy's step of an ``AdhesiveProblem``: the approach followed in
+increments, each descended by ``descent.EnergyDescent`` (docs/formulation.md, "Energy descent")."""
+from __future__ import annotations
+
+from petsc4py import PETSc
+
+from .base import pieces
+from .descent import EnergyDescent
+from .descent_options import descent_options
+
+
+def descend_step(problem, approach: float, start: PETSc.Vec) -> tuple[bool, str, int, int, int]:
+    """The descent strategy's step of ``problem`` from ``start`` (its last state) to ``approach``
+    [m]: in increments of at most ``-<prefix>descent_max_step`` z0, each but the last descended
+    only to ``-<prefix>descent_step_tol`` (a continuation in the approach: the asperities snap
+    one increment at a time, in the order a quasi-static path meets them), the last to the
+    descent's tolerance.  (converged, reason, iterations, Krylov iterations, increments taken)
+    of them all; the state reached is in the problem's unknowns.  Collective."""
+    prev = problem._start_approach    # the start's own (after a failed solve: the last converged)
+    options = descent_options(problem.prefix)
+    increments = 1 if prev is None else pieces(approach - prev, options.max_step * problem.z0)
+    iterations = linear = 0
+    first, taken = start, 1
+    for k in range(1, increments):
+        if problem.out_of_time():
+            break
+        ok, _, it, lin = EnergyDescent(problem, tol=options.step_tol).descend(
+            prev + (approach - prev) * k / increments, start)
+        PETSc.garbage_cleanup(problem.grid.comm)   # its TAO's contexts hold its arrays
+        iterations, linear = iterations + it, linear + lin
+        if not ok:
+            # (a NaN, a failed line search): the whole step from the start instead
+            start, taken = first, 1
+            break
+        start = problem._x      # the increment's state: the next one's start
+        taken += 1
+    ok, reason, it, lin = EnergyDescent(problem).descend(approach, start)
+    return ok, reason, iterations + it, linear + lin, taken
