@@ -196,33 +196,62 @@ def test_a_users_krylov_method_for_the_descent_keeps_its_own_norm(coll, ksp_type
     assert coll.max(np.abs(p - grid.rows(reference.pressure, readonly=True))) / float(law.peak_attraction) < 1e-6
 
 
+def hard_wall_step(tag, step, options):
+    """Newton's states at d0 and d0 + ``step`` [z0] on the rough surface with the hard-wall LJ
+    law, and the descent from the first to the second approach with the descent ``options``
+    (under the prefix ``<tag>desc_``): (grid, law, problem, descent, converged, reason, Newton's
+    state at d0 + step, d0 + step)."""
+    law = make_law("hardwall-lj", work_of_adhesion=0.05, z0=1.0)
+    grid, h = rough(PETSc.COMM_WORLD)
+    d0, d1 = h.min()[1] + 0.5, h.min()[1] + 0.5 + step
+    newton = AdhesiveProblem(grid, h, 1.0, law, prefix=f"{tag}newt_")
+    newton.solve(approach=d0)
+    start = newton._x.copy()
+    reference = newton.solve(approach=d1)
+    opts = PETSc.Options(f"{tag}desc_")
+    for name, value in options.items():
+        opts.setValue(name, value)
+    try:
+        pb = AdhesiveProblem(grid, h, 1.0, law, prefix=f"{tag}desc_")
+        pb.prepare(d0)
+        descent = EnergyDescent(pb)
+        ok, reason, _, _ = descent.descend(d1, start)
+    finally:
+        for name in options:
+            opts.delValue(name)
+    return grid, law, pb, descent, ok, reason, reference, d1
+
+
 def test_a_short_hard_wall_descent_on_any_rank_count(coll):
     """A step of 0.1 z0 with a hard wall, where the bounded line search's trial points leave
     some ranks' rows unchanged: the descent's evaluations stay collective (a rank-local cache
     test had hung on 3 ranks) and reach Newton's state."""
-    law = make_law("hardwall-lj", work_of_adhesion=0.05, z0=1.0)
-    grid, h = rough(PETSc.COMM_WORLD)
-    d0, d1 = h.min()[1] + 0.5, h.min()[1] + 0.6
-    newton = AdhesiveProblem(grid, h, 1.0, law, prefix="shortnewt_")
-    newton.solve(approach=d0)
-    start = newton._x.copy()
-    reference = newton.solve(approach=d1)
     # descended to 1e-9 with the mean held to 1e-11: the line search's last trial points move
     # a few nodes of one rank only
-    opts = PETSc.Options("shortdesc_")
-    tight = dict(descent_tol=1e-9, descent_offset_tol=1e-11, descent_max_rounds=30)
-    for name, value in tight.items():
-        opts.setValue(name, value)
-    try:
-        pb = AdhesiveProblem(grid, h, 1.0, law, prefix="shortdesc_")
-        pb.prepare(d0)
-        ok, reason, _, _ = EnergyDescent(pb).descend(d1, start)
-    finally:
-        for name in tight:
-            opts.delValue(name)
+    grid, law, pb, _, ok, reason, reference, _ = hard_wall_step(
+        "short", 0.1, dict(descent_tol=1e-9, descent_offset_tol=1e-11, descent_max_rounds=30))
     assert ok, reason
     p = pb.blocks(pb._x, readonly=True).sum(axis=0)
     assert coll.max(np.abs(p - grid.rows(reference.pressure, readonly=True))) / float(law.peak_attraction) < 1e-5
+
+
+@pytest.mark.parametrize("max_rounds", [1, 2, 30])
+def test_a_converged_hard_wall_descent_is_at_its_tolerance_whichever_round_is_last(coll, max_rounds):
+    """A hard wall's rounds but the last stop at an error below the mean offset they leave;
+    the last one (its offset within offset_tol, or the max_rounds-th) is descended to the
+    tolerance: a descent reported converged is at its tolerance, the offset at most the one
+    Newton's polish closes, and it is Newton's state."""
+    grid, law, pb, descent, ok, reason, reference, d1 = hard_wall_step(
+        "round", 0.5, dict(descent_max_rounds=max_rounds))
+    assert ok, reason
+    assert descent.last_error <= descent.tol, (descent.last_error, reason)
+    rounds = int(reason.split(", ")[1].split()[0])
+    assert rounds <= max_rounds
+    pb.prepare(d1)
+    ok, reason, _, _ = pb.newton.run()      # the polish closes the offset left
+    assert ok, reason
+    p = pb.blocks(pb._x, readonly=True).sum(axis=0)
+    assert coll.max(np.abs(p - grid.rows(reference.pressure, readonly=True))) / float(law.peak_attraction) < 1e-6
 
 
 def _as_vec(grid, rows):

@@ -35,7 +35,8 @@ the same in nanometres as in metres.
   multiplier): a state with mean(u) = m is exactly an equilibrium at approach delta - m.
   W is updated to the measured mean pressure between rounds (Uzawa; from the second round
   on, by the secant of m(W)) until |m| is below ``offset_tol`` z0; Newton then closes the
-  last offset.
+  last offset.  A round that another follows stops at an error below its offset
+  (``_round_target``).
 
 Its stopping test is the problem's own error measures (``AdhesiveProblem._measures``) on
 the descent iterate, to ``-<prefix>descent_tol`` (default: the problem's ``tol``, half of it with a hard wall; Newton's
@@ -124,6 +125,7 @@ class EnergyDescent:
         # (v copy, g, p, a, K^-1 u) rows and mean u; ``_valid`` whether they are v's
         self._rows, self._mean_u, self._valid = None, 0.0, False
         self.pc_applies = 0
+        self._round = 1              # the hard wall's round under way (``_round_target``)
 
     # -- PETSc objects ------------------------------------------------------------------
     def shell(self, sizes, ctx) -> PETSc.Mat:
@@ -276,6 +278,17 @@ class EnergyDescent:
                         float((np.abs(d) / (p.pressure_scale + np.abs(a))).max()))
         return max_error(self.comm, local)
 
+    def _round_target(self, mean_u: float) -> float:
+        """The error this round of the descent stops at, the mean of u being ``mean_u`` [m]: a
+        hard wall's round that leaves an offset above ``offset_tol`` is followed by another, whose
+        new multiplier W moves the state by about that offset: it stops once its error [z0] is
+        below the offset [z0] (the last polishing steps of every round but the last were lost).
+        The descent's tolerance where the round may be the last."""
+        offset = abs(mean_u) / self.p.z0
+        if self.p.hard_wall and offset > self.offset_tol and self._round < self.max_rounds:
+            return max(self.tol, offset)
+        return self.tol
+
     def _converged(self, tao):
         g, pressure, a, mean_u, _ = self.fields(tao.getSolution())
         err = self.error(g, pressure, a)
@@ -291,7 +304,7 @@ class EnergyDescent:
         self.last_error = err
         if tao.getConvergedReason() < 0:
             return       # TAO's own failure (line search, ...)
-        if err <= self.tol:
+        if err <= self._round_target(mean_u):
             tao.setConvergedReason(TAO_REASON.CONVERGED_USER)
         elif self._floor is not None and np.isfinite(self._floor) and self._held_by_floor(tao, pressure, a):
             self.pinned = True
@@ -362,6 +375,7 @@ class EnergyDescent:
         try:
             while True:
                 self.pinned = False
+                self._round = rounds + 1
                 tao.solve()
                 rounds += 1
                 iterations += tao.getIterationNumber()
