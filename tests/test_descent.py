@@ -299,23 +299,21 @@ def test_a_snap_in_is_a_descent_to_a_stable_state(coll):
 @pytest.mark.serial
 @pytest.mark.parametrize("law_name", ["lj", "hardwall-lj"])
 def test_the_descent_strategy_follows_newtons_path(coll, law_name):
-    """``-<prefix>strategy descent`` (every step a descent from the last state, then Newton)
-    lands in the states of the default strategy along a loading path without jumps."""
+    """``-<prefix>strategy descent`` (every step a descent from the last state, then Newton;
+    the default) lands in the states of ``-<prefix>strategy newton`` (the predicted Newton
+    step) along a loading path without jumps."""
     law = make_law(law_name, work_of_adhesion=0.05, z0=1.0)
     grid, h = rough(PETSc.COMM_WORLD)
     hmin = h.min()[1]
     key = law_name.replace("-", "")
-    opts = PETSc.Options(f"strat{key}_")
-    opts.setValue("strategy", "descent")
-    try:
-        paths = [AdhesiveProblem(grid, h, 1.0, law, prefix=prefix) for prefix in (f"plain{key}_", f"strat{key}_")]
-        for d in (0.25, 0.75, 1.25):
-            plain, descended = (pb.solve(approach=hmin + d) for pb in paths)
-            assert descended.solver.startswith("descent+") and descended.converged and descended.stable
-            dg = grid.rows(plain.gap, readonly=True) - grid.rows(descended.gap, readonly=True)
-            assert coll.max(np.abs(dg)) < 1e-6
-    finally:
-        opts.delValue("strategy")
+    paths = [AdhesiveProblem(grid, h, 1.0, law, prefix=f"{name}{key}_", petsc_options={"strategy": name})
+             for name in ("newton", "descent")]
+    for d in (0.25, 0.75, 1.25):
+        newton, descended = (pb.solve(approach=hmin + d) for pb in paths)
+        assert not newton.solver.startswith("descent+")
+        assert descended.solver.startswith("descent+") and descended.converged and descended.stable
+        dg = grid.rows(newton.gap, readonly=True) - grid.rows(descended.gap, readonly=True)
+        assert coll.max(np.abs(dg)) < 1e-6
 
 
 @pytest.mark.parametrize("hessian", [True, False])

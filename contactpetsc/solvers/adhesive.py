@@ -211,12 +211,15 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self.max_it = opts.getInt("max_it", code_default("adhesion", "max_it"))
         self.stability_check = StabilityCheck(self, self._default("stability_check"))
         self.fallback = FallbackChain(self)
-        # the full LJ curve descends from the last state: its predicted Newton steps hop between
-        # neighbouring branches (paths at 1/64 of a step still alternate between two states on
-        # consecutive steps), while the descent's states follow the branch a quasi-static path
-        # follows (docs/performance.md, "Quasi-static limit of a load-unload path"); a hard
-        # wall's predicted Newton step reaches the same states for less
-        strategy = "descent" if descent_applies(self) and not self.hard_wall else "newton"
+        # every state descends from the last where the descent applies: the full LJ curve's
+        # predicted Newton steps hop between neighbouring branches (paths at 1/64 of a step
+        # still alternate between two states on consecutive steps), while the descent's states
+        # follow the branch a quasi-static path follows (docs/performance.md, "Quasi-static
+        # limit of a load-unload path"); a hard wall's predicted Newton step reaches the same
+        # quasi-static states, but not every one without climbing (a Newton run that fails
+        # before the descent fallback), in a third more memory (docs/performance.md, "The hard
+        # wall under the descent strategy")
+        strategy = "descent" if descent_applies(self) else "newton"
         self.strategy = opts.getString("strategy", strategy).lower()
         if self.strategy not in ("newton", "descent"):
             raise ValueError(f"-{self.prefix}strategy must be newton or descent, got {self.strategy!r}")

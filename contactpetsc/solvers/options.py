@@ -92,7 +92,7 @@ ADHESION = (
            "the Jacobian's Krylov solve, as on hard walls)"),
     Option(("load_from_rest", "initial_step"), (False, 0.25),
            "first solve: load from separation in steps of at most this many z0"),
-    Option(("strategy",), "descent (the full LJ curve on periodic grids with the nodal rule) or newton",
+    Option(("strategy",), "descent (periodic grids with the nodal rule) or newton",
            "newton (from the predicted state) or descent (the energy descent from the last state, then Newton; "
            "periodic grids, nodal rule)"),
     Option(("fallback",), "descent first on periodic nodal grids, then relaxation,ptc (hard wall) or ptc",
