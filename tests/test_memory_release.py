@@ -6,7 +6,8 @@ after each solve its preconditioners' levels, its products' scratch and its best
 the same path solved by a problem that keeps them all lands in the same states (the same
 verdicts, solvers and Newton steps, gaps within the solver's tolerance: a preconditioner made anew starts its power
 iterations afresh, so the Krylov iterates differ at round-off) on 1, 2 or 3 ranks, for the full LJ curve (the descent strategy)
-and a hard wall (VI Newton, the multilevel preconditioner); and every FFT pair is counted in
+and a hard wall (its default, the descent strategy, and the predicted VI Newton step with the multilevel
+preconditioner); and every FFT pair is counted in
 some state's (the freed levels' too).  Units: z0 = rho = 1, E* = 1.
 """
 import numpy as np
@@ -20,8 +21,9 @@ from contactpetsc.solvers.adhesive import AdhesiveProblem
 from contactpetsc.solvers.newton import VINewton
 
 
-@pytest.mark.parametrize("law_name, preconditioner", [("lj", "auto"), ("exponential", "mlmi")])
-def test_freeing_between_states_changes_no_state(coll, monkeypatch, law_name, preconditioner):
+@pytest.mark.parametrize("law_name, preconditioner, strategy",
+                         [("lj", "auto", "descent"), ("exponential", "mlmi", "descent"), ("exponential", "mlmi", "newton")])
+def test_freeing_between_states_changes_no_state(coll, monkeypatch, law_name, preconditioner, strategy):
     grid = SurfaceGrid(64, 64, 1.0, periodic=True, comm=PETSc.COMM_WORLD)
     h = self_affine(grid, hurst=0.8, rms_height=1.0, seed=11)
     law = make_law(law_name, work_of_adhesion=0.05, **({"z0": 1.0} if law_name == "lj" else {"rho": 1.0}))
@@ -30,7 +32,8 @@ def test_freeing_between_states_changes_no_state(coll, monkeypatch, law_name, pr
     path = [top + d for d in (0.5, 1.0, 1.5, 1.0, 0.5)]
 
     def states(prefix):
-        pb = AdhesiveProblem(grid, h, 1.0, law, prefix=prefix, preconditioner=preconditioner)
+        pb = AdhesiveProblem(grid, h, 1.0, law, prefix=prefix, preconditioner=preconditioner,
+                             petsc_options={"strategy": strategy})
         out, pairs = [], 0.0
         for d in path:
             st = pb.solve(approach=d, raise_on_failure=False)
@@ -41,14 +44,14 @@ def test_freeing_between_states_changes_no_state(coll, monkeypatch, law_name, pr
         assert abs(pairs - pb.fft_pairs()) <= 1e-9 * pb.fft_pairs()
         return pb, out
 
-    freed, freeing = states(f"free_{law_name}_")
+    freed, freeing = states(f"free_{law_name}_{strategy}_")
     # what the solve frees is gone between states ...
     assert freed._scratch is None and freed._x_solve_best is None
     assert freed._jac.pc_data.mlmi_levels is None and freed._jac.pc_data.full_pair is None
     # ... and a problem that keeps everything lands in the same states
     monkeypatch.setattr(AdhesiveProblem, "release", lambda self: None)
     monkeypatch.setattr(VINewton, "_reset", lambda self: None)
-    kept, keeping = states(f"keep_{law_name}_")
+    kept, keeping = states(f"keep_{law_name}_{strategy}_")
     assert kept._scratch is not None
     for (c1, s1, g1, m1, n1), (c2, s2, g2, m2, n2) in zip(freeing, keeping):
         # the same strategies and the same Newton work: a freed set-up is made again whole

@@ -44,8 +44,9 @@ polish then only confirms the state and builds its Jacobian).  Periodic grids an
 K^-1 is then diagonal in Fourier space and Phi is the law's energy at the nodes.
 
 Options (prefix ``<problem prefix>descent_``): ``tol`` (error measure, z0), ``max_rounds``
-(Uzawa rounds of a hard wall), ``offset_tol`` (z0; default a tenth of the problem's ``tol``),
-``pc_contact_factor`` (f above, default 10; 0: the compliance alone), ``floor_factor`` (F above,
+(Uzawa rounds of a hard wall), ``offset_tol`` (z0; default a tenth of the problem's ``tol``; at
+least the descent's own ``tol`` where its caller gives one), ``pc_contact_factor`` (f above,
+default 10; 0: the compliance alone), ``floor_factor`` (F above,
 default 4; 0: no floor), ``max_step`` and ``step_tol`` (``descent_step.py``), and every ``tao_*``
 option (code defaults: ``descent_options.TAO_DEFAULTS`` and ``natural_norm``;
 ``-<prefix>descent_tao_monitor`` prints its iterations); read and checked in ``descent_options.py``.
@@ -91,6 +92,11 @@ class EnergyDescent:
         # no offset: tol itself (half of it cost more descent, in the coarse levels too)
         self.tol = tol if tol is not None else opts.getReal("tol", (0.5 if problem.hard_wall else 1.0) * problem.tol)
         self.offset_tol = opts.getReal("offset_tol", 0.1 * problem.tol)
+        if tol is not None:
+            # a descent to a looser error (an increment of a step, ``descent_step.py``) holds
+            # the mean no tighter: its rounds had stopped at their first iterate, error within
+            # tol, and moved W blindly to max_rounds for an offset of 1e-6 z0
+            self.offset_tol = max(self.offset_tol, tol)
         self.max_rounds = opts.getInt("max_rounds", code_default("adhesion", "descent_max_rounds"))
         options = descent_options(problem.prefix)
         self.pc_contact_factor, self.floor_factor = options.pc_contact_factor, options.floor_factor
@@ -284,10 +290,14 @@ class EnergyDescent:
         new multiplier W moves the state by about that offset: it stops once its error [z0] is
         below the offset [z0] (the last polishing steps of every round but the last were lost).
         The descent's tolerance where the round may be the last."""
-        offset = abs(mean_u) / self.p.z0
-        if self.p.hard_wall and offset > self.offset_tol and self._round < self.max_rounds:
-            return max(self.tol, offset)
+        if self.p.hard_wall and not self._offset_closed(mean_u) and self._round < self.max_rounds:
+            return max(self.tol, abs(mean_u) / self.p.z0)
         return self.tol
+
+    def _offset_closed(self, mean_u: float) -> bool:
+        """Whether a hard wall's mean offset ``mean_u`` [m] is within ``offset_tol`` z0 (the
+        rounds end)."""
+        return abs(mean_u) <= self.offset_tol * self.p.z0
 
     def _converged(self, tao):
         g, pressure, a, mean_u, _ = self.fields(tao.getSolution())
@@ -388,7 +398,7 @@ class EnergyDescent:
                     self._set_floor(grid.rows(bounds[0]), grid.rows(x, readonly=True))
                     continue
                 mean_u = self.fields(x)[3]
-                if not p.hard_wall or code < 0 or rounds >= self.max_rounds or abs(mean_u) <= self.offset_tol * p.z0:
+                if not p.hard_wall or code < 0 or rounds >= self.max_rounds or self._offset_closed(mean_u):
                     break
                 # the measured mean pressure, W + c m, is the next round's multiplier; from the
                 # second round on, the secant of m(W) where it falls as it should (slope below
