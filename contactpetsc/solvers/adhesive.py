@@ -216,8 +216,8 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         # still alternate between two states on consecutive steps), while the descent's states
         # follow the branch a quasi-static path follows (docs/performance.md, "Quasi-static
         # limit of a load-unload path"); a hard wall's predicted Newton step reaches the same
-        # quasi-static states, but not every one without climbing (a Newton run that fails
-        # before the descent fallback), in a third more memory (docs/performance.md, "The hard
+        # quasi-static states, but it is no descent (at a jump it runs and fails before the
+        # fallback descends) and holds a third more memory (docs/performance.md, "The hard
         # wall under the descent strategy")
         strategy = "descent" if descent_applies(self) else "newton"
         self.strategy = opts.getString("strategy", strategy).lower()
