@@ -222,6 +222,11 @@ def hard_wall_step(tag, step, options, tol=None):
     return grid, law, pb, descent, ok, reason, reference, d1
 
 
+def rounds_in(reason):
+    """The rounds a hard-wall descent's reason names ("descent ... (N TAO iterations, R rounds)")."""
+    return int(reason.split(", ")[1].split()[0])
+
+
 def test_a_short_hard_wall_descent_on_any_rank_count(coll):
     """A step of 0.1 z0 with a hard wall, where the bounded line search's trial points leave
     some ranks' rows unchanged: the descent's evaluations stay collective (a rank-local cache
@@ -245,7 +250,7 @@ def test_a_converged_hard_wall_descent_is_at_its_tolerance_whichever_round_is_la
         "round", 0.5, dict(descent_max_rounds=max_rounds))
     assert ok, reason
     assert descent.last_error <= descent.tol, (descent.last_error, reason)
-    rounds = int(reason.split(", ")[1].split()[0])
+    rounds = rounds_in(reason)
     assert rounds <= max_rounds
     pb.prepare(d1)
     ok, reason, _, _ = pb.newton.run()      # the polish closes the offset left
@@ -261,7 +266,7 @@ def test_a_loose_hard_wall_descent_holds_the_mean_no_tighter(coll):
     _, _, _, descent, ok, reason, _, _ = hard_wall_step("loose", 0.05, {}, tol=1e-2)
     assert ok, reason
     assert descent.last_error <= 1e-2
-    rounds = int(reason.split(", ")[1].split()[0])
+    rounds = rounds_in(reason)
     assert rounds < descent.max_rounds, reason
 
 
