@@ -332,6 +332,35 @@ def test_the_descent_strategy_follows_newtons_path(coll, law_name):
         assert coll.max(np.abs(dg)) < 1e-6
 
 
+@pytest.mark.parametrize("law_name", ["lj", "hardwall-lj"])
+def test_a_stalled_polish_under_the_descent_strategy_goes_on_through_the_chain(coll, law_name):
+    """Under the descent strategy a Newton polish that stalls (here at its first step: the
+    descent stops at 1e-3 and a step must cut the error a millionfold) hands over to the chain
+    without the descent, which it has just run: the full LJ curve's PTC from the polish's best
+    iterate, a hard wall's relaxation from the last state, each to the state the predicted
+    Newton step reaches, stable, the same on one rank as on all."""
+    law = make_law(law_name, work_of_adhesion=0.05, z0=1.0)
+    key = law_name.replace("-", "")
+    gaps = []
+    for comm in (PETSc.COMM_WORLD, PETSc.COMM_SELF):
+        grid, h = rough(comm)
+        hmin = h.min()[1]
+        newton = AdhesiveProblem(grid, h, 1.0, law, prefix=f"stallnewt{key}_", petsc_options={"strategy": "newton"})
+        pb = AdhesiveProblem(grid, h, 1.0, law, prefix=f"stall{key}_",
+                             petsc_options=dict(descent_tol=1e-3, stall_steps=1, stall_progress=1e-6))
+        for d in (0.25, 0.75):
+            reference, st = newton.solve(approach=hmin + d), pb.solve(approach=hmin + d)
+            chain = st.solver.split("+")
+            assert chain[0] == "descent" and st.fallback, st.solver
+            assert chain[-1] == ("ptc" if law_name == "lj" else "relaxation"), st.solver
+            assert "descent" not in chain[1:], st.solver
+            assert st.converged and st.stable, st.reason
+            dg = grid.rows(reference.gap, readonly=True) - grid.rows(st.gap, readonly=True)
+            assert coll.max(np.abs(dg)) < 1e-7
+        gaps.append(grid.gather(st.gap))
+    assert coll.max(np.abs(gaps[0] - gaps[1])) < 1e-7
+
+
 @pytest.mark.parametrize("hessian", [True, False])
 def test_the_energy_tangent_is_the_force_slope(coll, monkeypatch, hessian):
     """The full LJ curve's tangent from the energy's Hessian (``energy_tangent.tangent``, what a
