@@ -192,6 +192,19 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         v.set(0.0)
         return v
 
+    def vi_bounds(self) -> tuple[PETSc.Vec, PETSc.Vec] | None:
+        """The VI's bounds on the unknowns, made for one Newton run (``VINewton.run``, which
+        destroys them): a hard wall's q >= 0 (a free); None for the full LJ curve, whose SNES
+        VI makes its infinite ones itself.  Between states neither is kept (two unknown Vecs,
+        4 doubles per grid point)."""
+        if not self.hard_wall:
+            return None
+        lower, upper = self.create_unknown(), self.create_unknown()
+        upper.set(PETSc.INFINITY)
+        lower.set(PETSc.NINFINITY)
+        self.blocks(lower)[0] = 0.0
+        return lower, upper
+
     def centre_value(self, rows: np.ndarray) -> float:
         """rows[centre] broadcast from its owner (collective)."""
         local = float(rows[self._centre_local]) if self._centre_local else 0.0
@@ -255,18 +268,10 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         J = destroy_at_exit(PETSc.Mat().createPython(((self.n_local, self.n_global),) * 2,
                                                      self._jac, comm=self.grid.comm))
         J.setUp()
-        self._x, self._f = self.create_unknown(), self.create_unknown()
+        # the residual Vec is SNES's own: made at its set-up, freed by its reset after each run
+        self._x, self._f = self.create_unknown(), None
         self._x_solve_best = None   # the iterate of smallest error of the running solve
         self._solve_best = (np.inf, "")
-        # the full LJ curve has no bound: SNES VI makes its infinite ones at set-up and frees
-        # them with its work vectors (``VINewton.release``)
-        self._bounds = None
-        if self.hard_wall:
-            lower, upper = self.create_unknown(), self.create_unknown()
-            upper.set(PETSc.INFINITY)
-            lower.set(PETSc.NINFINITY)
-            self.blocks(lower)[0] = 0.0
-            self._bounds = (lower, upper)
         self._J = J
         self.newton = VINewton(self, self.prefix, newton_linesearch(self.hard_wall), self.max_it,
                                1000 if self.hard_wall else 30)

@@ -216,11 +216,11 @@ class VIProblem:
         self.set_default("snes_vi_zero_tolerance", VI_ZERO_TOLERANCE, prefix)
         return snes
 
-    def attach_vi_snes(self, snes: PETSc.SNES, bounds) -> None:
-        """Give ``snes`` the problem's residual, Jacobian and ``bounds`` (lower, upper; None: the
-        VI's own infinite ones): at creation, and again after ``SNESReset`` (which drops them
-        with the work vectors)."""
-        snes.setFunction(self._residual, self._f)
+    def attach_vi_snes(self, snes: PETSc.SNES, bounds, f: PETSc.Vec | None = None) -> None:
+        """Give ``snes`` the problem's residual (into ``f``, else the problem's ``_f``), Jacobian
+        and ``bounds`` (lower, upper; None: the VI's own infinite ones): at creation, and again
+        after ``SNESReset`` (which drops them with the work vectors)."""
+        snes.setFunction(self._residual, self._f if f is None else f)
         if bounds is not None:
             snes.setVariableBounds(*bounds)
         snes.setJacobian(self._jacobian, self._J, self._J)

@@ -125,7 +125,7 @@ class EnergyDescent:
         self.delta = 0.0
         self.curvature = np.zeros(self.shape)
         self.pc_scale = None         # S of the preconditioner (None: S = 1)
-        self._embed = None           # the preconditioner's full (input, output) on a proper inactive set
+        self._embed = None           # full (input, output) of the products on a proper inactive set
         self._dx = None              # the Hessian product's diagonal term
         # the last evaluation's fields, overwritten by the next one (never two sets alive):
         # (v copy, g, p, a, K^-1 u) rows and mean u; ``_valid`` whether they are v's

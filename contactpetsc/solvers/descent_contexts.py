@@ -19,19 +19,17 @@ class Hessian:
     def __init__(self, descent, index=None):
         self.d, self.index = descent, index
         self.shift_value = 0.0
-        if index is not None:
-            shape = descent.shape
-            self._x, self._y = np.zeros(shape), np.zeros(shape)
 
     def mult(self, mat, x, y):
         xa, ya = x.getArray(readonly=True), y.getArray()
         if self.index is None:
             self.d.hessian_mult(xa.reshape(self.d.shape), ya.reshape(self.d.shape))
         else:
-            self._x[...] = 0.0
-            self._x.reshape(-1)[self.index] = xa
-            self.d.hessian_mult(self._x, self._y)
-            ya[:] = self._y.reshape(-1)[self.index]
+            full_in, full_out = embedding(self.d)
+            full_in[...] = 0.0
+            full_in.reshape(-1)[self.index] = xa
+            self.d.hessian_mult(full_in, full_out)
+            ya[:] = full_out.reshape(-1)[self.index]
         if self.shift_value:
             ya += self.shift_value * xa
 
@@ -71,10 +69,17 @@ class Compliance:
         if index is None:
             d.precondition(xa.reshape(d.shape), ya.reshape(d.shape))
             return
-        if d._embed is None:
-            d._embed = (np.zeros(d.shape), np.zeros(d.shape))
-        full_in, full_out = d._embed
-        full_in[...] = 0.0
-        full_in.reshape(-1)[index] = xa
-        d.precondition(full_in, full_out)
-        ya[:] = full_out.reshape(-1)[index]
+        full = embedding(d)[0]
+        full[...] = 0.0
+        full.reshape(-1)[index] = xa
+        d.precondition(full, full)      # in place: the FFT's spectrum is a buffer of its own
+        ya[:] = full.reshape(-1)[index]
+
+
+def embedding(descent) -> tuple[np.ndarray, np.ndarray]:
+    """The full (input, output) arrays through which the Hessian's and the preconditioner's
+    products on a proper inactive set embed: one pair for the descent's life, shared (the two
+    products never nest; every sub-matrix TAO makes had held a pair of its own)."""
+    if descent._embed is None:
+        descent._embed = (np.zeros(descent.shape), np.zeros(descent.shape))
+    return descent._embed

@@ -70,7 +70,7 @@ class VINewton:
         self.progress = self.best       # (error [z0], step) of its last progress (``stall_progress``)
         self.x_best = None              # its best iterate (made when first watched: PTC never is)
         self.last_ksp_reason = 0        # the last solve's last Krylov reason (its KSP is reset)
-        snes = self.snes = pb.make_vi_snes(prefix, pb._bounds, max_it)
+        snes = self.snes = pb.make_vi_snes(prefix, None, max_it)     # bounds: per run
         snes.setConvergenceTest(self._converged)
         # an inexact step (Krylov limit reached) is still a step: let the line search judge it
         # (petsc4py >= 3.20 names it setMaxKSPFailures)
@@ -121,7 +121,14 @@ class VINewton:
         pb = self.problem
         pb._lin0 = pb.history[-1].linear_iterations if len(pb.history) else 0
         self.stalled = False
-        self.snes.solve(None, pb._x)
+        # the residual Vec and the bounds live for the run (``AdhesiveProblem.vi_bounds``)
+        f, bounds = pb.create_unknown(), pb.vi_bounds()
+        pb.attach_vi_snes(self.snes, bounds, f)
+        try:
+            self.snes.solve(None, pb._x)
+        finally:
+            for vec in (f,) + (bounds or ()):
+                vec.destroy()       # the SNES's references go with its reset below
         pb.record_solve()
         self.last_ksp_reason = self.snes.getKSP().getConvergedReason()
         code = self.snes.getConvergedReason()
@@ -146,11 +153,10 @@ class VINewton:
 
     def _reset(self) -> None:
         """Free the SNES's work vectors after a run (``SNESReset``: its update, work and
-        line-search vectors, the VI's index arrays and infinite bounds); its type, options and
-        callbacks stay, and the residual, Jacobian and bounds are attached again.  Collective."""
-        pb = self.problem
+        line-search vectors, the residual Vec, the VI's index arrays and bounds); its type,
+        options and callbacks stay; the next run attaches the residual, Jacobian and bounds
+        again.  Collective."""
         self.snes.reset()
-        pb.attach_vi_snes(self.snes, pb._bounds)
         pc = self.snes.getKSP().getPC()
         if pc.getType() == "python":
             # a fresh context: the last one's references (levels, kernels, cycles) go with it

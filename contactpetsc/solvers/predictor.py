@@ -120,7 +120,7 @@ class TangentPredictor:
                 return tv, found[1]
         pb._jacobian(None, pb._x, None, None)
         iset = pb._inactive_set()
-        J = pb._snes.getJacobian()[0]
+        J = pb._J
         A = J.createSubMatrix(iset, iset)
         ctx = A.getPythonContext()
         rhs = np.zeros(ctx.shape)
