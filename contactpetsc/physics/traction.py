@@ -32,6 +32,25 @@ from ..grid import SurfaceGrid
 from .interactions import InteractionLaw
 
 
+#: nodes per block of a nodal evaluation into a caller's array: the law's temporaries (three or
+#: four arrays in its products) are a block's, not the grid's, and stay in cache
+BLOCK = 1 << 15
+
+
+def node_blocks(size: int):
+    """Slices of ``BLOCK`` nodes that cover ``size`` nodes (of a flattened array)."""
+    return (slice(start, start + BLOCK) for start in range(0, size, BLOCK))
+
+
+def blockwise(fn, g: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """out = fn(g), node by node, evaluated a block of ``BLOCK`` nodes at a time (``fn`` maps a
+    1-D array of gaps to its values); ``out`` (the shape of ``g``, not ``g`` itself) returned."""
+    flat_g, flat_out = g.reshape(-1), out.reshape(-1)
+    for block in node_blocks(flat_g.size):
+        flat_out[block] = fn(flat_g[block])
+    return out
+
+
 class AdhesiveTraction:
     """a(g) and its linearisation on the local rows of ``grid``.
 
@@ -83,9 +102,12 @@ class AdhesiveTraction:
             return self.law.pressure(g)
         return self._continued(g, self.law.pressure(np.maximum(g, self.g_safe)), 1)
 
-    def nodal_derivative(self, g):
+    def nodal_derivative(self, g, out: np.ndarray | None = None):
         """da/dg [Pa/m] of the guarded pointwise law at the gaps ``g`` [m] (zero on a hard wall's
-        contact, linear continuation below a singular law's safe gap)."""
+        contact, linear continuation below a singular law's safe gap); into ``out`` when given
+        (a block at a time)."""
+        if out is not None:
+            return blockwise(self.nodal_derivative, g, out)
         if self.hard_wall:
             return np.where(g > 0, self.law.derivative(np.maximum(g, 0.0)), 0.0)
         if self.g_safe is None:
@@ -126,8 +148,11 @@ class AdhesiveTraction:
 
     # -- public ----------------------------------------------------------------------
     def pressure(self, g: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-        """a(g) [Pa] on local rows (collective with element integration)."""
+        """a(g) [Pa] on local rows (collective with element integration); into ``out`` when
+        given (nodal: a block at a time, ``blockwise``)."""
         if not self.element_integration:
+            if out is not None:
+                return blockwise(self._pressure, g, out)
             a = self._pressure(g)
         else:
             a = 0.25 * sum(self._segment(g, 0.5 * (g + gj))[0] for gj in self._neighbours(g))
@@ -158,9 +183,10 @@ class AdhesiveTraction:
                 out += c * dgj
         return out
 
-    def energy(self, g: np.ndarray) -> np.ndarray:
-        """Interaction energy per unit area Phi(g) [J/m^2] at the nodes (nodal rule)."""
-        return self._energy(g)
+    def energy(self, g: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """Interaction energy per unit area Phi(g) [J/m^2] at the nodes (nodal rule); into
+        ``out`` when given (a block at a time)."""
+        return self._energy(g) if out is None else blockwise(self._energy, g, out)
 
     @property
     def invertible(self) -> bool:

@@ -330,6 +330,9 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
             if v is not None and not np.isfinite(v):
                 raise ValueError(f"{name} must be finite, got {v!r}")
         self._build()
+        # PETSc objects the caller has let go of (a path's state before last) are freed here,
+        # not at the end of this solve: they would be alive at its descent's peak
+        PETSc.garbage_cleanup(self.grid.comm)
         # the first state (coarse grids, Signorini) is part of this solve's cost
         pairs0, t0 = self.fft_pairs(), self.history.elapsed()
         if self.out_of_time():

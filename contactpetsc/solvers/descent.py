@@ -58,6 +58,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..collective import max_error
+from ..physics.traction import node_blocks
 from ..log_events import log_event
 from .adhesive_residual import total_pressure
 from .descent_contexts import Compliance, Hessian
@@ -128,8 +129,8 @@ class EnergyDescent:
         self._embed = None           # full (input, output) of the products on a proper inactive set
         self._dx = None              # the Hessian product's diagonal term
         # the last evaluation's fields, overwritten by the next one (never two sets alive):
-        # (v copy, g, p, a, K^-1 u) rows and mean u; ``_valid`` whether they are v's
-        self._rows, self._mean_u, self._valid = None, 0.0, False
+        # (v copy, g, a, K^-1 u) rows, mean u and p0; ``_valid`` whether they are v's
+        self._rows, self._mean_u, self._p0, self._valid = None, 0.0, 0.0, False
         self.pc_applies = 0
         self._round = 1              # the hard wall's round under way (``_round_target``)
 
@@ -145,19 +146,21 @@ class EnergyDescent:
         return self.comm.allreduce(value)
 
     def fields(self, x: PETSc.Vec):
-        """(g, p, a, mean u, K^-1 u) at TAO's variable ``x`` (v = u / z0; rows [m] and [Pa]):
-        one FFT pair, or none where they are the last evaluation's (collective).  The rows are
-        the descent's own, valid until the next evaluation at another ``x``; ``self._rows[0]``
-        is v (u = z0 v is not kept: every use of it is a product with z0)."""
+        """(g, a, mean u, K^-1 u, p0) at TAO's variable ``x`` (v = u / z0; rows [m] and [Pa]); the
+        pressure is p = K^-1 u + p0 [Pa] (p0 the hard wall's multiplier W + c mean u, or the
+        full LJ curve's mean of a), not kept as a row of its own.  One FFT pair, or none where
+        they are the last evaluation's (collective).  The rows are the descent's own, valid
+        until the next evaluation at another ``x``; ``self._rows[0]`` is v (u = z0 v is not
+        kept: every use of it is a product with z0)."""
         v = x.getArray(readonly=True).reshape(self.shape)
         # the cache is used by all ranks or none: a rank whose rows did not change while
         # another's did would skip the FFT's and the sums' collectives (a hang on 3 ranks)
         same = self._valid and np.array_equal(self._rows[0], v)
         if self.comm.allreduce(same, op=MPI.LAND):
-            return self._rows[1:4] + (self._mean_u, self._rows[4])
+            return self._rows[1], self._rows[2], self._mean_u, self._rows[3], self._p0
         if self._rows is None:
-            self._rows = tuple(np.empty(self.shape) for _ in range(5))
-        v_copy, g, pressure, a, k_inv_u = self._rows
+            self._rows = tuple(np.empty(self.shape) for _ in range(4))
+        v_copy, g, a, k_inv_u = self._rows
         v_copy[...] = v
         p = self.p
         mean_u = self._sum(float(v_copy.sum())) * self.length / self.n
@@ -168,23 +171,25 @@ class EnergyDescent:
         if p.hard_wall:
             g -= self.delta
             p.traction.pressure(g, out=a)
-            np.add(k_inv_u, self.c * mean_u + self.W, out=pressure)
+            self._p0 = self.c * mean_u + self.W
         else:
             g -= mean_u + self.delta
             p.traction.pressure(g, out=a)
-            np.add(k_inv_u, self._sum(float(a.sum())) / self.n, out=pressure)
+            self._p0 = self._sum(float(a.sum())) / self.n
         self._mean_u, self._valid = mean_u, True
-        return g, pressure, a, mean_u, k_inv_u
+        return g, a, mean_u, k_inv_u, self._p0
 
     def objective_gradient(self, tao, x, gradient) -> float:
         """TAO's objective at v = u / z0: E(u) / dA (1/2 u . K^-1 u + sum Phi(g), [J/m^2] summed
         over the nodes) times K_ii / z0^2, and its gradient (p - a(g)) K_ii / z0."""
         grad = gradient.getArray().reshape(self.shape)
-        g, pressure, a, mean_u, k_inv_u = self.fields(x)
+        g, a, mean_u, k_inv_u, p0 = self.fields(x)
+        # the law's energy in the gradient's array first (no grid-sized temporary)
         local = (0.5 * self.length * float(np.dot(self._rows[0].ravel(), k_inv_u.ravel()))
-                 + float(self.p.traction.energy(g).sum()))
+                 + float(self.p.traction.energy(g, out=grad).sum()))
         energy = self._sum(local)
-        np.subtract(pressure, a, out=grad)
+        np.add(k_inv_u, p0, out=grad)       # p, then p - a
+        grad -= a
         if self.p.hard_wall:
             energy += self.n * mean_u * (0.5 * self.c * mean_u + self.W)
         else:
@@ -199,7 +204,7 @@ class EnergyDescent:
     def set_curvature(self, g: np.ndarray) -> None:
         """The Hessian's diagonal term Phi''(g) = -da/dg at the gaps g [m], and the
         preconditioner's scaling S from it."""
-        np.negative(self.p.traction.nodal_derivative(g), out=self.curvature)
+        np.negative(self.p.traction.nodal_derivative(g, out=self.curvature), out=self.curvature)
         if self.pc_contact_factor:
             s = np.clip(self.kappa * self.curvature, 0.0, 1.0, out=self.pc_scale)
             s *= self.pc_contact_factor
@@ -261,27 +266,34 @@ class EnergyDescent:
         mean_v = self._sum(float(v.sum())) / self.n
         lower[...] = (floor - self.h + self.delta) / self.length + mean_v
 
-    def _held_by_floor(self, tao, pressure, a) -> bool:
+    def _held_by_floor(self, tao, k_inv_u, p0, a) -> bool:
         """Whether the gap floor holds a node: at its bound with the gradient p - a pushing it
         below (collective).  A node that snaps onto the floor is pushed back up (its repulsion
         there is F times the start's largest pressure); one that is held needs a lower floor,
         and the bounded Newton steps, which do not drop it from the system, would crawl."""
         lower = tao.getVariableBounds()[0]
         v = self.grid.rows(tao.getSolution(), readonly=True)   # rank-local rows: reduced below
-        held = bool(np.any((v <= self.grid.rows(lower, readonly=True)) & (pressure > a)))
+        at_floor = v <= self.grid.rows(lower, readonly=True)
+        held = bool(np.any(at_floor & (k_inv_u + p0 > a)))
         return self.comm.allreduce(held, op=MPI.LOR)
 
     # -- measures ----------------------------------------------------------------------
-    def error(self, g, pressure, a) -> float:
-        """The problem's error measures (``AdhesiveProblem._measures``) on (g, p, a), their max."""
+    def error(self, g, k_inv_u, p0, a) -> float:
+        """The problem's error measures (``AdhesiveProblem._measures``) on (g, p = K^-1 u + p0, a),
+        their max; a block of nodes at a time (the measures' temporaries are a block's)."""
         p = self.p
-        d = pressure - a
-        if p.hard_wall:
-            local = max(float(np.abs(np.minimum(p.kappa * d, g)).max()) / p.z0,
-                        float(np.abs(np.minimum(d / p.pressure_scale, g / p.z0)).max()))
-        else:
-            local = max(p.kappa * float(np.abs(d).max()) / p.z0,
-                        float((np.abs(d) / (p.pressure_scale + np.abs(a))).max()))
+        local = 0.0
+        for block in node_blocks(g.size):
+            gb, ab = g.reshape(-1)[block], a.reshape(-1)[block]
+            d = (k_inv_u.reshape(-1)[block] + p0) - ab
+            if p.hard_wall:
+                measures = (float(np.abs(np.minimum(p.kappa * d, gb)).max()) / p.z0,
+                            float(np.abs(np.minimum(d / p.pressure_scale, gb / p.z0)).max()))
+            else:
+                measures = (p.kappa * float(np.abs(d).max()) / p.z0,
+                            float((np.abs(d) / (p.pressure_scale + np.abs(ab))).max()))
+            # a NaN is infinite (Python's max would keep whichever came first)
+            local = max(local, *(np.inf if m != m else m for m in measures))
         return max_error(self.comm, local)
 
     def _round_target(self, mean_u: float) -> float:
@@ -300,15 +312,15 @@ class EnergyDescent:
         return abs(mean_u) <= self.offset_tol * self.p.z0
 
     def _converged(self, tao):
-        g, pressure, a, mean_u, _ = self.fields(tao.getSolution())
-        err = self.error(g, pressure, a)
+        g, a, mean_u, k_inv_u, p0 = self.fields(tao.getSolution())
+        err = self.error(g, k_inv_u, p0, a)
         it = tao.getIterationNumber()
         p = self.p
-        contact = self._sum(float(np.count_nonzero(pressure > 0))) / self.n
+        contact = self._sum(float(np.count_nonzero(k_inv_u > -p0))) / self.n
         p.history.append(
             solve=p.solve_count, iteration=it, fft_pairs=p.fft_pairs(), linear_iterations=self._lin0 + self.pc_applies,
             complementarity_error=err if p.hard_wall else float("nan"), load_error=float("nan"),
-            approach=self.delta - mean_u, mean_pressure=self._sum(float(pressure.sum())) / self.n,
+            approach=self.delta - mean_u, mean_pressure=self._sum(float(k_inv_u.sum())) / self.n + p0,
             contact_fraction=contact, solver="descent", adhesive_error=float("nan") if p.hard_wall else err,
             pressure_error=err)
         self.last_error = err
@@ -316,7 +328,7 @@ class EnergyDescent:
             return       # TAO's own failure (line search, ...)
         if err <= self._round_target(mean_u):
             tao.setConvergedReason(TAO_REASON.CONVERGED_USER)
-        elif self._floor is not None and np.isfinite(self._floor) and self._held_by_floor(tao, pressure, a):
+        elif self._floor is not None and np.isfinite(self._floor) and self._held_by_floor(tao, k_inv_u, p0, a):
             self.pinned = True
             tao.setConvergedReason(TAO_REASON.CONVERGED_USER)
         elif it >= tao.getMaximumIterations() or not np.isfinite(err) or p.out_of_time():
@@ -397,7 +409,7 @@ class EnergyDescent:
                     self._floor = self._floor * 8.0 if floors < 3 else np.inf
                     self._set_floor(grid.rows(bounds[0]), grid.rows(x, readonly=True))
                     continue
-                mean_u = self.fields(x)[3]
+                mean_u = self.fields(x)[2]
                 if not p.hard_wall or code < 0 or rounds >= self.max_rounds or self._offset_closed(mean_u):
                     break
                 # the measured mean pressure, W + c m, is the next round's multiplier; from the
@@ -430,16 +442,16 @@ class EnergyDescent:
         variable: u = z0 v rounds, and a contact node read as one ulp above the wall in metres
         lost its multiplier and sent Newton's confirmation off)."""
         p = self.p
-        g, pressure, a = self.fields(x)[:3]
+        g, a, _, k_inv_u, p0 = self.fields(x)
         xb = p.blocks(p._x)
         if p.hard_wall:
             # the multiplier lives on the contact nodes, where u sits on its bound: elsewhere
             # p - a is the descent's residual, ~1e-9 of the peak attraction, which the VI's
             # Newton and the tangent would take for contact rows (q > 0)
-            xb[0] = np.where(at_bound, np.maximum(pressure - a, 0.0), 0.0)
+            xb[0] = np.where(at_bound, np.maximum((k_inv_u + p0) - a, 0.0), 0.0)
             xb[1] = a
         else:
-            xb[0] = pressure
+            np.add(k_inv_u, p0, out=xb[0])
         self._valid = False
 
 

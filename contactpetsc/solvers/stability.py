@@ -136,7 +136,7 @@ def stability_margin(problem, gap: np.ndarray, q_rows: np.ndarray | None, steps:
     comm = grid.mpi_comm
     d = problem.traction.nodal_derivative(gap)
     contact = (q_rows > 0) if q_rows is not None else np.zeros(gap.shape, bool)
-    d = np.where(contact, 0.0, d)
+    d[contact] = 0.0       # in place: d is the law's fresh array
     if comm.allreduce(float(d.max()), op=MPI.MAX) <= 0.0:
         return 1.0, True   # A <= 0: no positive eigenvalue
     # start: the positive part of A (the attractive zone beyond the force peak), varied
@@ -280,16 +280,18 @@ def _lobpcg(op, comm, d, contact, v, steps, residual_tol, precondition=None):
     n_free = comm.allreduce(float(v.size - np.count_nonzero(contact)))
     # without contact nodes (the full LJ curve) no mask: two passes a projection less
     masked = n_free < comm.allreduce(v.size)
-    free = np.where(contact, 0.0, 1.0).reshape(-1) if masked else None   # by multiplication: indexing copies
+    # the contact nodes by index: zeroed in place, faster than a full mask's product and a few
+    # per cent of a grid array instead of one
+    held = np.flatnonzero(contact) if masked else None
     a = d.reshape(-1)
 
     def on_w(x):
         """x projected on W (orthogonally): zero on C, zero mean; in place, no temporaries"""
         if masked:
-            x *= free
+            x[held] = 0.0
         x -= comm.allreduce(float(x.sum())) / n_free
         if masked:
-            x *= free
+            x[held] = 0.0
         return x
 
     def mult(f, x, out):
