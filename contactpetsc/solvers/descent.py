@@ -126,7 +126,7 @@ class EnergyDescent:
         self.delta = 0.0
         self.curvature = np.zeros(self.shape)
         self.pc_scale = None         # S of the preconditioner (None: S = 1)
-        self._embed = None           # full (input, output) of the products on a proper inactive set
+        self._embed = None           # the full array the products on a proper inactive set embed in
         self._dx = None              # the Hessian product's diagonal term
         # the last evaluation's fields, overwritten by the next one (never two sets alive):
         # (v copy, g, a, K^-1 u) rows, mean u and p0; ``_valid`` whether they are v's
@@ -223,8 +223,8 @@ class EnergyDescent:
         return g
 
     def hessian_mult(self, x: np.ndarray, y: np.ndarray) -> None:
-        """y = H x on rows of the dimensionless v = u / z0 (the scaled energy's Hessian)."""
-        self.p.op.convolve(self._k_inv, x, y)
+        """y = H x on rows of the dimensionless v = u / z0 (the scaled energy's Hessian); ``y``
+        may be ``x`` (the diagonal term is taken before the convolution overwrites it)."""
         mean_x = self._sum(float(x.sum())) / self.n
         if self._dx is None:
             # lives as long as the descent: a fresh grid-sized array per product cost a page-
@@ -241,6 +241,7 @@ class EnergyDescent:
             dx = np.subtract(x, mean_x, out=self._dx)
             dx *= self.curvature
             shift = mean_x / self.kappa - self._sum(float(dx.sum())) / self.n
+        self.p.op.convolve(self._k_inv, x, y)
         y += dx
         y += shift
         y *= self.kappa     # the Hessian in v = u / z0 of the scaled energy

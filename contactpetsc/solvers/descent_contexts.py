@@ -25,11 +25,11 @@ class Hessian:
         if self.index is None:
             self.d.hessian_mult(xa.reshape(self.d.shape), ya.reshape(self.d.shape))
         else:
-            full_in, full_out = embedding(self.d)
-            full_in[...] = 0.0
-            full_in.reshape(-1)[self.index] = xa
-            self.d.hessian_mult(full_in, full_out)
-            ya[:] = full_out.reshape(-1)[self.index]
+            full = embedding(self.d)
+            full[...] = 0.0
+            full.reshape(-1)[self.index] = xa
+            self.d.hessian_mult(full, full)     # in place
+            ya[:] = full.reshape(-1)[self.index]
         if self.shift_value:
             ya += self.shift_value * xa
 
@@ -69,17 +69,17 @@ class Compliance:
         if index is None:
             d.precondition(xa.reshape(d.shape), ya.reshape(d.shape))
             return
-        full = embedding(d)[0]
+        full = embedding(d)
         full[...] = 0.0
         full.reshape(-1)[index] = xa
         d.precondition(full, full)      # in place: the FFT's spectrum is a buffer of its own
         ya[:] = full.reshape(-1)[index]
 
 
-def embedding(descent) -> tuple[np.ndarray, np.ndarray]:
-    """The full (input, output) arrays through which the Hessian's and the preconditioner's
-    products on a proper inactive set embed: one pair for the descent's life, shared (the two
-    products never nest; every sub-matrix TAO makes had held a pair of its own)."""
+def embedding(descent) -> np.ndarray:
+    """The full array through which the Hessian's and the preconditioner's products on a proper
+    inactive set embed, each in place: one for the descent's life, shared (the two products
+    never nest; every sub-matrix TAO makes had held a pair of its own)."""
     if descent._embed is None:
-        descent._embed = (np.zeros(descent.shape), np.zeros(descent.shape))
+        descent._embed = np.zeros(descent.shape)
     return descent._embed
