@@ -91,3 +91,23 @@ def test_element_integration_on_a_deformable_sphere(coll):
     derjaguin = 2 * np.pi * radius * law.energy(0.5)
     for f in forces.values():
         assert coll.max(np.abs(f / derjaguin - 1).max()) < 0.1, (f, derjaguin)
+
+
+@pytest.mark.parametrize("law", ["lj", "hardwall-lj", "exponential"])
+def test_the_law_into_a_callers_array_is_the_law(coll, monkeypatch, law):
+    """The nodal law written into a caller's array a block of nodes at a time (blocks of 37
+    nodes here, so that they split rows) is the law evaluated on the whole array, value for
+    value, into a contiguous array or a strided one; below the full LJ curve's safe gap too."""
+    from contactpetsc.physics import traction as traction_module
+    monkeypatch.setattr(traction_module, "BLOCK", 37)
+    grid = SurfaceGrid(24, 20, 1.0, periodic=True)
+    tr = AdhesiveTraction(make_law(law, work_of_adhesion=0.05, **({"rho": 1.0} if law == "exponential" else {"z0": 1.0})), grid)
+    rng = np.random.default_rng(3)
+    g = rng.uniform(-0.8, 3.0, size=(grid.ny_local, grid.nx))
+    for method in ("pressure", "energy", "nodal_derivative"):
+        whole = getattr(tr, method)(g)
+        out = np.empty_like(g)
+        strided = np.empty((g.shape[1], g.shape[0])).T
+        for target in (out, strided):
+            assert getattr(tr, method)(g, out=target) is target
+            assert np.array_equal(target, whole), method

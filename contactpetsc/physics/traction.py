@@ -44,7 +44,11 @@ def node_blocks(size: int):
 
 def blockwise(fn, g: np.ndarray, out: np.ndarray) -> np.ndarray:
     """out = fn(g), node by node, evaluated a block of ``BLOCK`` nodes at a time (``fn`` maps a
-    1-D array of gaps to its values); ``out`` (the shape of ``g``, not ``g`` itself) returned."""
+    1-D array of gaps to its values); ``out`` (the shape of ``g``) returned.  An ``out`` that is
+    not contiguous (whose flat view would be a copy) is filled whole."""
+    if not out.flags.c_contiguous:
+        out[...] = fn(g.reshape(-1)).reshape(g.shape)
+        return out
     flat_g, flat_out = g.reshape(-1), out.reshape(-1)
     for block in node_blocks(flat_g.size):
         flat_out[block] = fn(flat_g[block])

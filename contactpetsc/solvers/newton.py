@@ -160,7 +160,9 @@ class VINewton:
         # and a fresh DM: the reset leaves the SNES's own (a DMShell) holding a Vec of the unknowns
         # that its VI made during the run (2 doubles per grid point with a hard wall); the next
         # run attaches the residual and Jacobian to the new one
-        self.snes.setDM(PETSc.DMShell().create(comm=self.snes.getComm()))
+        dm = PETSc.DMShell().create(comm=self.snes.getComm())
+        dm.setGlobalVector(self.problem._x)     # its layout (a reference): getFunction() between runs works
+        self.snes.setDM(dm)
         pc = self.snes.getKSP().getPC()
         if pc.getType() == "python":
             # a fresh context: the last one's references (levels, kernels, cycles) go with it
