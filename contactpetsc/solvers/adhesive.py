@@ -268,7 +268,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         J = destroy_at_exit(PETSc.Mat().createPython(((self.n_local, self.n_global),) * 2,
                                                      self._jac, comm=self.grid.comm))
         J.setUp()
-        # the residual Vec is SNES's own: made at its set-up, freed by its reset after each run
+        # no residual Vec of the problem's own: each Newton run makes one (``VINewton.run``)
         self._x, self._f = self.create_unknown(), None
         self._x_solve_best = None   # the iterate of smallest error of the running solve
         self._solve_best = (np.inf, "")

@@ -218,8 +218,8 @@ class VIProblem:
 
     def attach_vi_snes(self, snes: PETSc.SNES, bounds, f: PETSc.Vec | None = None) -> None:
         """Give ``snes`` the problem's residual (into ``f``, else the problem's ``_f``), Jacobian
-        and ``bounds`` (lower, upper; None: the VI's own infinite ones): at creation, and again
-        after ``SNESReset`` (which drops them with the work vectors)."""
+        and ``bounds`` (lower, upper; None: the VI's own infinite ones): at creation, and, for
+        an adhesive problem, at each Newton run (``VINewton.run``: its reset drops them)."""
         snes.setFunction(self._residual, self._f if f is None else f)
         if bounds is not None:
             snes.setVariableBounds(*bounds)

@@ -58,9 +58,10 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..collective import max_error
-from ..physics.traction import node_blocks
 from ..log_events import log_event
+from ..physics.traction import node_blocks
 from .adhesive_residual import total_pressure
+from .base import reason_name
 from .descent_contexts import Compliance, Hessian
 from .descent_options import TAO_DEFAULTS, descent_options, natural_norm, require_descent
 from .options import code_default
@@ -284,9 +285,10 @@ class EnergyDescent:
         their max; a block of nodes at a time (the measures' temporaries are a block's)."""
         p = self.p
         local = 0.0
+        g, k_inv_u, a = g.reshape(-1), k_inv_u.reshape(-1), a.reshape(-1)
         for block in node_blocks(g.size):
-            gb, ab = g.reshape(-1)[block], a.reshape(-1)[block]
-            d = (k_inv_u.reshape(-1)[block] + p0) - ab
+            gb, ab = g[block], a[block]
+            d = (k_inv_u[block] + p0) - ab
             if p.hard_wall:
                 measures = (float(np.abs(np.minimum(p.kappa * d, gb)).max()) / p.z0,
                             float(np.abs(np.minimum(d / p.pressure_scale, gb / p.z0)).max()))
@@ -426,7 +428,7 @@ class EnergyDescent:
                 self._valid = False
             linear = self.pc_applies
             converged = code > 0
-            reason = f"descent {reason_text(code)} ({iterations} TAO iterations"
+            reason = f"descent {reason_name(code, TAO_REASON)} ({iterations} TAO iterations"
             reason += f", {rounds} rounds)" if p.hard_wall else (f", the gap floor lowered {floors}x)" if floors else ")")
             at_bound = None
             if p.hard_wall:
@@ -454,11 +456,3 @@ class EnergyDescent:
         else:
             np.add(k_inv_u, p0, out=xb[0])
         self._valid = False
-
-
-def reason_text(code: int) -> str:
-    """A TAO converged reason's name."""
-    for name in dir(TAO_REASON):
-        if not name.startswith("_") and getattr(TAO_REASON, name) == code:
-            return name
-    return str(code)
