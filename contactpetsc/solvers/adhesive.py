@@ -143,6 +143,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self._prev_approach = None
         self._budget_start = None       # time.monotonic() at the first solve under a time budget
         self._scratch = None            # (gap, displacement, product) rows: ``_g``, ``_v``, ``_v2``
+        self._x_start = None            # the running solve's start (``saved_start``)
 
     # -- scratch rows (made on demand, freed by ``release``) ----------------------------------
     def _scratch_rows(self, k: int) -> np.ndarray:
@@ -293,11 +294,29 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
             self.fallback.ptc.release()
         self._released_pairs += self._jac.release()
         self._scratch = None
+        self._drop_solve_best()
+        self._drop_start()
+        if self.strategy == "descent":
+            self.coarse_levels.release()
+
+    def saved_start(self) -> PETSc.Vec:
+        """The unknowns as they were when first asked for in this solve: the solve's start, which
+        its fallbacks and (after a failure) the next solve start from.  A strategy that
+        overwrites the unknowns asks first; made once per solve, freed at its end."""
+        if self._x_start is None:
+            self._x_start = self._x.copy()
+        return self._x_start
+
+    def _drop_start(self) -> None:
+        if self._x_start is not None:
+            self._x_start.destroy()
+            self._x_start = None
+
+    def _drop_solve_best(self) -> None:
+        """Free the running solve's best iterate (its failure report is written)."""
         if self._x_solve_best is not None:
             self._x_solve_best.destroy()
             self._x_solve_best = None
-        if self.strategy == "descent":
-            self.coarse_levels.release()
 
     # -- public API --------------------------------------------------------------------------
     def solve_force(self, force: float, *, rel_tol: float = 1e-8, max_updates: int = 30,
@@ -373,14 +392,17 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
             self._prev_approach, self._approach = self._approach, float(approach)
         self.check_time = 0.0
         self._solve_best = (np.inf, "")
-        x_start = self._x.copy()
+        self._drop_start()
         # -<prefix>strategy descent: the energy descent from the last state, Newton polishes
         descend = self.strategy == "descent" and approach is not None
         if descend:
-            ok, d_reason, d_newton, d_linear, increments = descend_step(self, float(approach), x_start)
+            # from the unknowns themselves: the descent saves them as it writes its state
+            # (``saved_start``), so that its peak does not hold a copy
+            ok, d_reason, d_newton, d_linear, increments = descend_step(self, float(approach), self._x)
             # the descent's PETSc objects (and through their contexts its arrays) are freed
             # here, not at the end of the solve: Newton and the check come first
             PETSc.garbage_cleanup(self.grid.comm)
+        x_start = self.saved_start()
         coarse_predicted = (not descend and approach is not None
                             and self.coarse_levels.predict(float(approach), self._prev_approach))
         if not (coarse_predicted or descend) and approach is not None:
@@ -420,13 +442,18 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
             elif self.zone_nodes < RESOLUTION_NODES:
                 reason += (f" [under-resolved adhesion: the adhesive zone spans {self.zone_nodes:.2g} grid "
                            f"spacings, the criterion is {RESOLUTION_NODES:g}]")
+        # neither the best iterate nor (once converged) the start is wanted any more: freed
+        # before the state's tangent, whose Krylov solve is a path's peak of memory
+        self._drop_solve_best()
+        if converged:
+            self._drop_start()
         state = self.make_state(converged, reason, newton, linear, pairs0, t0, margin,
-                            solver, tangent=approach is not None and converged)
+                                solver, tangent=approach is not None and converged)
         if converged:
             self._start_approach = self._approach
         else:
             x_start.copy(self._x)   # keep the last good state as the next start
-        x_start.destroy()
+            self._drop_start()
         self.centre_owner = None
         self.release()
         PETSc.garbage_cleanup(self.grid.comm)

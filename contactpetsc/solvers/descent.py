@@ -63,6 +63,7 @@ from ..physics.traction import node_blocks
 from .adhesive_residual import total_pressure
 from .base import reason_name
 from .descent_contexts import Compliance, Hessian
+from .descent_floor import GapFloor
 from .descent_options import TAO_DEFAULTS, descent_options, natural_norm, require_descent
 from .options import code_default
 
@@ -134,6 +135,7 @@ class EnergyDescent:
         self._rows, self._mean_u, self._p0, self._valid = None, 0.0, 0.0, False
         self.pc_applies = 0
         self._round = 1              # the hard wall's round under way (``_round_target``)
+        self.floor = None            # the full LJ curve's gap floor (``descent_floor.GapFloor``)
 
     # -- PETSc objects ------------------------------------------------------------------
     def shell(self, sizes, ctx) -> PETSc.Mat:
@@ -257,28 +259,6 @@ class EnergyDescent:
             self.p.op.convolve(self._compliance, np.multiply(s, x, out=y), y)
             y *= s
 
-    def _set_floor(self, lower: np.ndarray, v: np.ndarray) -> None:
-        """TAO's lower bound (rows ``lower`` of v = u / z0) for the full LJ curve: the gap where
-        the law's repulsion is ``self._floor`` [Pa] (none where that is infinite), at the
-        present mean of v (the rows ``v``)."""
-        if not np.isfinite(self._floor):
-            lower[...] = PETSc.NINFINITY
-            return
-        floor = float(self.p.traction.repulsive_gap(np.array([self._floor]))[0][0])
-        mean_v = self._sum(float(v.sum())) / self.n
-        lower[...] = (floor - self.h + self.delta) / self.length + mean_v
-
-    def _held_by_floor(self, tao, k_inv_u, p0, a) -> bool:
-        """Whether the gap floor holds a node: at its bound with the gradient p - a pushing it
-        below (collective).  A node that snaps onto the floor is pushed back up (its repulsion
-        there is F times the start's largest pressure); one that is held needs a lower floor,
-        and the bounded Newton steps, which do not drop it from the system, would crawl."""
-        lower = tao.getVariableBounds()[0]
-        v = self.grid.rows(tao.getSolution(), readonly=True)   # rank-local rows: reduced below
-        at_floor = v <= self.grid.rows(lower, readonly=True)
-        held = bool(np.any(at_floor & (k_inv_u + p0 > a)))
-        return self.comm.allreduce(held, op=MPI.LOR)
-
     # -- measures ----------------------------------------------------------------------
     def error(self, g, k_inv_u, p0, a) -> float:
         """The problem's error measures (``AdhesiveProblem._measures``) on (g, p = K^-1 u + p0, a),
@@ -331,7 +311,7 @@ class EnergyDescent:
             return       # TAO's own failure (line search, ...)
         if err <= self._round_target(mean_u):
             tao.setConvergedReason(TAO_REASON.CONVERGED_USER)
-        elif self._floor is not None and np.isfinite(self._floor) and self._held_by_floor(tao, k_inv_u, p0, a):
+        elif self.floor is not None and self.floor.active and self.floor.holds(tao, k_inv_u, p0, a):
             self.pinned = True
             tao.setConvergedReason(TAO_REASON.CONVERGED_USER)
         elif it >= tao.getMaximumIterations() or not np.isfinite(err) or p.out_of_time():
@@ -363,6 +343,9 @@ class EnergyDescent:
         if p.hard_wall:
             self.W = self._sum(float(pressure0.sum())) / self.n
             np.maximum(u, approach - self.h, out=u)
+        else:
+            largest = self.comm.allreduce(float(pressure0.max(initial=0.0)), op=MPI.MAX)
+        del pressure0       # a grid array that TAO's peak need not hold
         u /= self.length
         gradient = x.duplicate()
         H = self.shell((grid.n_local, self.n), Hessian(self))
@@ -371,16 +354,15 @@ class EnergyDescent:
         tao.setObjectiveGradient(self.objective_gradient, gradient)
         tao.setHessian(self.hessian, H)
         bounds = ()
-        self._floor = None
+        self.floor = None
         if p.hard_wall or self.floor_factor:
             lower, upper = x.duplicate(), x.duplicate()
             upper.set(PETSc.INFINITY)
             if p.hard_wall:
                 grid.rows(lower)[...] = (approach - self.h) / self.length
             else:
-                largest = self.comm.allreduce(float(pressure0.max(initial=0.0)), op=MPI.MAX)
-                self._floor = self.floor_factor * max(p.pressure_scale, largest)
-                self._set_floor(grid.rows(lower), u)
+                self.floor = GapFloor(self, largest)
+                self.floor.set_bound(grid.rows(lower), u)
             tao.setVariableBounds((lower, upper))
             bounds = (lower, upper)
         tao.setSolution(x)
@@ -394,50 +376,59 @@ class EnergyDescent:
             pc.setType("python")
             pc.setPythonContext(Compliance(self))
         self._lin0 = p.history[-1].linear_iterations if len(p.history) else 0
-        iterations = linear = rounds = floors = 0
-        last = None     # (W, mean u) of the round before
         self.last_error = np.inf
         try:
-            while True:
-                self.pinned = False
-                self._round = rounds + 1
-                tao.solve()
-                rounds += 1
-                iterations += tao.getIterationNumber()
-                code = tao.getConvergedReason()
-                if self.pinned:
-                    # the floor held nodes that the state needs below it: lowered (its
-                    # pressure 8x, the third time removed), the descent goes on from there
-                    floors += 1
-                    self._floor = self._floor * 8.0 if floors < 3 else np.inf
-                    self._set_floor(grid.rows(bounds[0]), grid.rows(x, readonly=True))
-                    continue
-                mean_u = self.fields(x)[2]
-                if not p.hard_wall or code < 0 or rounds >= self.max_rounds or self._offset_closed(mean_u):
-                    break
-                # the measured mean pressure, W + c m, is the next round's multiplier; from the
-                # second round on, the secant of m(W) where it falls as it should (slope below
-                # -1/c's sign): the offset then falls superlinearly instead of by k / (c + k)
-                step = self.c * mean_u
-                if last is not None and mean_u != last[1]:
-                    slope = (mean_u - last[1]) / (self.W - last[0])
-                    if slope < 0:
-                        step = -mean_u / slope
-                last = (self.W, mean_u)
-                self.W += step
-                self._valid = False
-            linear = self.pc_applies
-            converged = code > 0
-            reason = f"descent {reason_name(code, TAO_REASON)} ({iterations} TAO iterations"
-            reason += f", {rounds} rounds)" if p.hard_wall else (f", the gap floor lowered {floors}x)" if floors else ")")
-            at_bound = None
-            if p.hard_wall:
-                at_bound = grid.rows(x, readonly=True) <= grid.rows(bounds[0], readonly=True)
+            try:
+                code, iterations, rounds = self._rounds(tao, x, bounds)
+                at_bound = None
+                if p.hard_wall:
+                    at_bound = grid.rows(x, readonly=True) <= grid.rows(bounds[0], readonly=True)
+            finally:
+                # TAO's vectors before the state's: the start's copy (``saved_start``) is made as
+                # the state is written, not beside TAO's peak
+                for obj in (tao, H, gradient) + bounds:
+                    obj.destroy()
             self._write_state(x, at_bound)
-            return converged, reason, iterations, linear
         finally:
-            for obj in (tao, H, x, gradient) + bounds:
-                obj.destroy()
+            x.destroy()
+        reason = f"descent {reason_name(code, TAO_REASON)} ({iterations} TAO iterations"
+        floors = self.floor.lowered if self.floor is not None else 0
+        reason += f", {rounds} rounds)" if p.hard_wall else (f", the gap floor lowered {floors}x)" if floors else ")")
+        return code > 0, reason, iterations, self.pc_applies
+
+    def _rounds(self, tao, x, bounds) -> tuple[int, int, int]:
+        """TAO's solves from ``x``: a hard wall's rounds (its multiplier W updated between
+        them), the full LJ curve's floor lowered where it holds nodes; (TAO's reason,
+        iterations, rounds)."""
+        p, grid = self.p, self.grid
+        iterations = rounds = 0
+        last = None     # (W, mean u) of the round before
+        while True:
+            self.pinned = False
+            self._round = rounds + 1
+            tao.solve()
+            rounds += 1
+            iterations += tao.getIterationNumber()
+            code = tao.getConvergedReason()
+            if self.pinned:
+                # the floor held nodes that the state needs below it: lowered (its
+                # pressure 8x, the third time removed), the descent goes on from there
+                self.floor.lower(grid.rows(bounds[0]), grid.rows(x, readonly=True))
+                continue
+            mean_u = self.fields(x)[2]
+            if not p.hard_wall or code < 0 or rounds >= self.max_rounds or self._offset_closed(mean_u):
+                return code, iterations, rounds
+            # the measured mean pressure, W + c m, is the next round's multiplier; from the
+            # second round on, the secant of m(W) where it falls as it should (slope below
+            # -1/c's sign): the offset then falls superlinearly instead of by k / (c + k)
+            step = self.c * mean_u
+            if last is not None and mean_u != last[1]:
+                slope = (mean_u - last[1]) / (self.W - last[0])
+                if slope < 0:
+                    step = -mean_u / slope
+            last = (self.W, mean_u)
+            self.W += step
+            self._valid = False
 
     def _write_state(self, x: PETSc.Vec, at_bound: np.ndarray | None) -> None:
         """The problem's unknowns from TAO's variable x: a = a(g), q = p - a >= 0 (hard wall)
@@ -446,6 +437,7 @@ class EnergyDescent:
         lost its multiplier and sent Newton's confirmation off)."""
         p = self.p
         g, a, _, k_inv_u, p0 = self.fields(x)
+        p.saved_start()      # the unknowns as they were, for the solve's fallbacks, before they change
         xb = p.blocks(p._x)
         if p.hard_wall:
             # the multiplier lives on the contact nodes, where u sits on its bound: elsewhere

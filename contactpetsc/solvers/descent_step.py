@@ -20,7 +20,7 @@ def descend_step(problem, approach: float, start: PETSc.Vec) -> tuple[bool, str,
     options = descent_options(problem.prefix)
     increments = 1 if prev is None else pieces(approach - prev, options.max_step * problem.z0)
     iterations = linear = 0
-    first, taken = start, 1
+    taken = 1
     for k in range(1, increments):
         if problem.out_of_time():
             break
@@ -29,8 +29,9 @@ def descend_step(problem, approach: float, start: PETSc.Vec) -> tuple[bool, str,
         PETSc.garbage_cleanup(problem.grid.comm)   # its TAO's contexts hold its arrays
         iterations, linear = iterations + it, linear + lin
         if not ok:
-            # (a NaN, a failed line search): the whole step from the start instead
-            start, taken = first, 1
+            # (a NaN, a failed line search): the whole step from the start instead (the
+            # problem's copy of its unknowns, made as the first increment wrote its state)
+            start, taken = problem.saved_start(), 1
             break
         start = problem._x      # the increment's state: the next one's start
         taken += 1

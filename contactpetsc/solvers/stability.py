@@ -47,6 +47,7 @@ from petsc4py import PETSc
 
 from ..lifetime import destroy_at_exit
 from ..log_events import log_event
+from ..physics.traction import node_blocks
 from .options import code_default
 from .pc_registry import PRECONDITIONERS
 
@@ -139,12 +140,6 @@ def stability_margin(problem, gap: np.ndarray, q_rows: np.ndarray | None, steps:
     d[contact] = 0.0       # in place: d is the law's fresh array
     if comm.allreduce(float(d.max()), op=MPI.MAX) <= 0.0:
         return 1.0, True   # A <= 0: no positive eigenvalue
-    # start: the positive part of A (the attractive zone beyond the force peak), varied
-    # from node to node by a fixed hash of the global index (rank-count independent), so
-    # that it has every Fourier mode: a uniform start is in the null space of the
-    # periodic compliance (the mean mode)
-    v = np.maximum(d, 0.0) * (1.0 + 0.5 * np.modf(np.abs(np.sin(
-        (np.arange(grid.ys, grid.ye)[:, None] * grid.nx + np.arange(grid.nx)[None, :]) * 12.9898)) * 43758.5453)[0])
     if method == "auto":
         method = "lobpcg" if grid.periodic else "lanczos"
     if method == "lobpcg":
@@ -160,12 +155,12 @@ def stability_margin(problem, gap: np.ndarray, q_rows: np.ndarray | None, steps:
             cls = AdhesiveCyclePreconditioner if preconditioner == "mlmi" else DisplacementCycle
             hessian = cls(problem, d, contact)
         try:
-            lam, settled = _lobpcg(problem.op, comm, d, contact, v, steps, residual_tol, precondition=hessian)
+            lam, settled = _lobpcg(problem.op, comm, d, contact, steps, residual_tol, precondition=hessian)
         finally:
             if hessian is not None:
                 hessian.release()
     else:
-        lam, settled = _lanczos(problem, comm, d, contact, v, steps, tol)
+        lam, settled = _lanczos(problem, comm, d, contact, _start(grid, d, np.empty(d.shape)), steps, tol)
     return 1.0 - lam, settled
 
 
@@ -225,6 +220,21 @@ def leaves_checks_out(problem) -> bool:
     return bool(getattr(getattr(problem, "stability_check", None), "auto", False))
 
 
+def _start(grid, d: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """The iterations' start, into ``out`` (the shape of the law's derivative rows ``d``): the
+    positive part of A (the attractive zone beyond the force peak), varied from node to node by
+    a fixed hash of the global index (rank-count independent), so that it has every Fourier
+    mode: a uniform start is in the null space of the periodic compliance (the mean mode).  A
+    block of nodes at a time (the hash's temporaries are a block's)."""
+    first = grid.ys * grid.nx       # the global index of this rank's first node
+    flat_d, flat_out = d.reshape(-1), out.reshape(-1)
+    for block in node_blocks(flat_d.size):
+        part = flat_d[block]
+        index = np.arange(first + block.start, first + block.start + part.size)
+        flat_out[block] = np.maximum(part, 0.0) * (1.0 + 0.5 * np.modf(np.abs(np.sin(index * 12.9898)) * 43758.5453)[0])
+    return out
+
+
 def _lanczos(problem, comm, d, contact, v, steps, tol):
     """(lambda_max estimate, settled) of A S by Lanczos in the S inner product from ``v``."""
     S = _Compliance(problem, contact)
@@ -269,17 +279,17 @@ def _lanczos(problem, comm, d, contact, v, steps, tol):
     return lam, settled
 
 
-def _lobpcg(op, comm, d, contact, v, steps, residual_tol, precondition=None):
+def _lobpcg(op, comm, d, contact, steps, residual_tol, precondition=None):
     """(lambda_max estimate, settled) of the pencil A x = lambda (K^-1)_NN x on W by LOBPCG
-    (Knyazev's locally optimal block preconditioned CG, block size one) from ``v``,
+    (Knyazev's locally optimal block preconditioned CG, block size one) from ``_start``,
     preconditioned by K on W, or by ``precondition(r, out)`` (full (ny_loc, nx) arrays; the
     result is projected on W).  Each Rayleigh-Ritz step is on span{x, w, p} (iterate,
     preconditioned residual, previous direction), so the top Ritz value never decreases
     whatever the preconditioner; the stopping test is the K-norm of the residual in both."""
-    shape = v.shape
-    n_free = comm.allreduce(float(v.size - np.count_nonzero(contact)))
+    shape = d.shape
+    n_free = comm.allreduce(float(d.size - np.count_nonzero(contact)))
     # without contact nodes (the full LJ curve) no mask: two passes a projection less
-    masked = n_free < comm.allreduce(v.size)
+    masked = n_free < comm.allreduce(d.size)
     # the contact nodes by index: zeroed in place, faster than a full mask's product and a few
     # per cent of a grid array instead of one
     held = np.flatnonzero(contact) if masked else None
@@ -304,7 +314,7 @@ def _lobpcg(op, comm, d, contact, v, steps, residual_tol, precondition=None):
     basis, mbasis = np.zeros((3, a.size)), np.zeros((3, a.size))
     x, w, p = basis
     mx, mw, mp = mbasis
-    x[...] = v.reshape(-1)
+    _start(op.grid, d, x)     # in the basis's row: no start array beside it
     on_w(x)
     mult(op.apply_inverse, x, mx)
     nrm = np.sqrt(comm.allreduce(float(x @ mx)))

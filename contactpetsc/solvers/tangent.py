@@ -73,9 +73,8 @@ class TangentAndState:
         grid = self.grid
         comm = grid.mpi_comm
         xb = self.blocks(self._x, readonly=True)
-        # the gap and K p in arrays of their own: the tangent's solve reuses the scratch rows
-        gap_rows = self._gap(xb, np.empty((grid.ny_local, grid.nx)))
-        v_rows = self._v.copy()
+        rows = (grid.ny_local, grid.nx)
+        gap_rows = self._gap(xb, np.empty(rows))
         beyond = comm.allreduce(self.traction.beyond_safe_range(gap_rows), op=MPI.LOR)
         if beyond and converged:
             converged, reason = False, "LJ_BEYOND_SAFE_RANGE (z < 0.5 z0: pressure beyond the law's sane range)"
@@ -84,10 +83,16 @@ class TangentAndState:
         if tangent and converged:
             self.predictor.due()
             t_check = self.history.elapsed()
-            stiffness = self.predictor.stiffness()
+            if self.predictor.stiffness_each_state:
+                # nor the gap's: its solve reuses the scratch rows, so the gap and K p are made
+                # again after it (one FFT pair)
+                del gap_rows
+                stiffness = self.predictor.stiffness()
+                gap_rows = self._gap(xb, np.empty(rows))
             self.check_time += self.history.elapsed() - t_check
         else:
             self.predictor.drop()
+        v_rows = self._v.copy()   # K p of the last gap (``_gap``)
         q, p, gap, v = (grid.create_vec(0.0) for _ in range(4))
         if self.hard_wall:
             grid.rows(q)[...] = xb[0]
