@@ -97,12 +97,24 @@ class _Level:
         self.c = c
         k_ii = b.k0
         self.kdom = distributive(c, k_ii)
-        kd = self.kdom.astype(float)
+        # in place, in the work arrays and the two that are kept (scale, jac): a set-up's
+        # temporaries had made the tangent's set-up a path's peak of memory
+        kd = self.scale = self.kdom.astype(float)
         sx, sy = b.neighbour_sums(kd, self.s1, self.s2)
-        lam = b.k0 - 0.25 * (b.kx * sx + b.ky * sy) + c
-        self.scale = np.where(self.kdom & (lam > 0), np.sqrt(b.omega / np.where(lam > 0, lam, 1.0)), 0.0)
-        diag = k_ii + c
-        self.jac = np.where(self.kdom, 0.0, 1.0 / np.where(diag != 0, diag, 1.0))
+        lam = np.multiply(sx, b.kx, out=sx)
+        lam += np.multiply(sy, b.ky, out=sy)
+        lam *= 0.25
+        np.subtract(b.k0, lam, out=lam)
+        lam += c
+        positive = lam > 0
+        np.copyto(lam, 1.0, where=~positive)
+        np.divide(b.omega, lam, out=lam)
+        np.sqrt(lam, out=self.scale)                      # (omega / lambda)^1/2 ...
+        np.copyto(self.scale, 0.0, where=~(self.kdom & positive))   # ... on the distributive rows
+        jac = self.jac = np.add(c, k_ii, out=self.s1)     # the diagonal k_ii + c ...
+        np.copyto(jac, 1.0, where=jac == 0)
+        jac = self.jac = np.divide(1.0, jac)               # ... inverted off the distributive rows
+        np.copyto(jac, 0.0, where=self.kdom)
         self.theta = 1.0
         comm = self.grid.mpi_comm
         v = self.v
@@ -114,11 +126,12 @@ class _Level:
             v /= np.sqrt(comm.allreduce(float(np.vdot(v, v))))
         rho = 0.0
         for _ in range(power_its if self.v is not None else FIRST_POWER_ITS * power_its):
-            w = self.correction(self.apply(v, self.r), np.zeros_like(v))
+            # into v itself: the product has read it before the correction writes
+            w = self.correction(self.apply(v, self.r), v)
             rho = np.sqrt(comm.allreduce(float(np.vdot(w, w))))
             if rho == 0:
                 break
-            v = w / rho
+            v = np.divide(w, rho, out=w)
         # the next Newton step's estimate starts from this one's vector: its rows change little
         self.v = v if rho > 0 else None
         if 1.1 * rho > bound:
@@ -174,10 +187,15 @@ class _Level:
 def law_rows(alpha: np.ndarray, beta: np.ndarray, k_ii: float) -> tuple[np.ndarray, np.ndarray]:
     """(c, 1 / beta) of the rows alpha dp + beta (K dp) = r divided by beta: c = alpha / beta,
     with beta floored where the law is flat (beta ~ 0: the row is alpha dp = r, c large, the
-    smoother exact there)."""
-    floor = np.abs(alpha) / (C_CAP * k_ii)
-    beta = np.where(np.abs(beta) < floor, np.where(beta < 0, -floor, floor), beta)
-    return alpha / beta, 1.0 / beta
+    smoother exact there).  ``beta`` (the caller's own array) becomes 1 / beta, in place."""
+    floor = np.abs(alpha)
+    floor /= C_CAP * k_ii
+    small = np.abs(beta) < floor
+    np.negative(floor, out=floor, where=small & (beta < 0))
+    np.copyto(beta, floor, where=small)
+    del floor
+    c = np.divide(alpha, beta)
+    return c, np.divide(1.0, beta, out=beta)
 
 
 class AdhesiveCycle:
@@ -302,17 +320,21 @@ class AdhesiveMLMIPC:
         self.q_set = masks[0] if pb.hard_wall else np.zeros(d.shape, bool)
         free = masks[-1] | self.q_set
         alpha = np.full(d.shape, kappa * (1.0 + pb.shift))
-        beta = -kappa * d
+        beta = np.multiply(d, -kappa)
         if pb._gap_rows is not None:
-            alpha = np.where(pb._gap_rows, pb.shift * kappa - pb._gap_slope, alpha)
-            beta = np.where(pb._gap_rows, 1.0, beta)
+            np.copyto(alpha, pb.shift * kappa - pb._gap_slope, where=pb._gap_rows)
+            np.copyto(beta, 1.0, where=pb._gap_rows)
         self.alpha = alpha
         k_ii = self.cycle.k_ii
+        # in place (a set-up's temporaries had been the tangent's peak of memory)
         c, inv_beta = law_rows(alpha, beta, k_ii)
-        c = np.where(self.q_set, 0.0, c)
-        c = np.where(free, c, C_CAP * k_ii)   # unknowns held at a bound: dp = 0
-        self.inv_beta = np.where(self.q_set, 1.0, np.where(free, inv_beta, 0.0))
-        self.a_gain = kappa * d
+        np.copyto(c, 0.0, where=self.q_set)
+        held = ~free
+        np.copyto(c, C_CAP * k_ii, where=held)   # unknowns held at a bound: dp = 0
+        np.copyto(inv_beta, 0.0, where=held)
+        np.copyto(inv_beta, 1.0, where=self.q_set)
+        self.inv_beta = inv_beta
+        self.a_gain = np.multiply(d, kappa)
         self.cycle.set_rows(c)
         self.not_q = ~self.q_set
 

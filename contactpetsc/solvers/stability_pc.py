@@ -47,9 +47,11 @@ class AdhesiveCyclePreconditioner:
             data.stability_cycle = AdhesiveCycle(problem.op, data, problem.prefix)
         self.cycle = data.stability_cycle
         self.op = problem.op
-        c, inv_beta = law_rows(np.ones_like(d), -d, self.cycle.k_ii)
-        self.cycle.set_rows(np.where(contact, 0.0, c))
-        self.inv_beta = np.where(contact, 0.0, inv_beta)
+        c, inv_beta = law_rows(np.ones_like(d), np.negative(d), self.cycle.k_ii)
+        np.copyto(c, 0.0, where=contact)
+        self.cycle.set_rows(c)
+        self.inv_beta = inv_beta
+        np.copyto(inv_beta, 0.0, where=contact)
 
     def __call__(self, r: np.ndarray, out: np.ndarray) -> np.ndarray:
         # out holds f through the cycle (the cycle's own arrays are its work), then K p
