@@ -70,9 +70,15 @@ class TangentPredictor:
             tv = None
         self.value = (approach, tv, stiffness)
 
+    @property
+    def stiffness_due(self) -> bool:
+        """Whether ``stiffness()`` solves the present state's tangent (not where it gives NaN: the
+        stiffness off, or a coarse level that wants no tangent)."""
+        return self._due is not None and self.stiffness_each_state
+
     def stiffness(self) -> float:
         """dF/d delta [N/m] of the present state where it is wanted for every state, else NaN."""
-        if self._due is None or not self.stiffness_each_state:
+        if not self.stiffness_due:
             return float("nan")
         self.ensure()
         return self.value[2]

@@ -83,7 +83,7 @@ class TangentAndState:
         if tangent and converged:
             self.predictor.due()
             t_check = self.history.elapsed()
-            if self.predictor.stiffness_each_state:
+            if self.predictor.stiffness_due:
                 # nor the gap's: its solve reuses the scratch rows, so the gap and K p are made
                 # again after it (one FFT pair)
                 del gap_rows
