@@ -251,7 +251,7 @@ class EnergyDescent:
 
     def precondition(self, x: np.ndarray, y: np.ndarray) -> None:
         """y = S K S x / K_ii on rows of v = u / z0 (dimensionless): the compliance, scaled
-        down on the repulsive nodes."""
+        down on the repulsive nodes; ``y`` may be ``x`` (the FFT's spectrum is a buffer of its own)."""
         s = self.pc_scale
         if s is None:
             self.p.op.convolve(self._compliance, x, y)

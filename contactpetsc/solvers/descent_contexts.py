@@ -22,14 +22,7 @@ class Hessian:
 
     def mult(self, mat, x, y):
         xa, ya = x.getArray(readonly=True), y.getArray()
-        if self.index is None:
-            self.d.hessian_mult(xa.reshape(self.d.shape), ya.reshape(self.d.shape))
-        else:
-            full = embedding(self.d)
-            full[...] = 0.0
-            full.reshape(-1)[self.index] = xa
-            self.d.hessian_mult(full, full)     # in place
-            ya[:] = full.reshape(-1)[self.index]
+        embedded(self.d, self.index, self.d.hessian_mult, xa, ya)
         if self.shift_value:
             ya += self.shift_value * xa
 
@@ -65,21 +58,22 @@ class Compliance:
         d = self.d
         d.pc_applies += 1      # one per Krylov iteration: the descent's linear iterations
         xa, ya = x.getArray(readonly=True), y.getArray()
-        index = pc.getOperators()[1].getPythonContext().index
-        if index is None:
-            d.precondition(xa.reshape(d.shape), ya.reshape(d.shape))
-            return
-        full = embedding(d)
-        full[...] = 0.0
-        full.reshape(-1)[index] = xa
-        d.precondition(full, full)      # in place: the FFT's spectrum is a buffer of its own
-        ya[:] = full.reshape(-1)[index]
+        embedded(d, pc.getOperators()[1].getPythonContext().index, d.precondition, xa, ya)
 
 
-def embedding(descent) -> np.ndarray:
-    """The full array through which the Hessian's and the preconditioner's products on a proper
-    inactive set embed, each in place: one for the descent's life, shared (the two products
-    never nest; every sub-matrix TAO makes had held a pair of its own)."""
+def embedded(descent, index, product, xa: np.ndarray, ya: np.ndarray) -> None:
+    """ya = ``product`` (one of the descent's, ``product(x, y)`` on full rows, ``y`` may be
+    ``x``) on the rank's inactive set ``index`` (None: every node, no embedding), xa and ya that
+    set's entries.  A proper set embeds through one full array for the descent's life, the
+    product in place: shared by the Hessian and the preconditioner, whose products never nest
+    (every sub-matrix TAO makes had held a pair of its own)."""
+    if index is None:
+        product(xa.reshape(descent.shape), ya.reshape(descent.shape))
+        return
     if descent._embed is None:
         descent._embed = np.zeros(descent.shape)
-    return descent._embed
+    full = descent._embed
+    full[...] = 0.0
+    full.reshape(-1)[index] = xa
+    product(full, full)
+    ya[:] = full.reshape(-1)[index]
