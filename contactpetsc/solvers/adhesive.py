@@ -299,25 +299,6 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         if self.strategy == "descent":
             self.coarse_levels.release()
 
-    def saved_start(self) -> PETSc.Vec:
-        """The unknowns as they were when first asked for in this solve: the solve's start, which
-        its fallbacks and (after a failure) the next solve start from.  A strategy that
-        overwrites the unknowns asks first; made once per solve, freed at its end."""
-        if self._x_start is None:
-            self._x_start = self._x.copy()
-        return self._x_start
-
-    def _drop_start(self) -> None:
-        if self._x_start is not None:
-            self._x_start.destroy()
-            self._x_start = None
-
-    def _drop_solve_best(self) -> None:
-        """Free the running solve's best iterate (its failure report is written)."""
-        if self._x_solve_best is not None:
-            self._x_solve_best.destroy()
-            self._x_solve_best = None
-
     # -- public API --------------------------------------------------------------------------
     def solve_force(self, force: float, *, rel_tol: float = 1e-8, max_updates: int = 30,
                     raise_on_failure: bool = True) -> AdhesiveState:
@@ -452,8 +433,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         if converged:
             self._start_approach = self._approach
         else:
-            x_start.copy(self._x)   # keep the last good state as the next start
-            self._drop_start()
+            x_start.copy(self._x)   # keep the last good state as the next start (freed by ``release``)
         self.centre_owner = None
         self.release()
         PETSc.garbage_cleanup(self.grid.comm)

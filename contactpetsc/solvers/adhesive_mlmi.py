@@ -111,10 +111,10 @@ class _Level:
         np.divide(b.omega, lam, out=lam)
         np.sqrt(lam, out=self.scale)                      # (omega / lambda)^1/2 ...
         np.copyto(self.scale, 0.0, where=~(self.kdom & positive))   # ... on the distributive rows
-        jac = self.jac = np.add(c, k_ii, out=self.s1)     # the diagonal k_ii + c ...
-        np.copyto(jac, 1.0, where=jac == 0)
-        jac = self.jac = np.divide(1.0, jac)               # ... inverted off the distributive rows
-        np.copyto(jac, 0.0, where=self.kdom)
+        diag = np.add(c, k_ii, out=self.s1)               # the diagonal k_ii + c ...
+        np.copyto(diag, 1.0, where=diag == 0)
+        self.jac = np.divide(1.0, diag)                    # ... inverted off the distributive rows
+        np.copyto(self.jac, 0.0, where=self.kdom)
         self.theta = 1.0
         comm = self.grid.mpi_comm
         v = self.v

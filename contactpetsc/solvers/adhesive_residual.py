@@ -175,6 +175,25 @@ class AdhesiveCallbacks:
                 self._x_solve_best = x.duplicate()
             x.copy(self._x_solve_best)
 
+    def saved_start(self) -> PETSc.Vec:
+        """The unknowns as they were when first asked for in this solve: the solve's start, which
+        its fallbacks and (after a failure) the next solve start from.  A strategy that
+        overwrites the unknowns asks first; made once per solve, freed at its end."""
+        if self._x_start is None:
+            self._x_start = self._x.copy()
+        return self._x_start
+
+    def _drop_start(self) -> None:
+        if self._x_start is not None:
+            self._x_start.destroy()
+            self._x_start = None
+
+    def _drop_solve_best(self) -> None:
+        """Free the running solve's best iterate (its failure report is written)."""
+        if self._x_solve_best is not None:
+            self._x_solve_best.destroy()
+            self._x_solve_best = None
+
     @property
     def solver_name(self) -> str:
         return f"newton-vi+{self.preconditioner}"

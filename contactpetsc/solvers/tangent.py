@@ -92,7 +92,6 @@ class TangentAndState:
             self.check_time += self.history.elapsed() - t_check
         else:
             self.predictor.drop()
-        v_rows = self._v.copy()   # K p of the last gap (``_gap``)
         q, p, gap, v = (grid.create_vec(0.0) for _ in range(4))
         if self.hard_wall:
             grid.rows(q)[...] = xb[0]
@@ -105,8 +104,7 @@ class TangentAndState:
             grid.rows(p)[...] = xb[-1]
             a = p
         grid.rows(gap)[...] = gap_rows
-        grid.rows(v)[...] = v_rows
-        del v_rows
+        grid.rows(v)[...] = self._v      # K p of the last gap (``_gap``), before the residual below overwrites it
         f = self.create_unknown()
         self._residual(None, self._x, f)
         err_c, err_a, err_p, mean_p, frac = self._measures(self._x, f)
