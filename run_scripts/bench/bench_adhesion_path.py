@@ -27,23 +27,17 @@ import time
 
 import petsc4py
 
-from bench_args import emit
+from bench_args import add_path_arguments, check_path_arguments, emit, reset_peak, status_kb
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
 ap.add_argument("--size", type=int, default=1024)
-ap.add_argument("--states", type=int, default=10, help="states on the path (>= 2), half loading, half unloading")
-ap.add_argument("--areas", type=float, nargs=2, default=[0.01, 0.10],
-                help="contact areas at the path's ends (start and turning point)")
+add_path_arguments(ap)
 ap.add_argument("--law", default="lj", choices=("lj", "exponential"),
                 help="the full LJ curve, or a hard wall with exponential attraction (range rho = dx)")
-ap.add_argument("--calibrate-max-n", type=int, default=256)
 ap.add_argument("--pair-reps", type=int, default=5, help="bare operator applies timed for the pair time")
 args, petsc_args = ap.parse_known_args()
-if args.states < 2:
-    ap.error(f"--states must be at least 2, got {args.states}")
-if not 0.0 < args.areas[0] < args.areas[1] < 1.0:
-    ap.error(f"--areas must satisfy 0 < start < turning point < 1, got {args.areas}")
+check_path_arguments(ap, args)
 petsc4py.init([sys.argv[0]] + petsc_args)
 
 import numpy as np  # noqa: E402
@@ -53,15 +47,6 @@ from contactpetsc.solvers.adhesive import AdhesiveProblem  # noqa: E402
 
 sys.path.insert(0, HERE)
 from rough_surface import adhesive_law, calibrate, path_approaches, rough_surface  # noqa: E402
-
-
-def status_kb(field):
-    """A field of /proc/self/status in kB (VmRSS, VmHWM)."""
-    with open("/proc/self/status") as f:
-        for line in f:
-            if line.startswith(field + ":"):
-                return int(line.split()[1])
-    raise KeyError(field)
 
 
 def main():
@@ -79,8 +64,7 @@ def main():
     if not opts.hasName("stiffness"):
         opts.setValue("stiffness", False)
     base = status_kb("VmRSS")
-    with open("/proc/self/clear_refs", "w") as f:
-        f.write("5")   # VmHWM := VmRSS: the peak from here on
+    reset_peak()   # the peak from here on
     pb = AdhesiveProblem(grid, h, 1.0, law, prefix="path_")
     rows = []
     t_path = time.perf_counter()

@@ -1,6 +1,6 @@
 """What the rough-benchmark scripts share on their command line and output, importable before
-``petsc4py.init`` (no PETSc import): the parser with the benchmark's size and law, and the
-one-JSON-line-per-row output."""
+``petsc4py.init`` (no PETSc import): the parser with the benchmark's size and law, the path's
+arguments, the one-JSON-line-per-row output, and the process's memory counters."""
 import argparse
 import json
 
@@ -20,3 +20,34 @@ def rough_parser(doc: str, law: str = "exponential") -> argparse.ArgumentParser:
 def emit(**row) -> None:
     """One JSON line, flushed (benchmarks are read while they run)."""
     print(json.dumps(row), flush=True)
+
+
+def add_path_arguments(ap: argparse.ArgumentParser) -> None:
+    """--states, --areas and --calibrate-max-n of a load-unload path on the rough benchmark
+    (``bench_adhesion_path.py``); checked by ``check_path_arguments``."""
+    ap.add_argument("--states", type=int, default=10, help="states on the path (>= 2), half loading, half unloading")
+    ap.add_argument("--areas", type=float, nargs=2, default=[0.01, 0.10],
+                    help="contact areas at the path's ends (start and turning point)")
+    ap.add_argument("--calibrate-max-n", type=int, default=256)
+
+
+def check_path_arguments(ap: argparse.ArgumentParser, args) -> None:
+    if args.states < 2:
+        ap.error(f"--states must be at least 2, got {args.states}")
+    if not 0.0 < args.areas[0] < args.areas[1] < 1.0:
+        ap.error(f"--areas must satisfy 0 < start < turning point < 1, got {args.areas}")
+
+
+def status_kb(field: str) -> int:
+    """A field of /proc/self/status in kB (VmRSS, VmHWM)."""
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith(field + ":"):
+                return int(line.split()[1])
+    raise KeyError(field)
+
+
+def reset_peak() -> None:
+    """Reset VmHWM to the current resident size (Linux >= 4.0: write 5 to clear_refs)."""
+    with open("/proc/self/clear_refs", "w") as f:
+        f.write("5")

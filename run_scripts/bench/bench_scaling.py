@@ -42,6 +42,8 @@ import time
 
 import petsc4py
 
+from bench_args import reset_peak, status_kb
+
 ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
 ap.add_argument("--sizes", type=int, nargs="+", default=[256, 512, 1024, 2048])
 ap.add_argument("--solvers", nargs="+", default=["spectral"],
@@ -79,21 +81,6 @@ from transpose_bytes import transpose_bytes  # noqa: E402
 E_STAR, L = rough_scene(64)["material"]["e_star"], 1.0
 comm = PETSc.COMM_WORLD.tompi4py()
 rank, size = comm.Get_rank(), comm.Get_size()
-
-
-def status_kb(field: str) -> int:
-    """A field of /proc/self/status in kB (VmRSS, VmHWM)."""
-    with open("/proc/self/status") as f:
-        for line in f:
-            if line.startswith(field + ":"):
-                return int(line.split()[1])
-    raise KeyError(field)
-
-
-def reset_peak() -> None:
-    """Reset VmHWM to the current RSS (Linux >= 4.0: write 5 to clear_refs)."""
-    with open("/proc/self/clear_refs", "w") as f:
-        f.write("5")
 
 
 def node_sum_mb(kb: int) -> float:

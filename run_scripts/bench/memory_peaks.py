@@ -23,16 +23,14 @@ import petsc4py
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
-from bench_args import emit, rough_parser  # noqa: E402
+from bench_args import add_path_arguments, check_path_arguments, emit, reset_peak, rough_parser, status_kb  # noqa: E402
 
 ap = rough_parser(__doc__)
-ap.add_argument("--states", type=int, default=10, help="states on the path (>= 2)")
-ap.add_argument("--areas", type=float, nargs=2, default=[0.01, 0.10],
-                help="contact areas at the path's ends (start and turning point)")
-ap.add_argument("--calibrate-max-n", type=int, default=256)
+add_path_arguments(ap)
 ap.add_argument("--step-kb", type=int, default=256,
                 help="report a rise of the high-water mark of at least this many kB")
 args, petsc_args = ap.parse_known_args()
+check_path_arguments(ap, args)
 petsc4py.init([sys.argv[0]] + petsc_args)
 
 from petsc4py import PETSc  # noqa: E402
@@ -51,11 +49,6 @@ WRAPPED = ((descent.EnergyDescent, "descend"), (descent.EnergyDescent, "objectiv
            (adhesive_mlmi.AdhesiveCycle, "set_rows"), (adhesive_mlmi.AdhesiveCycle, "solve"),
            (adhesive.AdhesiveProblem, "make_state"), (adhesive.AdhesiveProblem, "_jacobian"),
            (adhesive.AdhesiveProblem, "_residual"))
-
-
-def status_kb(field):
-    with open("/proc/self/status") as f:
-        return next(int(line.split()[1]) for line in f if line.startswith(field + ":"))
 
 
 def main():
@@ -85,8 +78,7 @@ def main():
     for cls, name in WRAPPED:
         wrap(cls, name)
     base = status_kb("VmRSS")
-    with open("/proc/self/clear_refs", "w") as f:
-        f.write("5")   # VmHWM := VmRSS
+    reset_peak()
     state["top"] = status_kb("VmHWM")
     pb = adhesive.AdhesiveProblem(grid, h, 1.0, law, prefix="path_")
     st = None
