@@ -21,11 +21,6 @@ TAO_DEFAULTS = {
     # a truncated Newton step: across a large snap single CG solves ran to hundreds of
     # iterations for a direction the line search then cut (docs/performance.md)
     "tao_bnk_ksp_max_it": "50",
-    # STCG's trust radius in the preconditioner's norm |d|_P^-1, which CG's recurrences carry:
-    # the Euclidean default spent three more dot products per iteration on |d|, d . p and |p|,
-    # a third of a step's vector work, and its radius cut directions the compliance's norm
-    # judges well (docs/performance.md, "Where the descent's time goes")
-    "tao_bnk_ksp_cg_dtype": "preconditioned",
     # the Hessian's shift, put on where CG meets negative curvature (a snap), is taken off at
     # the next Newton step that succeeds: BNK's default only shrinks it, to min(0.4 shift,
     # 0.1 |gradient|) a step (its floor 1e-12), and what was left of it damped the Newton

@@ -109,7 +109,7 @@ ADHESION = (
     Option(("descent_tol", "descent_offset_tol"), "tol (full LJ) or tol / 2, tol / 10",
            "energy descent: error measure reached before Newton polishes, a hard wall's mean offset (z0)"),
     Option(("descent_tao_*",), "bnls, bnk_as_type none, bnk_ksp_rtol 0.1, bnk_ksp_norm_type natural (stcg, nash, gltr, cg), "
-           "bnk_ksp_cg_dtype preconditioned, bnk_ksp_max_it 50, bnk_psfac 0, max_it 500",
+           "bnk_ksp_max_it 50, bnk_psfac 0, max_it 500",
            "the TAO of the energy descent (`-<prefix>descent_tao_monitor`)"),
     Option(("fallback_tol", "fallback_max_cycles"), (1e-3, 5000), "relaxation fallback"),
     Option(("ptc_shift", "ptc_max_it"), (1.0, 300), "pseudo-transient continuation: first shift, steps"),

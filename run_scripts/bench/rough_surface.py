@@ -75,7 +75,8 @@ def calibrate(grid, h, law, areas, steps=40, max_n=128):
                              preconditioner="spectral",
                              petsc_options={"strategy": "newton", "descent_pc_contact_factor": 0,
                                             "descent_tao_bnk_ksp_max_it": 10000, "tangent_hessian": False,
-                                            "descent_tao_bnk_psfac": 0.4, "descent_floor_factor": 0})
+                                            "descent_tao_bnk_psfac": 0.4, "descent_floor_factor": 0,
+                                            "descent_tao_bnk_ksp_cg_dtype": "unpreconditioned"})
     lo, hi = float(h.min()[1]) - law.length_scale(), float(h.max()[1])
     deltas, fractions = [], []
     for d in np.linspace(lo, hi, steps):
