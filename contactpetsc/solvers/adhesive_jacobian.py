@@ -37,7 +37,7 @@ class AdhesiveJacobian:
         self.grid = problem.grid
         self.prefix = problem.prefix
         self.pc_data = PreconditionerData()   # shared by the preconditioners of every solve
-        self._work = None                     # (K p, a'(g) K p) of a product: made on demand
+        self._work = None                     # K p of a product without a wall: made on demand
 
     def release(self) -> float:
         """Free the products' and the preconditioners' arrays between solves (made again on
@@ -51,20 +51,25 @@ class AdhesiveJacobian:
         return pairs
 
     def apply_full(self, blocks_in: np.ndarray, blocks_out: np.ndarray) -> np.ndarray:
-        """J on (nb, ny_loc, nx) arrays."""
+        """J on (nb, ny_loc, nx) arrays (``blocks_out`` not ``blocks_in``).  With a hard wall the
+        products' intermediates live in the output's two blocks (K p in the first, which it is,
+        p and then a'(g) K p in the second): no grid array of the Jacobian's own, nor p's
+        temporary, at the Newton steps' and the tangent's peaks of memory."""
         pb = self.problem
-        if self._work is None:
-            shape = (self.grid.ny_local, self.grid.nx)
-            self._work = (np.zeros(shape), np.zeros(shape))
-        w_rows, aw = self._work
-        w = self.op.apply(total_pressure(blocks_in), w_rows)
+        if pb.hard_wall:
+            w, a_out = blocks_out
+            p = np.add(blocks_in[0], blocks_in[1], out=a_out)
+        else:
+            # one block, in and out: K p needs an array beside the output (the law's derivative
+            # with element integration reads K p's neighbours while it writes)
+            if self._work is None:
+                self._work = np.zeros((self.grid.ny_local, self.grid.nx))
+            w, a_out, p = self._work, blocks_out[0], blocks_in[0]
+        w = self.op.apply(p, w)
         if pb.centre_owner is not None:
             w -= pb.centre_value(w)
-        if pb.hard_wall:
-            blocks_out[0] = w
-        a_out = blocks_out[-1]
-        pb.traction.apply_derivative(w, aw)
-        np.subtract(blocks_in[-1], aw, out=a_out)
+        pb.traction.apply_derivative(w, a_out)
+        np.subtract(blocks_in[-1], a_out, out=a_out)
         a_out *= pb.kappa
         if pb._gap_rows is not None:
             at, slope = pb._gap_at
