@@ -142,19 +142,18 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self._released_pairs = 0.0      # weighted FFT pairs of the preconditioner levels ``release`` freed
         self._prev_approach = None
         self._budget_start = None       # time.monotonic() at the first solve under a time budget
-        self._scratch = None            # (gap, displacement, product) rows: ``_g``, ``_v``, ``_v2``
+        self._scratch = None            # (gap, displacement) rows: ``_g``, ``_v``
         self._x_start = None            # the running solve's start (``saved_start``)
 
     # -- scratch rows (made on demand, freed by ``release``) ----------------------------------
     def _scratch_rows(self, k: int) -> np.ndarray:
         if self._scratch is None:
             shape = (self.grid.ny_local, self.grid.nx)
-            self._scratch = (np.zeros(shape), np.zeros(shape), np.zeros(shape))
+            self._scratch = (np.zeros(shape), np.zeros(shape))
         return self._scratch[k]
 
     _g = property(lambda self: self._scratch_rows(0), doc="the gap [m] of the last residual or Jacobian")
     _v = property(lambda self: self._scratch_rows(1), doc="the displacement K p [m] of the last residual")
-    _v2 = property(lambda self: self._scratch_rows(2), doc="scratch of the Jacobian's products")
 
     # -- layout ------------------------------------------------------------------------
     def set_control_node(self, node: tuple[int, int] | None = None) -> None:

@@ -60,7 +60,7 @@ class AdhesiveCallbacks:
         into the LJ wall (errors of thousands of z0), which costs several steps to undo."""
         g = self._g   # the gap at x: the Jacobian was just evaluated there
         dp = -self.blocks(y, readonly=True).sum(axis=0)
-        dg = self.op.apply(dp, self._v2)
+        dg = self.op.apply(dp, dp)    # in place: dp is this call's own temporary
         if self.centre_owner is not None:
             dg -= self.centre_value(dg)
         floor = np.minimum(g, 0.0) - self.step_limit * self.z0
