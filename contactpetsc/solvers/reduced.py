@@ -113,7 +113,9 @@ class InactiveSet:
     def from_full(self, full: np.ndarray, y: PETSc.Vec) -> None:
         """Gather the set's entries of a full local array into a reduced Vec."""
         flat, dst = full.reshape(-1), y.getArray()
-        np.take(flat, self.scattered, out=dst[:self.head])  # no temporary
+        # no temporary; mode "clip" (the positions are in range by construction): numpy's default
+        # "raise" gathers into a copy of ``out`` first, twice the time
+        np.take(flat, self.scattered, out=dst[:self.head], mode="clip")
         dst[self.head:] = flat[self.run]
 
 
