@@ -341,3 +341,22 @@ def test_plot_command_draws_a_chosen_step(tmp_path):
     assert "contact_area.png" in proc.stdout and "psd.png" in proc.stdout
     with open(out / "scene.json") as f:
         assert json.load(f)["output"]["plot_step"] is None
+
+
+def test_a_run_holds_one_states_fields_and_plots_an_earlier_step_from_them(coll, shared_tmp):
+    """A run releases each state's fields before it solves the next step (a long path held every
+    step's fields): only the last state it returns has them.  The most pressed step, the second
+    of three (unloaded after it), is still plotted from its fields kept in memory, without a
+    field file, exactly as from its step file."""
+    pytest.importorskip("matplotlib")
+    from matplotlib.image import imread
+    values = (2e6, 5e7, 1e7)
+    memory, filed = shared_tmp / "from_memory", shared_tmp / "from_file"
+    states = runner.run(rough(memory, values=values, plots=True, fields=False), comm=PETSc.COMM_WORLD)
+    assert [st.pressure is None for st in states] == [True, True, False]
+    assert all(st.gap is None and st.displacement is None for st in states[:-1])
+    assert plots.plot_step([st.approach for st in states], [1, 1, 1]) == 2
+    runner.run(rough(filed, values=values, plots=True, fields=True), comm=PETSc.COMM_WORLD)
+    for name in ("pressure_map.png", "histograms.png"):
+        a, b = imread(memory / name), imread(filed / name)
+        assert coll.all(a.shape == b.shape and np.array_equal(a, b)), name

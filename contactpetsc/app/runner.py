@@ -119,7 +119,9 @@ def _body_text(scene: dict) -> str:
 def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=None,
         restart: bool = False, overwrite: bool = False) -> list:
     """Run ``scene``; returns the states of the steps solved (empty for a dry run), a step that
-    ended the run last.
+    ended the run last.  Only the last state keeps its fields (``pressure``, ``gap``, ...): each
+    earlier state's are released before the next step is solved (``release_fields``), so that a
+    path holds one state's fields, not every step's; the step files have them.
 
     ``restart``: keep the steps on disk (the same physics, ``rundir``) and resume after
     the last one.  ``overwrite``: remove another run's files from the directory first.
@@ -163,14 +165,14 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
         if scene["geometry"]["kind"] == "file":   # summary.json: the points the fill made up
             recorder.summary["filled_points"] = info.get("filled_points", 0)
         rundir.write_scene(grid.mpi_comm, out_dir, scene)
-        states = _steps(scene, stepper, recorder)
+        states, plotted = _steps(scene, stepper, recorder)
         recorder.write_summary(**stepper.finish())
         recorder.flush_history(stepper.problem)
         if recorder.edge_steps:
             PETSc.Sys.Print(f"  warning: in {len(recorder.edge_steps)} step(s) the pressure-carrying zone reached "
                             "the window's edge (curve.csv window_reach = 1): those forces are not the isolated "
                             "contact's")
-        _save_plots(scene, grid, out_dir, states, h, recorder.rows)
+        _save_plots(scene, grid, out_dir, plotted, h, recorder.rows)
         grid.mpi_comm.Barrier()   # the outputs are complete when run() returns, on every rank
         PETSc.Sys.Print(f"  wrote {out_dir}/curve.csv, history.csv, summary.json")
         return states
@@ -178,14 +180,19 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
         rundir.release(grid.mpi_comm, out_dir)
 
 
-def _steps(scene: dict, stepper, recorder) -> list:
+def _steps(scene: dict, stepper, recorder) -> tuple[list, tuple | None]:
     """The loop: each step solved by the stepper and written by the recorder, until the path's
-    end or a failed step of a stepper that stops there."""
+    end or a failed step of a stepper that stops there.  Returns the states (each one's fields
+    released before the next step is solved: the last keeps them) and, where ``output.plots``
+    will draw a step of this run that has no step file with the pressure, that step's (step,
+    pressure, gap): the step it would plot so far (``_plotted``)."""
     values = [float(v) for v in scene["protocol"]["values"]]
     control = scene["protocol"]["control"]
     recorder.start()
-    states = []
+    states, plotted = [], None
     for step in range(len(recorder.rows) + 1, len(values) + 1):
+        if states:
+            states[-1].release_fields()
         st, jumps = stepper.step(values[step - 1])
         states.append(st)
         if not st.converged and stepper.stop_on_failure:
@@ -199,7 +206,21 @@ def _steps(scene: dict, stepper, recorder) -> list:
                    fft_pairs=st.fft_pairs, wall_time_s=st.wall_time)
         row.update(stepper.row(st))
         recorder.record(st, row, stepper.problem, jumps, stepper.results(), stepper.path_state())
-    return states
+        if scene["output"]["plots"] and _plotted(scene, recorder.rows) == step:
+            filed = recorder.written and recorder.written[-1][0] == step and "pressure" in recorder.written[-1][2]
+            plotted = None if filed else (step, st.pressure, st.gap)
+    return states, plotted
+
+
+def _plotted(scene: dict, rows: list) -> int:
+    """The step ``output.plots`` draws among ``rows`` (``plots.plot_step``): the requested one,
+    else the converged step of the largest approach so far, which is the whole run's when the
+    run ends there."""
+    requested = scene["output"]["plot_step"]
+    if requested is not None:
+        return requested
+    from .plots import plot_step
+    return plot_step([r["approach_m"] for r in rows], [is_true(r["converged"]) for r in rows])
 
 
 def _outputs_line(scene: dict, n: int, out_dir: str) -> str:
@@ -221,23 +242,22 @@ def _outputs_line(scene: dict, n: int, out_dir: str) -> str:
     return f"  outputs in {out_dir}: " + ", ".join(files)
 
 
-def _save_plots(scene: dict, grid: SurfaceGrid, out_dir: str, states: list, heights, rows: list) -> None:
+def _save_plots(scene: dict, grid: SurfaceGrid, out_dir: str, plotted: tuple | None, heights, rows: list) -> None:
     """``output.plots``: ``plots.plot_run`` on rank 0 from the files just written, and where the
     plotted step has no step file with the pressure (``output.fields``, ``output.field_every``)
-    from its pressure, gap and the heights gathered to rank 0 (only then; a step of this run
-    only); collective (a plotting error is raised on every rank)."""
+    from ``plotted``, its (step, pressure, gap) kept by ``_steps``, and the heights gathered to
+    rank 0 (only then; a step of this run only); collective (a plotting error is raised on every
+    rank)."""
     if not scene["output"]["plots"]:
         return
     from .plots import plot_step, plot_run
     fields = None
-    if states:
+    if plotted is not None:
         step = collective_call(grid.mpi_comm, ValueError, "{error}", plot_step, [r["approach_m"] for r in rows],
                                [is_true(r["converged"]) for r in rows], scene["output"]["plot_step"])
-        k = step - (len(rows) - len(states))   # the plotted step among this run's states (1, 2, ...)
-        if 1 <= k <= len(states) and not _wrote_pressure(scene, grid, out_dir, step):
-            st = states[k - 1]
+        if plotted[0] == step and not _wrote_pressure(scene, grid, out_dir, step):
             got = {name: grid.gather(vec, root=0) for name, vec in
-                   (("pressure", st.pressure), ("gap", st.gap), ("heights", heights))}
+                   (("pressure", plotted[1]), ("gap", plotted[2]), ("heights", heights))}
             if got["pressure"] is not None:
                 fields = {name: a.T for name, a in got.items()}
                 fields.update(step=step, dx=grid.dx, dy=grid.dy, hdx=grid.dx, hdy=grid.dy)

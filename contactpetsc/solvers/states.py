@@ -2,7 +2,7 @@
 units; docs/outputs.md lists the curve columns built from them)."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 from petsc4py import PETSc
 
@@ -30,6 +30,14 @@ class ContactState:
     plastic_fraction: float = 0.0          #: fraction of nodes at the hardness, p = H (0 without one)
     plastic_volume: float = 0.0            #: [m^3] sum of -g over the nodes at p = H times dx dy
     max_plastic_displacement: float = 0.0  #: [m] max of -g over the nodes at p = H
+
+    def release_fields(self) -> None:
+        """Drop the state's grid fields (its Vecs are None after), keeping its numbers: a run's
+        earlier states, whose fields are in its step files, held three to five grid-sized Vecs
+        each for the run's life."""
+        for f in fields(self):
+            if isinstance(getattr(self, f.name), PETSc.Vec):
+                setattr(self, f.name, None)
 
 
 @dataclass
