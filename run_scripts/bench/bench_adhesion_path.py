@@ -9,7 +9,8 @@ giving ``--areas[0]`` contact area (p > 0) to the one giving ``--areas[1]`` and 
 (``--states`` in all, half up and half down), approaches interpolated on a loading sweep of
 the heights averaged to ``--calibrate-max-n`` (untimed).  One JSON line per state (approach,
 time, FFT pairs, Newton and Krylov counts, contact fraction, converged, stable, resident size
-over the one before the problem in doubles per grid point), then a
+over the one before the problem in doubles per grid point; each state's fields are released
+after its line, as a scene's run releases them before the next step), then a
 summary: total time, FFT pairs per state (median, largest), the time of one FFT pair of the
 half-space operator at this size (``--pair-reps`` bare applies), and the memory per grid
 point: the high-water mark (VmHWM, reset through /proc/self/clear_refs after the surface is
@@ -77,6 +78,7 @@ def main():
                    solver=st.solver, rss_doubles_per_point=(status_kb("VmRSS") - base) * 1024.0 / (8.0 * n * n))
         rows.append(row)
         emit(**row)
+        st.release_fields()   # as ``runner.run`` does before the next step: a path holds no state's fields
     total = time.perf_counter() - t_path
     peak = status_kb("VmHWM")
     # one bare FFT pair of the fine operator (forward + inverse), on a state-like field

@@ -1,0 +1,82 @@
+#!/usr/bin/env python3
+"""Benchmark: the memory of a scene's whole run (``contactpetsc run``), as a user runs it.
+
+Runs the scene in a child process (one rank), its grid set to ``--nx`` nodes a side (``ny`` too
+where the scene gives one) and its output in a temporary directory, and reports the child's peak
+resident size (``ru_maxrss``) in MiB and in doubles (8 B) per grid point, with the run's steps
+and FFT pairs from its ``curve.csv``.  Unlike ``bench_adhesion_path.py``, which drives the
+library in a loop of its own, this counts what the run keeps besides the solver: its states,
+the recorder, the plots' fields.
+
+    .venv/bin/python run_scripts/bench/bench_run_memory.py examples/scenes/rough_large_outputs.toml --nx 1024
+
+Extra arguments go to ``contactpetsc run`` (PETSc options).  One JSON line.
+"""
+import argparse
+import csv
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+import tomllib
+
+from bench_args import emit
+
+ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+ap.add_argument("scene", help="a scene file (TOML)")
+ap.add_argument("--nx", type=int, help="grid nodes a side (default: the scene's)")
+args, extra = ap.parse_known_args()
+
+
+def toml_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return repr(v).replace("'", '"')
+    if isinstance(v, list):
+        return "[" + ", ".join(toml_value(x) for x in v) + "]"
+    return repr(v)
+
+
+def write_toml(scene: dict, path: str) -> None:
+    """The scene's sections as TOML (scalars and lists, one level of tables: a scene's form)."""
+    with open(path, "w") as f:
+        for section, body in scene.items():
+            if not isinstance(body, dict):
+                f.write(f"{section} = {toml_value(body)}\n")
+        for section, body in scene.items():
+            if isinstance(body, dict):
+                f.write(f"\n[{section}]\n" + "".join(f"{k} = {toml_value(v)}\n" for k, v in body.items()))
+
+
+def main():
+    with open(args.scene, "rb") as f:
+        scene = tomllib.load(f)
+    geometry = scene["geometry"]
+    if args.nx:
+        geometry["nx"] = args.nx
+        if "ny" in geometry:
+            geometry["ny"] = args.nx
+    nx, ny = geometry["nx"], geometry.get("ny", geometry["nx"])
+    with tempfile.TemporaryDirectory(prefix="contactpetsc-run-memory-") as tmp:
+        scene.setdefault("output", {})["directory"] = os.path.join(tmp, "out")
+        path = os.path.join(tmp, "scene.toml")
+        write_toml(scene, path)
+        exe = os.path.join(os.path.dirname(sys.executable), "contactpetsc")
+        t = time.perf_counter()
+        proc = subprocess.run([exe, "run", path] + extra, capture_output=True, text=True,
+                              env=dict(os.environ, OMP_NUM_THREADS=os.environ.get("OMP_NUM_THREADS", "1")))
+        wall = time.perf_counter() - t
+        if proc.returncode not in (0, 3):
+            sys.exit(f"contactpetsc run failed ({proc.returncode}):\n{proc.stderr[-2000:]}")
+        with open(os.path.join(tmp, "out", "curve.csv")) as f:
+            rows = list(csv.DictReader(f))
+    peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * 1024.0   # kB on Linux
+    emit(scene=args.scene, nx=nx, ny=ny, steps=len(rows), converged=sum(r["converged"] == "True" for r in rows),
+         fft_pairs=sum(float(r["fft_pairs"]) for r in rows), wall=wall, peak_mb=peak / 2**20,
+         doubles_per_point=peak / (8.0 * nx * ny))
+
+
+main()
