@@ -40,6 +40,10 @@ class Continuation:
         grid = self.grid
         xb = self.blocks(self._x)
         if self.coarse_levels.first_state(approach):
+            if self.strategy == "descent":
+                # the levels gave the first state; the descent takes every later one from the
+                # last: freed before the fine descent, whose peak they would add to
+                self.coarse_levels.release()
             return
         xb[...] = 0.0
         gap = grid.rows(self.heights, readonly=True) - approach

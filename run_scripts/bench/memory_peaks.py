@@ -8,8 +8,8 @@ state).  The solver's phases and their expensive callbacks are wrapped: each tim
 with the resident size's high-water mark (``VmHWM``) higher than before, one JSON line gives the
 state, the mark in doubles per grid point over the resident size before the problem, and the
 chain of wrapped calls it happened in (innermost last).  The last line gives the path's peak.
-As in ``bench_adhesion_path.py`` the caller holds each state through the next solve (its five
-fields with a hard wall, four on the full LJ curve).
+As in ``bench_adhesion_path.py`` each state's fields are released before the next solve, as a
+scene's run releases them.
 
     .venv/bin/python run_scripts/bench/memory_peaks.py --size 1024 --law exponential -path_stiffness true
 
@@ -81,12 +81,10 @@ def main():
     reset_peak()
     state["top"] = status_kb("VmHWM")
     pb = adhesive.AdhesiveProblem(grid, h, 1.0, law, prefix="path_")
-    st = None
     for k, d in enumerate(path_approaches(ends[0], ends[1], args.states)):
         state["k"] = k
-        # the last state held through the next solve, as a caller's loop (and the benchmark) holds it
-        st = pb.solve(approach=float(d), raise_on_failure=False)
-    del st
+        # its fields released before the next solve, as a scene's run (and the benchmark) does
+        pb.solve(approach=float(d), raise_on_failure=False).release_fields()
     emit(n=n, law=args.law, summary=True, doubles_per_point=(status_kb("VmHWM") - base) / per_point)
 
 
