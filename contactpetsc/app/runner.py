@@ -121,7 +121,8 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
     """Run ``scene``; returns the states of the steps solved (empty for a dry run), a step that
     ended the run last.  Only the last state keeps its fields (``pressure``, ``gap``, ...): each
     earlier state's are released before the next step is solved (``release_fields``), so that a
-    path holds one state's fields, not every step's; the step files have them.
+    path holds one state's fields, not every step's; the steps that write a step file
+    (``output.fields``, ``output.field_every``) keep theirs on disk.
 
     ``restart``: keep the steps on disk (the same physics, ``rundir``) and resume after
     the last one.  ``overwrite``: remove another run's files from the directory first.
@@ -193,6 +194,9 @@ def _steps(scene: dict, stepper, recorder) -> tuple[list, tuple | None]:
     for step in range(len(recorder.rows) + 1, len(values) + 1):
         if states:
             states[-1].release_fields()
+            # in parallel petsc4py frees a dropped Vec at the next cleanup (collective; the same
+            # step on every rank): before this solve, not after it
+            PETSc.garbage_cleanup(stepper.problem.grid.comm)
         st, jumps = stepper.step(values[step - 1])
         states.append(st)
         if not st.converged and stepper.stop_on_failure:
@@ -207,7 +211,7 @@ def _steps(scene: dict, stepper, recorder) -> tuple[list, tuple | None]:
         row.update(stepper.row(st))
         recorder.record(st, row, stepper.problem, jumps, stepper.results(), stepper.path_state())
         if scene["output"]["plots"] and _plotted(scene, recorder.rows) == step:
-            filed = recorder.written and recorder.written[-1][0] == step and "pressure" in recorder.written[-1][2]
+            filed = bool(recorder.written) and recorder.written[-1][0] == step and _files_pressure(scene)
             plotted = None if filed else (step, st.pressure, st.gap)
     return states, plotted
 
@@ -252,10 +256,10 @@ def _save_plots(scene: dict, grid: SurfaceGrid, out_dir: str, plotted: tuple | N
         return
     from .plots import plot_step, plot_run
     fields = None
-    if plotted is not None:
+    if rows:
         step = collective_call(grid.mpi_comm, ValueError, "{error}", plot_step, [r["approach_m"] for r in rows],
                                [is_true(r["converged"]) for r in rows], scene["output"]["plot_step"])
-        if plotted[0] == step and not _wrote_pressure(scene, grid, out_dir, step):
+        if plotted is not None and plotted[0] == step and not _wrote_pressure(scene, grid, out_dir, step):
             got = {name: grid.gather(vec, root=0) for name, vec in
                    (("pressure", plotted[1]), ("gap", plotted[2]), ("heights", heights))}
             if got["pressure"] is not None:
@@ -268,11 +272,18 @@ def _save_plots(scene: dict, grid: SurfaceGrid, out_dir: str, plotted: tuple | N
         PETSc.Sys.Print("  plots: " + ", ".join(written), comm=PETSc.COMM_SELF)
 
 
+def _files_pressure(scene: dict) -> bool:
+    """Whether the scene's step files are the plots' (``output.fields`` true or naming the
+    pressure; a contact run's files carry the pressure for a restart whatever the list, but
+    not the gap and heights that the plots read beside it)."""
+    fields = scene["output"]["fields"]
+    return fields is True or (fields is not False and "pressure" in fields)
+
+
 def _wrote_pressure(scene: dict, grid: SurfaceGrid, out_dir: str, step: int) -> bool:
     """Whether step ``step`` has a file with the pressure (read by ``plot_run``)."""
     import os
-    fields = scene["output"]["fields"]
-    if fields is False or (fields is not True and "pressure" not in fields):
+    if not _files_pressure(scene):
         return False
     path = os.path.join(out_dir, f"step_{step:04d}.h5")
     return grid.mpi_comm.bcast(os.path.exists(path) if grid.mpi_comm.Get_rank() == 0 else None, root=0)

@@ -33,8 +33,8 @@ class ContactState:
 
     def release_fields(self) -> None:
         """Drop the state's grid fields (its Vecs are None after), keeping its numbers: a run's
-        earlier states, whose fields are in its step files, held three to five grid-sized Vecs
-        each for the run's life."""
+        earlier states held three to five grid-sized Vecs each for the run's life (a step that
+        writes a step file keeps its fields there)."""
         for f in fields(self):
             if isinstance(getattr(self, f.name), PETSc.Vec):
                 setattr(self, f.name, None)

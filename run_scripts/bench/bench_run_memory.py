@@ -14,6 +14,7 @@ Extra arguments go to ``contactpetsc run`` (PETSc options).  One JSON line.
 """
 import argparse
 import csv
+import json
 import os
 import resource
 import subprocess
@@ -34,21 +35,22 @@ def toml_value(v) -> str:
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, str):
-        return repr(v).replace("'", '"')
+        return json.dumps(v)     # a TOML basic string
     if isinstance(v, list):
         return "[" + ", ".join(toml_value(x) for x in v) + "]"
     return repr(v)
 
 
-def write_toml(scene: dict, path: str) -> None:
-    """The scene's sections as TOML (scalars and lists, one level of tables: a scene's form)."""
-    with open(path, "w") as f:
-        for section, body in scene.items():
-            if not isinstance(body, dict):
-                f.write(f"{section} = {toml_value(body)}\n")
-        for section, body in scene.items():
-            if isinstance(body, dict):
-                f.write(f"\n[{section}]\n" + "".join(f"{k} = {toml_value(v)}\n" for k, v in body.items()))
+def write_table(f, name: str, body: dict) -> None:
+    """``body``'s values under ``[name]``, its sub-tables as ``[name.key]`` after them."""
+    if name:
+        f.write(f"\n[{name}]\n")
+    for k, v in body.items():
+        if not isinstance(v, dict):
+            f.write(f"{k} = {toml_value(v)}\n")
+    for k, v in body.items():
+        if isinstance(v, dict):
+            write_table(f, f"{name}.{k}" if name else k, v)
 
 
 def main():
@@ -63,7 +65,8 @@ def main():
     with tempfile.TemporaryDirectory(prefix="contactpetsc-run-memory-") as tmp:
         scene.setdefault("output", {})["directory"] = os.path.join(tmp, "out")
         path = os.path.join(tmp, "scene.toml")
-        write_toml(scene, path)
+        with open(path, "w") as f:
+            write_table(f, "", scene)
         exe = os.path.join(os.path.dirname(sys.executable), "contactpetsc")
         t = time.perf_counter()
         proc = subprocess.run([exe, "run", path] + extra, capture_output=True, text=True,
