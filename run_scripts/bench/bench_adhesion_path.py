@@ -8,7 +8,8 @@ starts along the path and ``-path_stiffness false`` unless given.  The approach 
 giving ``--areas[0]`` contact area (p > 0) to the one giving ``--areas[1]`` and falls back
 (``--states`` in all, half up and half down), approaches interpolated on a loading sweep of
 the heights averaged to ``--calibrate-max-n`` (untimed).  One JSON line per state (approach,
-time, FFT pairs, Newton and Krylov counts, contact fraction, converged, stable, resident size
+time, FFT pairs, Newton and Krylov counts, contact fraction, converged, stable (with the
+stability check's margin and whether it settled), resident size
 over the one before the problem in doubles per grid point; each state's fields are released
 after its line, as a scene's run releases them before the next step), then a
 summary: total time, FFT pairs per state (median, largest), the time of one FFT pair of the
@@ -75,6 +76,7 @@ def main():
         row = dict(n=n, state=k, approach=float(d), time=time.perf_counter() - t, fft_pairs=st.fft_pairs,
                    newton=st.newton_iterations, krylov=st.linear_iterations, check_time=st.check_time,
                    contact_fraction=st.contact_fraction, converged=st.converged, stable=st.stable,
+                   stability_settled=st.stability_converged, stability_margin=st.stability_margin,
                    solver=st.solver, rss_doubles_per_point=(status_kb("VmRSS") - base) * 1024.0 / (8.0 * n * n))
         rows.append(row)
         emit(**row)
