@@ -77,7 +77,7 @@ ADHESION = (
            "with a hard wall, per grid, and 0.2-0.4 with the full LJ curve, else spectral), spectral (block: spectral on the contact-like rows), mlmi "
            "(multilevel cycle on the whole system) or none"),
     Option(("element_integration",), (False,), "the paper's element integration"),
-    Option(("stability_check", "stability_steps"), (True, 60),
+    Option(("stability_check", "stability_steps"), (True, 150),
            "stability check (LOBPCG or Lanczos, at most this many steps): true, false or auto (left out of a sweep's states away from folds; "
            "the default of scenes' sweeps)"),
     Option(("stability_preconditioner",), ("auto",),
