@@ -36,13 +36,27 @@ def build_grid(scene: dict, comm=None) -> SurfaceGrid:
                            f"{petsc_error_message(exc)}; use a smaller grid or more ranks") from None
 
 
+#: a scene's run's resident doubles per grid node beside the process's own, (periodic cell,
+#: isolated window), measured on one rank (``run_scripts/bench/bench_run_memory.py`` on the
+#: example scenes, docs/performance.md, "Memory of an adhesive path"): without adhesion at
+#: 1024^2; with a law without a hard wall (the full LJ curve) and with a hard wall at 512^2,
+#: where a run's fixed parts weigh more per node than on larger grids
+RUN_DOUBLES = {"contact": (36, 64), "adhesive": (54, 98), "hard wall": (91, 163)}
+#: the process without a grid (Python, numpy, PETSc, MPI, FFTW) [bytes]
+PROCESS_BYTES = 110 * 2**20
+
+
 def memory_per_rank(scene: dict, size: int) -> float:
-    """Bytes per rank a run needs, estimated: FFT buffers (~5 doubles per transform point, 4
-    points per node on an isolated window) and solver vectors (~20 doubles per node)."""
+    """Bytes per rank a run needs, estimated from measured runs: the process's own
+    (``PROCESS_BYTES``) and ``RUN_DOUBLES`` doubles per grid node of the rank's share."""
     g = scene["geometry"]
-    n = g["nx"] * g["ny"]
-    fft_points = n * (1 if g["periodic"] else 4)
-    return (5 * fft_points + 20 * n) * 8 / size
+    if not adhesive(scene):
+        kind = "contact"
+    else:
+        from ..physics.interactions import LAWS
+        kind = "hard wall" if LAWS[scene["interaction"]["law"]].hard_wall else "adhesive"
+    per_node = RUN_DOUBLES[kind][0 if g["periodic"] else 1]
+    return PROCESS_BYTES + per_node * 8.0 * g["nx"] * g["ny"] / size
 
 
 def build_tip(scene: dict, grid: SurfaceGrid):

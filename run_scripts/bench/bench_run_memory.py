@@ -4,7 +4,8 @@
 Runs the scene in a child process (one rank), its grid set to ``--nx`` nodes a side (``ny`` too
 where the scene gives one) and its output in a temporary directory, and reports the child's peak
 resident size (``ru_maxrss``) in MiB and in doubles (8 B) per grid point, with the run's steps
-and FFT pairs from its ``curve.csv``.  Unlike ``bench_adhesion_path.py``, which drives the
+and FFT pairs from its ``curve.csv`` and the plan's estimate for one rank (``builder.memory_per_rank``:
+the figure a run's plan prints).  Unlike ``bench_adhesion_path.py``, which drives the
 library in a loop of its own, this counts what the run keeps besides the solver: its states,
 the recorder, the plots' fields.
 
@@ -24,6 +25,7 @@ import time
 import tomllib
 
 from bench_args import emit
+from contactpetsc.app import builder, scenes
 
 ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
 ap.add_argument("scene", help="a scene file (TOML)")
@@ -61,12 +63,18 @@ def main():
         geometry["nx"] = args.nx
         if "ny" in geometry:
             geometry["ny"] = args.nx
-    nx, ny = geometry["nx"], geometry.get("ny", geometry["nx"])
+    if "path" in geometry and not os.path.isabs(geometry["path"]):
+        # a height file named relative to the scene's own directory
+        geometry["path"] = os.path.join(os.path.dirname(os.path.abspath(args.scene)), geometry["path"])
     with tempfile.TemporaryDirectory(prefix="contactpetsc-run-memory-") as tmp:
         scene.setdefault("output", {})["directory"] = os.path.join(tmp, "out")
         path = os.path.join(tmp, "scene.toml")
         with open(path, "w") as f:
             write_table(f, "", scene)
+        # the plan's estimate for the same scene (``builder.memory_per_rank``), one rank
+        validated = scenes.load(path)
+        estimate = builder.memory_per_rank(validated, 1)
+        nx, ny = validated["geometry"]["nx"], validated["geometry"]["ny"]
         exe = os.path.join(os.path.dirname(sys.executable), "contactpetsc")
         t = time.perf_counter()
         proc = subprocess.run([exe, "run", path] + extra, capture_output=True, text=True,
@@ -79,7 +87,7 @@ def main():
     peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * 1024.0   # kB on Linux
     emit(scene=args.scene, nx=nx, ny=ny, steps=len(rows), converged=sum(r["converged"] == "True" for r in rows),
          fft_pairs=sum(float(r["fft_pairs"]) for r in rows), wall=wall, peak_mb=peak / 2**20,
-         doubles_per_point=peak / (8.0 * nx * ny))
+         doubles_per_point=peak / (8.0 * nx * ny), estimate_mb=estimate / 2**20)
 
 
 main()
