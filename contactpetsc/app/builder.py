@@ -14,7 +14,7 @@ from petsc4py import PETSc
 
 from ..collective import petsc_error_message
 from ..grid import SurfaceGrid
-from ..physics.interactions import InteractionLaw, make_law
+from ..physics.interactions import LAWS, InteractionLaw, make_law
 from ..physics.resolution import UnderResolvedWarning, check_resolution
 from .scenes import adhesive, e_star, law_keys, layer
 
@@ -53,7 +53,6 @@ def memory_per_rank(scene: dict, size: int) -> float:
     if not adhesive(scene):
         kind = "contact"
     else:
-        from ..physics.interactions import LAWS
         kind = "hard wall" if LAWS[scene["interaction"]["law"]].hard_wall else "adhesive"
     per_node = RUN_DOUBLES[kind][0 if g["periodic"] else 1]
     return PROCESS_BYTES + per_node * 8.0 * g["nx"] * g["ny"] / size

@@ -15,7 +15,6 @@ Extra arguments go to ``contactpetsc run`` (PETSc options).  One JSON line.
 """
 import argparse
 import csv
-import json
 import os
 import resource
 import subprocess
@@ -23,36 +22,18 @@ import sys
 import tempfile
 import time
 import tomllib
+from pathlib import Path
 
 from bench_args import emit
 from contactpetsc.app import builder, scenes
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "checks", "adversarial"))
+from harness import write_scene  # noqa: E402  (the sweep's scene writer)
 
 ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
 ap.add_argument("scene", help="a scene file (TOML)")
 ap.add_argument("--nx", type=int, help="grid nodes a side (default: the scene's)")
 args, extra = ap.parse_known_args()
-
-
-def toml_value(v) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, str):
-        return json.dumps(v)     # a TOML basic string
-    if isinstance(v, list):
-        return "[" + ", ".join(toml_value(x) for x in v) + "]"
-    return repr(v)
-
-
-def write_table(f, name: str, body: dict) -> None:
-    """``body``'s values under ``[name]``, its sub-tables as ``[name.key]`` after them."""
-    if name:
-        f.write(f"\n[{name}]\n")
-    for k, v in body.items():
-        if not isinstance(v, dict):
-            f.write(f"{k} = {toml_value(v)}\n")
-    for k, v in body.items():
-        if isinstance(v, dict):
-            write_table(f, f"{name}.{k}" if name else k, v)
 
 
 def main():
@@ -69,8 +50,7 @@ def main():
     with tempfile.TemporaryDirectory(prefix="contactpetsc-run-memory-") as tmp:
         scene.setdefault("output", {})["directory"] = os.path.join(tmp, "out")
         path = os.path.join(tmp, "scene.toml")
-        with open(path, "w") as f:
-            write_table(f, "", scene)
+        write_scene(Path(path), scene)
         # the plan's estimate for the same scene (``builder.memory_per_rank``), one rank
         validated = scenes.load(path)
         estimate = builder.memory_per_rank(validated, 1)
