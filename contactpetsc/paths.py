@@ -19,10 +19,15 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from petsc4py import PETSc
 
 from .fold_watch import FoldWatch
 from .solvers.base import pieces
 from .solvers.stability import leaves_checks_out
+
+#: the pieces a sub-step is checked against (``protocol.agreement``): a path refined 4x and 16x
+#: lands in the same states where it is the quasi-static one (issue 33's criterion)
+AGREEMENT_SPLIT = 4
 
 
 @dataclass
@@ -148,7 +153,8 @@ def path_point(step, branch, st) -> PathPoint:
 
 def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0.05,
           refine: int = 6, on_state=None, path: Path | None = None, stop_on_failure: bool = False,
-          on_failure=None, previous: tuple | None = None, substeps: int = 3, max_step: float = 0.0) -> Path:
+          on_failure=None, previous: tuple | None = None, substeps: int = 3, max_step: float = 0.0,
+          agreement: float = 0.0, levels: int = 2) -> Path:
     """Displacement-controlled path through ``approaches`` [m] (loading where they rise,
     unloading where they fall).  ``on_state(step, state, point)`` is called for each
     converged step (e.g. to write fields), ``on_failure(step, state, point)`` for each
@@ -156,7 +162,9 @@ def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0
     problem's current state when the path continues one (a restart), so that a jump between
     it and the first step is found too.  A step longer than ``max_step`` [m] (0: any) is taken
     in equal sub-steps of at most that: the quasi-static path, whose states do not depend on
-    the step (docs/formulation.md, "Loading paths").  A step or sub-step that fails is tried
+    the step (docs/formulation.md, "Loading paths").  With ``agreement`` [m] > 0 each sub-step
+    is checked against its ``AGREEMENT_SPLIT`` pieces and divided into them, at most ``levels``
+    times, until their states' gaps agree to that (``_advance``).  A step or sub-step that fails is tried
     again from the last converged state in halved steps, down to 2**-``substeps`` of it
     (``_advance``); the sub-steps' states are not points of the path, their cost is counted in
     the step's.
@@ -170,7 +178,7 @@ def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0
     last = None          # (point index, snapshot) of the last point if it was stable
     for k, delta in enumerate(approaches):
         here = branch or ("loading" if prev is None or delta >= prev[0] else "unloading")
-        st, prev = _advance(problem, delta, prev, path, jump_tol, refine, substeps, max_step)
+        st, prev = _advance(problem, delta, prev, path, jump_tol, refine, substeps, max_step, agreement, levels)
         pt = path_point(k, here, st)
         path.points.append(pt)
         last = keep_for_search(path, problem, last)
@@ -216,62 +224,64 @@ def keep_for_search(path: Path, problem, last: tuple | None) -> tuple | None:
     return last
 
 
-def _advance(problem, target, prev, path, jump_tol, refine, substeps, max_step=0.0):
+def _advance(problem, target, prev, path, jump_tol, refine, substeps, max_step=0.0, agreement=0.0,
+             levels=0):
     """Solve at ``target`` from the present state in equal sub-steps of at most ``max_step``
     [m] (0: one step), testing each for a jump; where one fails, go back to the last converged
     state and get there in halved steps, at least 2**-``substeps`` of the sub-step each.  A step longer than Newton's basin is not the
     end of the branch: a strongly adhesive hard-wall sphere's compressed states need
-    shorter steps than its path gives (docs/studies.md).  Returns
-    the state at ``target`` (or the failed one) with the cost of every try and sub-step in
-    it, and the (approach, force, stiffness) of the last converged state."""
+    shorter steps than its path gives (docs/studies.md).
+
+    With ``agreement`` [m] > 0 each sub-step is checked against the quasi-static limit: it is
+    taken in ``AGREEMENT_SPLIT`` equal pieces, and the state they reach is compared with the one
+    the whole sub-step reaches from the same start (a probe, without the stability check).
+    Where their gaps differ by more than ``agreement`` anywhere, the sub-step was too coarse
+    (the asperities that snap within it snapped in another order): the pieces are undone and
+    the sub-step is divided, at most ``levels`` times; the pieces of the last level are taken
+    unchecked (docs/formulation.md, "Loading paths").
+
+    Returns the state at ``target`` (or the failed one) with the cost of every try, probe and
+    sub-step in it, and the (approach, force, stiffness) of the last converged state."""
     if path._watch is None and leaves_checks_out(problem):
         # the check left out away from folds (-<prefix>stability_check auto; the problem
         # reads its options at its first solve)
         path._watch = FoldWatch(min([p.force for p in path.points if good_state(p)], default=np.inf),
                                 getattr(problem, "snap_number", 0.0))
-    watch = path._watch
     if prev is None:   # the path's first state: nothing to jump from or go back to
         st = problem.solve(approach=target, raise_on_failure=False)
-        if st.converged and watch is not None:
-            watch.seen(st, None, jumped=False)
+        if st.converged and path._watch is not None:
+            path._watch.seen(st, None, jumped=False)
         return st, ((st.approach, st.force, st.stiffness) if st.converged else None)
     whole = target - prev[0]
     h0 = whole / pieces(whole, max_step)
     h, spent, done = h0, np.zeros(4), 0
+    finest = abs(h0) * float(AGREEMENT_SPLIT) ** -levels    # the shortest sub-step checked against its pieces
+    agreed = None           # the shortest sub-step [m] whose pieces agreed with it
+    unsettled = False       # a sub-step of ``finest`` (the last level's pieces) was taken unchecked
     # the sum of the sub-steps rounds: far from the origin (|approach| >> max_step) a remainder
     # of a few ulps past the last piece would be one more solve
     slack = 64.0 * np.spacing(abs(target))
     while True:
         d = target if abs(target - prev[0]) <= abs(h) * (1 + 1e-9) + slack else prev[0] + h
         snap = problem.snapshot()
-        n_jumps = len(path.jumps)
-        check = None if watch is None else (
-            lambda newton, force, prev=prev, d=d: watch.reason(prev, d, newton, force) is not None)
-        st = problem.solve(approach=d, raise_on_failure=False, check_stability=check)
-        if st.converged:
-            d0, w0, k0 = prev
-            predicted = w0 + (k0 if np.isfinite(k0) else 0.0) * (d - d0)
-            scale = max(abs(w0), abs(st.force), np.finfo(float).tiny)
-            # the fallback was needed, or the force missed the tangent prediction by
-            # more than the predicted change itself: another branch
-            if st.fallback or abs(st.force - predicted) > max(jump_tol * scale, abs(predicted - w0)):
-                jump = _locate_jump(problem, snap, prev, st, refine)
-                if problem.out_of_time():
-                    # the bisection's solves were cut short: neither the jump nor its absence
-                    # is known, so the step is not done (a restart solves it again)
-                    problem.restore(snap)
-                    st.converged, jump = False, None
-                    st.reason = problem.budget_reason + " (while locating a jump; the step is not kept)"
-                if jump is not None and abs(jump.force_after - jump.force_before) > jump_tol * scale:
-                    jump.kind = "jump-on" if d > d0 else "jump-off"
-                    path.jumps.append(jump)
-            if st.converged and watch is not None:
-                watch.seen(st, prev[0], jumped=st.fallback or len(path.jumps) > n_jumps)
+        check_it = agreement > 0 and abs(d - prev[0]) > finest * (1 + 1e-9)
+        if check_it:
+            st, cost = _agreed_piece(problem, snap, prev, d, path, jump_tol, refine, agreement)
+            spent += cost
+            if st is None:          # the pieces and the whole sub-step part: divide it
+                h /= AGREEMENT_SPLIT
+                snap.destroy()
+                continue
+            agreed = min(agreed or np.inf, abs(d - prev[0]))
+            done += AGREEMENT_SPLIT - 1     # the pieces before the last
+        else:
+            st = _piece(problem, snap, prev, d, path, jump_tol, refine)
+            unsettled |= agreement > 0 and st.converged
         # (a converged sub-step goes on even past a time budget: the next solve says so)
         final = (st.converged and d == target) or (not st.converged and (
             substeps <= 0 or problem.out_of_time() or abs(h) <= abs(h0) * 2.0 ** -substeps * (1 + 1e-12)))
         if not final:
-            spent += (st.fft_pairs, st.wall_time, st.newton_iterations, st.linear_iterations)
+            spent += _cost(st)
             if st.converged:
                 prev, done = (st.approach, st.force, st.stiffness), done + 1
             else:
@@ -288,10 +298,99 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps, max_step=0
         st.newton_iterations += int(spent[2])
         st.linear_iterations += int(spent[3])
         # the pieces the step was taken in: the converged sub-steps and the last solve
-        st.solver += f" ({done + 1} sub-steps)" if done else " (no halved step converged)"
+        st.solver += f" ({done + 1} sub-steps" if done else " (no halved step converged"
+        if agreement > 0 and st.converged:
+            if unsettled:
+                st.solver += f"; sub-steps of {finest:.3e} m not checked"
+            elif agreed is not None:
+                st.solver += f"; pieces agree at sub-steps of {agreed:.3e} m"
+        st.solver += ")"
     if st.converged:
         prev = (st.approach, st.force, st.stiffness)
     return st, prev
+
+
+def _cost(st) -> np.ndarray:
+    return np.array([st.fft_pairs, st.wall_time, st.newton_iterations, st.linear_iterations], float)
+
+
+def _piece(problem, snap, prev, d, path, jump_tol, refine):
+    """Solve one sub-step from ``prev`` (the state in ``snap``) to approach ``d`` [m] and test
+    it for a jump (recorded in ``path.jumps``) and for the fold watch; returns its state."""
+    watch = path._watch
+    n_jumps = len(path.jumps)
+    check = None if watch is None else (
+        lambda newton, force: watch.reason(prev, d, newton, force) is not None)
+    st = problem.solve(approach=d, raise_on_failure=False, check_stability=check)
+    if st.converged:
+        d0, w0, k0 = prev
+        predicted = w0 + (k0 if np.isfinite(k0) else 0.0) * (d - d0)
+        scale = max(abs(w0), abs(st.force), np.finfo(float).tiny)
+        # the fallback was needed, or the force missed the tangent prediction by
+        # more than the predicted change itself: another branch
+        if st.fallback or abs(st.force - predicted) > max(jump_tol * scale, abs(predicted - w0)):
+            jump = _locate_jump(problem, snap, prev, st, refine)
+            if problem.out_of_time():
+                # the bisection's solves were cut short: neither the jump nor its absence
+                # is known, so the step is not done (a restart solves it again)
+                problem.restore(snap)
+                st.converged, jump = False, None
+                st.reason = problem.budget_reason + " (while locating a jump; the step is not kept)"
+            if jump is not None and abs(jump.force_after - jump.force_before) > jump_tol * scale:
+                jump.kind = "jump-on" if d > d0 else "jump-off"
+                path.jumps.append(jump)
+        if st.converged and watch is not None:
+            watch.seen(st, prev[0], jumped=st.fallback or len(path.jumps) > n_jumps)
+    return st
+
+
+def _agreed_piece(problem, snap, prev, d, path, jump_tol, refine, agreement):
+    """The sub-step from ``prev`` (the state in ``snap``) to ``d`` [m] in ``AGREEMENT_SPLIT``
+    equal pieces, each a ``_piece``, checked against a probe of the whole sub-step from the
+    same start.  Returns (the last piece's state or None, the cost of the probe and the pieces
+    before the last): None where the pieces part from the probe (their gaps differ by more than
+    ``agreement`` [m] somewhere) or a solve fails; the problem, the path's jumps and its fold
+    watch are then as they were before."""
+    cost = np.zeros(4)
+    n_jumps = len(path.jumps)
+    watched = None if path._watch is None else path._watch.state()
+    probe = problem.solve(approach=d, raise_on_failure=False, check_stability=False)
+    cost += _cost(probe)
+    problem.restore(snap)
+    if not probe.converged:
+        return None, cost
+    gap = probe.gap
+    probe.release_fields()
+    here, start = prev, snap
+    for k in range(1, AGREEMENT_SPLIT + 1):
+        st = _piece(problem, start, here, d if k == AGREEMENT_SPLIT else prev[0] + (d - prev[0]) * k / AGREEMENT_SPLIT,
+                    path, jump_tol, refine)
+        if start is not snap:
+            start.destroy()
+        if not st.converged or k == AGREEMENT_SPLIT:
+            break
+        cost += _cost(st)
+        here, start = (st.approach, st.force, st.stiffness), problem.snapshot()
+    agree = st.converged and gap_difference(st.gap, gap) <= agreement
+    gap.destroy()
+    if not agree:
+        cost += _cost(st)
+        # undone: the pieces' jumps and what the watch saw of them
+        del path.jumps[n_jumps:]
+        if watched is not None:
+            path._watch = FoldWatch.restored(watched)
+        problem.restore(snap)
+        return None, cost
+    return st, cost
+
+
+def gap_difference(a, b) -> float:
+    """max |a - b| of two gap Vecs [m] over the grid (collective)."""
+    diff = a.copy()
+    diff.axpy(-1.0, b)
+    out = diff.norm(PETSc.NormType.NORM_INFINITY)
+    diff.destroy()
+    return out
 
 
 def _locate_jump(problem, snap, prev, after, refine) -> Jump | None:

@@ -3,6 +3,8 @@
 Independent truths: the force slope (finite differences of the path), the loading and unloading
 branches meeting, the stability margin's bound.  Units: z0 = 1, E* = 1 (Greenwood's).
 """
+import re
+
 import numpy as np
 import pytest
 from petsc4py import PETSc
@@ -207,6 +209,114 @@ def test_a_rough_adhesive_path_is_the_limit_of_small_steps(coll):
         gaps[max_step] = seen
     differ = [k for k, (a, b) in enumerate(zip(gaps[0.0], gaps[0.05])) if coll.max(np.abs(a - b)) > 1e-6 * z0]
     assert not differ, differ
+
+
+@pytest.mark.heavy   # three short rough adhesive paths: 1 and 2 ranks
+def test_a_too_coarse_step_is_divided_until_its_pieces_agree(coll):
+    """The rough benchmark surface at 128^2, the full LJ curve (w = 0.05 E* dx, z0 = dx), the
+    predicted Newton step: from the state at 0.33 z0 above the lowest point, one unloading
+    step of 0.4 z0.  Taken whole, it lands 1.3 z0 away from the quasi-static state (the path
+    in sub-steps of 0.0125 z0, lower in energy).  With ``agreement`` the step is checked against
+    its quarters, divided where they part, and lands on the quasi-static state; the point
+    records its sub-steps and the check's verdict.  Truth: the limit of small steps."""
+    from contactpetsc.physics.interactions import make_law
+    from contactpetsc.solvers.adhesive import AdhesiveProblem
+    grid, h = _bench_rough(128)
+    z0 = grid.dx
+    law = make_law("lj", work_of_adhesion=0.05 * grid.dx, z0=z0)
+    values = [h.min()[1] + z0 * 0.33, h.min()[1] - z0 * 0.07]
+    last = {}
+    for name, max_step, agreement in (("limit", 0.0125, 0.0), ("whole", 0.0, 0.0), ("agreed", 0.0, 1e-3)):
+        pb = AdhesiveProblem(grid, h, 1.0, law, prefix=f"agree{name}_",
+                             petsc_options={"strategy": "newton"})
+        path = sweep(pb, values, max_step=max_step * z0, agreement=agreement * z0,
+                     on_state=lambda k, st, pt: last.update({name: (grid.gather(st.gap), st.energy)}))
+        assert all(p.converged for p in path.points), [p.reason for p in path.points]
+        solver = path.points[-1].solver
+    gap, energy = last["limit"]
+    assert coll.max(np.abs(last["whole"][0] - gap)) > 0.5 * z0      # the case needs the check
+    assert last["whole"][1] > energy
+    assert coll.max(np.abs(last["agreed"][0] - gap)) < 1e-6 * z0
+    assert re.search(r" \((4|16) sub-steps; (pieces agree at|sub-steps of .* not checked)", solver), solver
+
+
+@pytest.mark.serial   # the plan: no solve
+def test_the_plan_says_how_a_sweeps_sub_steps_are_checked():
+    """A scene's plan (what --dry-run prints) names the sub-steps and, with protocol.agreement,
+    the check and its levels; without adhesion neither."""
+    from contactpetsc.app import builder, runner, scenes
+    from contactpetsc.grid import SurfaceGrid
+    base = dict(name="plan", geometry=dict(kind="sphere", radius=30e-9, nx=32, dx=0.3e-9),
+                material=dict(e_star=10e9), interaction=dict(law="lj", work_of_adhesion=0.3, z0=0.3e-9),
+                protocol=dict(values=[-0.3e-9, 0.0, 0.3e-9]))
+
+    def plan(**proto):
+        scene = scenes.validate(dict(base, protocol=dict(base["protocol"], **proto)))
+        grid = SurfaceGrid(32, 32, 0.3e-9, periodic=False)
+        return "\n".join(runner.plan(scene, grid, builder.build_law(scene)))
+
+    assert "2 longer than 0.1 of the law's range (protocol.max_step), taken in 20 equal sub-steps" in plan()
+    assert "protocol.agreement" not in plan()
+    text = plan(agreement=1e-3, agreement_levels=3)
+    assert "each sub-step checked against its quarters to 0.001 of the law's range (protocol.agreement), " \
+        "divided at most 3 times where they part" in text, text
+
+
+class _Bistable:
+    """A duck-typed problem for ``sweep``: a state that stays on its branch (gap 0) under steps
+    of at most ``reach`` [m] and snaps to another (gap 1) under a longer one, as an asperity
+    snaps out of order under a coarse step; it counts its solves."""
+
+    def __init__(self, reach):
+        self.reach, self.approach, self.off, self.solves = reach, None, 0.0, []
+
+    def solve(self, approach, raise_on_failure=True, check_stability=None, fallback=True):
+        from types import SimpleNamespace
+        if self.approach is not None and abs(approach - self.approach) > self.reach * (1 + 1e-9):
+            self.off = 1.0
+        self.approach = approach
+        self.solves.append(approach)
+        gap = PETSc.Vec().createSeq(1, comm=PETSc.COMM_SELF)
+        gap.set(self.off)
+        nan = float("nan")
+        return SimpleNamespace(approach=approach, central_gap=nan, force=-approach, adhesive_force=nan,
+                               contact_fraction=0.0, stable=None, converged=True, solver="bistable",
+                               fft_pairs=1.0, wall_time=0.0, newton_iterations=1, linear_iterations=1,
+                               complementarity_error=0.0, adhesive_error=0.0, total_error=0.0, reason="",
+                               stiffness=-1.0, stability_margin=nan, fallback=False, gap=gap,
+                               release_fields=lambda: None)
+
+    def snapshot(self):
+        from types import SimpleNamespace
+        return SimpleNamespace(approach=self.approach, off=self.off, destroy=lambda: None)
+
+    def restore(self, snap):
+        self.approach, self.off = snap.approach, snap.off
+
+    def out_of_time(self):
+        return False
+
+
+@pytest.mark.serial   # bookkeeping of sweep: no grid
+def test_agreement_divides_a_step_into_quarters_until_they_agree():
+    """A step of 1 m on a branch left by any step longer than 0.3 m: the whole step (a probe)
+    and its quarters part, so each quarter is checked in turn against its own quarters (a
+    probe and four solves each) and taken: 1 + 5 + 4 x 5 solves, ending on the branch, with
+    the pieces and the agreed sub-step recorded and every solve counted in the step's cost.
+    With one level the quarters are taken unchecked after the first division.  Truth: counting."""
+    pb = _Bistable(0.3)
+    path = sweep(pb, [0.0, 1.0], agreement=0.5, levels=2)
+    assert len(pb.solves) == 1 + 5 + 4 * 5, pb.solves
+    assert pb.off == 0.0
+    assert path.points[-1].solver == "bistable (16 sub-steps; pieces agree at sub-steps of 2.500e-01 m)"
+    assert path.points[-1].fft_pairs == len(pb.solves) - 1
+    pb = _Bistable(0.3)
+    path = sweep(pb, [0.0, 1.0], agreement=0.5, levels=1)
+    assert len(pb.solves) == 1 + 5 + 4 and pb.off == 0.0, pb.solves
+    assert path.points[-1].solver == "bistable (4 sub-steps; sub-steps of 2.500e-01 m not checked)"
+    pb = _Bistable(0.2)      # a quarter of the step is too long, yet agrees with the whole:
+    sweep(pb, [0.0, 1.0], agreement=0.5, levels=2)
+    assert pb.off == 1.0     # the check sees no finer than its quarters
 
 
 class _LinearBranch:

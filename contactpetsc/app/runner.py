@@ -56,7 +56,7 @@ def _protocol_line(scene: dict, law) -> str:
     ``protocol.max_step`` of the law's range (``paths.sweep``: the quasi-static path)."""
     proto = scene["protocol"]
     line = f"  protocol: {proto['control']} x {len(proto['values'])} steps"
-    if law is None or law.work_of_adhesion == 0 or proto["control"] != "approach" or not proto["max_step"]:
+    if law is None or law.work_of_adhesion == 0 or proto["control"] != "approach":
         return line
     if scene["solver"]["method"] == "relaxation":
         return line
@@ -67,6 +67,9 @@ def _protocol_line(scene: dict, law) -> str:
     if long:
         line += (f"; {len(long)} longer than {proto['max_step']:g} of the law's range (protocol.max_step), "
                  f"taken in {sum(long)} equal sub-steps: the quasi-static path")
+    if proto["agreement"]:
+        line += (f"; each sub-step checked against its quarters to {proto['agreement']:g} of the law's range "
+                 f"(protocol.agreement), divided at most {proto['agreement_levels']} times where they part")
     return line
 
 

@@ -116,6 +116,14 @@ _SCHEMA = {
                        "longest step in approach, in units of the law's range (z0, rho or w / sigma0); a longer "
                        "step of the values is taken in equal sub-steps, so that the states are those of the "
                        "quasi-static path and not of the step (0: the values' own steps)", NONNEG),
+        "agreement": _k(float, 0.0, "z0", "adhesive sweeps under approach control (not the relaxation): check "
+                        "each sub-step against the quasi-static limit: where the state its four quarters reach "
+                        "differs from the sub-step's own by more than this gap anywhere (in units of the law's "
+                        "range), the sub-step was too coarse and is taken in quarters, each checked in turn; "
+                        "the curve's solver column says at which sub-step the pieces agreed (0: no check)", NONNEG),
+        "agreement_levels": _k(int, 2, "", "adhesive sweeps with protocol.agreement: divisions of a sub-step "
+                               "into quarters at most (the last level's quarters are taken unchecked)",
+                               (1, 10, True, True)),
     },
     "solver": {
         "method": _k(str, "newton", "", "with adhesion: SNES VI Newton, or the reference paper's MLMI "

@@ -211,7 +211,8 @@ class AdhesiveSteps:
         else:
             sweep(self.problem, [value], refine=self.proto["jump_refinement"], on_state=keep,
                   on_failure=keep, path=self.path, previous=self.prev, substeps=self.proto["substeps"],
-                  max_step=self.proto["max_step"] * self.z0)
+                  max_step=self.proto["max_step"] * self.z0, agreement=self.proto["agreement"] * self.z0,
+                  levels=self.proto["agreement_levels"])
         st = got[0]
         jumps = self.path.jumps[n:]
         if not st.converged:
