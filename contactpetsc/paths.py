@@ -163,8 +163,9 @@ def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0
     it and the first step is found too.  A step longer than ``max_step`` [m] (0: any) is taken
     in equal sub-steps of at most that: the quasi-static path, whose states do not depend on
     the step (docs/formulation.md, "Loading paths").  With ``agreement`` [m] > 0 each sub-step
-    is checked against its ``AGREEMENT_SPLIT`` pieces and divided into them, at most ``levels``
-    times, until their states' gaps agree to that (``_advance``).  A step or sub-step that fails is tried
+    is checked against finer ways to its approach (more increments of the descent, or its
+    ``AGREEMENT_SPLIT`` pieces), at most ``levels`` times, until their states' gaps agree to
+    that (``_advance``).  A step or sub-step that fails is tried
     again from the last converged state in halved steps, down to 2**-``substeps`` of it
     (``_advance``); the sub-steps' states are not points of the path, their cost is counted in
     the step's.
@@ -232,13 +233,15 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps, max_step=0
     end of the branch: a strongly adhesive hard-wall sphere's compressed states need
     shorter steps than its path gives (docs/studies.md).
 
-    With ``agreement`` [m] > 0 each sub-step is checked against the quasi-static limit: it is
-    taken in ``AGREEMENT_SPLIT`` equal pieces, and the state they reach is compared with the one
-    the whole sub-step reaches from the same start (a probe, without the stability check).
-    Where their gaps differ by more than ``agreement`` anywhere, the sub-step was too coarse
-    (the asperities that snap within it snapped in another order): the pieces are undone and
-    the sub-step is divided, at most ``levels`` times; the pieces of the last level are taken
-    unchecked (docs/formulation.md, "Loading paths").
+    With ``agreement`` [m] > 0 each sub-step is checked against the quasi-static limit: the
+    state it reaches whole from the last one (a probe, without the stability check) is compared
+    with the state of a finer way there.  Under the energy descent that is the sub-step
+    descended in 4, 16, ... increments (``_agreed_increments``); otherwise its
+    ``AGREEMENT_SPLIT`` equal pieces (``_agreed_piece``).  Where their gaps differ by more than
+    ``agreement`` anywhere, the sub-step was too coarse (the asperities that snap within it
+    snapped in another order): the increments are multiplied, or the pieces undone and the
+    sub-step divided into them, at most ``levels`` times; the pieces of the last level are
+    taken unchecked (docs/formulation.md, "Loading paths").
 
     Returns the state at ``target`` (or the failed one) with the cost of every try, probe and
     sub-step in it, and the (approach, force, stiffness) of the last converged state."""
@@ -258,14 +261,21 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps, max_step=0
     finest = abs(h0) * float(AGREEMENT_SPLIT) ** -levels    # the shortest sub-step checked against its pieces
     agreed = None           # the shortest sub-step [m] whose pieces agreed with it
     unsettled = False       # a sub-step of ``finest`` (the last level's pieces) was taken unchecked
+    verdicts = []           # the descent's increments per sub-step: (increments, agreed)
     # the sum of the sub-steps rounds: far from the origin (|approach| >> max_step) a remainder
     # of a few ulps past the last piece would be one more solve
     slack = 64.0 * np.spacing(abs(target))
     while True:
         d = target if abs(target - prev[0]) <= abs(h) * (1 + 1e-9) + slack else prev[0] + h
         snap = problem.snapshot()
-        check_it = agreement > 0 and abs(d - prev[0]) > finest * (1 + 1e-9)
-        if check_it:
+        descends = agreement > 0 and getattr(problem, "descends", False)
+        check_it = agreement > 0 and abs(d - prev[0]) > finest * (1 + 1e-9) and not descends
+        if descends:
+            st, cost, verdict = _agreed_increments(problem, snap, prev, d, path, jump_tol, refine,
+                                                   agreement, levels)
+            spent += cost
+            verdicts.append(verdict)
+        elif check_it:
             st, cost = _agreed_piece(problem, snap, prev, d, path, jump_tol, refine, agreement)
             spent += cost
             if st is None:          # the pieces and the whole sub-step part: divide it
@@ -298,13 +308,18 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps, max_step=0
         st.newton_iterations += int(spent[2])
         st.linear_iterations += int(spent[3])
         # the pieces the step was taken in: the converged sub-steps and the last solve
-        st.solver += f" ({done + 1} sub-steps" if done else " (no halved step converged"
+        notes = [f"{done + 1} sub-steps" if done else ("no halved step converged" if not st.converged else "")]
         if agreement > 0 and st.converged:
             if unsettled:
-                st.solver += f"; sub-steps of {finest:.3e} m not checked"
+                notes.append(f"sub-steps of {finest:.3e} m not checked")
             elif agreed is not None:
-                st.solver += f"; pieces agree at sub-steps of {agreed:.3e} m"
-        st.solver += ")"
+                notes.append(f"pieces agree at sub-steps of {agreed:.3e} m")
+            elif verdicts:
+                most = max(k for k, _ in verdicts)
+                settled = all(ok for _, ok in verdicts)
+                notes.append(f"{most} increments agree with {most // AGREEMENT_SPLIT}" if settled
+                             else f"{most} increments, not agreeing with {most // AGREEMENT_SPLIT}")
+        st.solver += " (" + "; ".join(n for n in notes if n) + ")"
     if st.converged:
         prev = (st.approach, st.force, st.stiffness)
     return st, prev
@@ -314,14 +329,16 @@ def _cost(st) -> np.ndarray:
     return np.array([st.fft_pairs, st.wall_time, st.newton_iterations, st.linear_iterations], float)
 
 
-def _piece(problem, snap, prev, d, path, jump_tol, refine):
-    """Solve one sub-step from ``prev`` (the state in ``snap``) to approach ``d`` [m] and test
-    it for a jump (recorded in ``path.jumps``) and for the fold watch; returns its state."""
+def _piece(problem, snap, prev, d, path, jump_tol, refine, increments=None):
+    """Solve one sub-step from ``prev`` (the state in ``snap``) to approach ``d`` [m] (under the
+    descent strategy in ``increments`` if given) and test it for a jump (recorded in
+    ``path.jumps``) and for the fold watch; returns its state."""
     watch = path._watch
     n_jumps = len(path.jumps)
     check = None if watch is None else (
         lambda newton, force: watch.reason(prev, d, newton, force) is not None)
-    st = problem.solve(approach=d, raise_on_failure=False, check_stability=check)
+    more = {} if increments is None else {"increments": increments}
+    st = problem.solve(approach=d, raise_on_failure=False, check_stability=check, **more)
     if st.converged:
         d0, w0, k0 = prev
         predicted = w0 + (k0 if np.isfinite(k0) else 0.0) * (d - d0)
@@ -382,6 +399,44 @@ def _agreed_piece(problem, snap, prev, d, path, jump_tol, refine, agreement):
         problem.restore(snap)
         return None, cost
     return st, cost
+
+
+def _agreed_increments(problem, snap, prev, d, path, jump_tol, refine, agreement, levels):
+    """The sub-step from ``prev`` (the state in ``snap``) to ``d`` [m] under the descent strategy:
+    descended whole (a probe, without the stability check), then in 4, 16, ... equal increments
+    (``AdhesiveProblem.solve(increments=)``: a continuation in the approach without the states
+    between, the sub-steps' asperity order at a fraction of their cost), each a ``_piece``
+    compared with the one before, until two agree to ``agreement`` [m] or ``levels`` were
+    tried.  A candidate that parts from the one before is undone (its jumps, what the fold
+    watch saw) and is the next one's reference.  Returns (the last candidate's state, the
+    cost of the probe and the candidates undone, (its increments, whether it agreed))."""
+    cost = np.zeros(4)
+    probe = problem.solve(approach=d, raise_on_failure=False, check_stability=False)
+    cost += _cost(probe)
+    problem.restore(snap)
+    gap = probe.gap if probe.converged else None
+    probe.release_fields()
+    n = 1
+    for level in range(1, levels + 1):
+        n *= AGREEMENT_SPLIT
+        n_jumps = len(path.jumps)
+        watched = None if path._watch is None else path._watch.state()
+        st = _piece(problem, snap, prev, d, path, jump_tol, refine, increments=n)
+        agree = (st.converged and gap is not None and gap_difference(st.gap, gap) <= agreement)
+        if agree or level == levels:
+            break
+        cost += _cost(st)
+        if gap is not None:
+            gap.destroy()
+        gap = st.gap if st.converged else None
+        st.release_fields()
+        del path.jumps[n_jumps:]
+        if watched is not None:
+            path._watch = FoldWatch.restored(watched)
+        problem.restore(snap)
+    if gap is not None:
+        gap.destroy()
+    return st, cost, (n, agree)
 
 
 def gap_difference(a, b) -> float:

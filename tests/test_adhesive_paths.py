@@ -242,17 +242,21 @@ def test_a_too_coarse_step_is_divided_until_its_pieces_agree(coll):
 
 @pytest.mark.serial   # the plan: no solve
 def test_the_plan_says_how_a_sweeps_sub_steps_are_checked():
-    """A scene's plan (what --dry-run prints) names the sub-steps and, with protocol.agreement,
-    the check and its levels; without adhesion neither."""
+    """A scene's plan (what --dry-run prints) names the sub-steps and how they are checked: on
+    an isolated sphere (Newton) sub-steps of 0.1 z0 by default, quarters with protocol.agreement;
+    on a periodic cell (the energy descent) whole steps checked by increments by default."""
     from contactpetsc.app import builder, runner, scenes
     from contactpetsc.grid import SurfaceGrid
     base = dict(name="plan", geometry=dict(kind="sphere", radius=30e-9, nx=32, dx=0.3e-9),
                 material=dict(e_star=10e9), interaction=dict(law="lj", work_of_adhesion=0.3, z0=0.3e-9),
                 protocol=dict(values=[-0.3e-9, 0.0, 0.3e-9]))
 
-    def plan(**proto):
-        scene = scenes.validate(dict(base, protocol=dict(base["protocol"], **proto)))
-        grid = SurfaceGrid(32, 32, 0.3e-9, periodic=False)
+    def plan(periodic=False, **proto):
+        scene = dict(base, protocol=dict(base["protocol"], **proto))
+        if periodic:
+            scene["geometry"] = dict(kind="self-affine", nx=32, dx=0.3e-9, hurst=0.8, rms_height=0.6e-9, seed=1)
+        scene = scenes.validate(scene)
+        grid = SurfaceGrid(32, 32, 0.3e-9, periodic=periodic)
         return "\n".join(runner.plan(scene, grid, builder.build_law(scene)))
 
     assert "2 longer than 0.1 of the law's range (protocol.max_step), taken in 20 equal sub-steps" in plan()
@@ -260,6 +264,11 @@ def test_the_plan_says_how_a_sweeps_sub_steps_are_checked():
     text = plan(agreement=1e-3, agreement_levels=3)
     assert "each sub-step checked against its quarters to 0.001 of the law's range (protocol.agreement), " \
         "divided at most 3 times where they part" in text, text
+    text = plan(periodic=True)
+    assert "sub-steps" not in text and "each step checked by the energy descent's increments to 0.001 of the " \
+        "law's range (protocol.agreement): descended whole, then in 4, ... 16 increments until two agree" in text, text
+    text = plan(periodic=True, agreement=0.0)
+    assert "taken in 20 equal sub-steps" in text and "protocol.agreement" not in text, text
 
 
 class _Bistable:
@@ -267,12 +276,15 @@ class _Bistable:
     of at most ``reach`` [m] and snaps to another (gap 1) under a longer one, as an asperity
     snaps out of order under a coarse step; it counts its solves."""
 
-    def __init__(self, reach):
-        self.reach, self.approach, self.off, self.solves = reach, None, 0.0, []
+    def __init__(self, reach, strategy="newton"):
+        self.reach, self.strategy, self.approach, self.off, self.solves = reach, strategy, None, 0.0, []
+        self.descends = strategy == "descent"
 
-    def solve(self, approach, raise_on_failure=True, check_stability=None, fallback=True):
+    def solve(self, approach, raise_on_failure=True, check_stability=None, fallback=True, increments=None):
         from types import SimpleNamespace
-        if self.approach is not None and abs(approach - self.approach) > self.reach * (1 + 1e-9):
+        assert increments is None or self.strategy == "descent"
+        step = 0.0 if self.approach is None else abs(approach - self.approach) / (increments or 1)
+        if step > self.reach * (1 + 1e-9):
             self.off = 1.0
         self.approach = approach
         self.solves.append(approach)
@@ -317,6 +329,24 @@ def test_agreement_divides_a_step_into_quarters_until_they_agree():
     pb = _Bistable(0.2)      # a quarter of the step is too long, yet agrees with the whole:
     sweep(pb, [0.0, 1.0], agreement=0.5, levels=2)
     assert pb.off == 1.0     # the check sees no finer than its quarters
+
+
+@pytest.mark.serial   # bookkeeping of sweep: no grid
+def test_agreement_under_the_descent_compares_the_step_in_more_increments():
+    """Under the descent strategy the step is not divided: it is descended whole (a probe), then
+    in 4 and 16 increments, until two agree.  A step of 1 m on a branch left by any increment
+    longer than 0.3 m: the probe leaves it, 4 increments keep it but part from the probe, 16
+    agree with 4: four solves in all, on the branch, the verdict in the solver column.  With
+    one level the 4 increments are taken, recorded as not agreeing.  Truth: counting."""
+    pb = _Bistable(0.3, strategy="descent")
+    path = sweep(pb, [0.0, 1.0], agreement=0.5, levels=2)
+    assert len(pb.solves) == 1 + 3 and pb.off == 0.0, pb.solves
+    assert path.points[-1].solver == "bistable (16 increments agree with 4)"
+    assert path.points[-1].fft_pairs == 3
+    pb = _Bistable(0.3, strategy="descent")
+    path = sweep(pb, [0.0, 1.0], agreement=0.5, levels=1)
+    assert len(pb.solves) == 1 + 2 and pb.off == 0.0, pb.solves
+    assert path.points[-1].solver == "bistable (4 increments, not agreeing with 1)"
 
 
 class _LinearBranch:

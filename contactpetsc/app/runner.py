@@ -45,15 +45,16 @@ def plan(scene: dict, grid: SurfaceGrid, law=None, out_dir: str | None = None) -
             f"  rows per rank {[b - a for a, b in grid.y_ranges]}",
             chain,
             *builder.leave_out(scene),
-            _protocol_line(scene, law),
+            _protocol_line(scene, law, grid),
             f"  memory estimate: {per_rank / 2**20:.0f} MiB per rank" + _memory_note(grid, per_rank),
             _outputs_line(scene, grid.nx * grid.ny, out_dir or scene["output"]["directory"]),
             _stack_line(grid)]
 
 
-def _protocol_line(scene: dict, law) -> str:
+def _protocol_line(scene: dict, law, grid) -> str:
     """The steps, and under approach control with adhesion, those taken in sub-steps of at most
-    ``protocol.max_step`` of the law's range (``paths.sweep``: the quasi-static path)."""
+    ``protocol.max_step`` of the law's range and how they are checked (``steppers.sub_steps``,
+    ``paths.sweep``: the quasi-static path)."""
     proto = scene["protocol"]
     line = f"  protocol: {proto['control']} x {len(proto['values'])} steps"
     if law is None or law.work_of_adhesion == 0 or proto["control"] != "approach":
@@ -61,14 +62,24 @@ def _protocol_line(scene: dict, law) -> str:
     if scene["solver"]["method"] == "relaxation":
         return line
     from ..solvers.base import pieces
+    from .steppers import sub_steps
+    # the problem's own rule (``AdhesiveProblem._build``): the descent where it applies unless
+    # the scene's options say otherwise
+    nodal = grid.periodic and not scene["interaction"]["element_integration"]
+    descends = str(scene["solver"]["options"].get("strategy", "descent" if nodal else "newton")).lower() == "descent"
+    max_step, agreement = sub_steps(proto, descends)
     values = proto["values"]
-    counts = [pieces(b - a, proto["max_step"] * law.length_scale()) for a, b in zip(values, values[1:])]
+    counts = [pieces(b - a, max_step * law.length_scale()) for a, b in zip(values, values[1:])]
     long = [n for n in counts if n > 1]
     if long:
-        line += (f"; {len(long)} longer than {proto['max_step']:g} of the law's range (protocol.max_step), "
+        line += (f"; {len(long)} longer than {max_step:g} of the law's range (protocol.max_step), "
                  f"taken in {sum(long)} equal sub-steps: the quasi-static path")
-    if proto["agreement"]:
-        line += (f"; each sub-step checked against its quarters to {proto['agreement']:g} of the law's range "
+    if agreement and descends:
+        line += (f"; each step checked by the energy descent's increments to {agreement:g} of the law's "
+                 f"range (protocol.agreement): descended whole, then in 4, ... {4 ** proto['agreement_levels']} "
+                 f"increments until two agree")
+    elif agreement:
+        line += (f"; each sub-step checked against its quarters to {agreement:g} of the law's range "
                  f"(protocol.agreement), divided at most {proto['agreement_levels']} times where they part")
     return line
 

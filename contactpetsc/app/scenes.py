@@ -112,17 +112,20 @@ _SCHEMA = {
         "jump_refinement": _k(int, 6, "", "adhesive sweeps: bisections locating each jump", (0, 40, True, True)),
         "substeps": _k(int, 3, "", "adhesive sweeps: halvings of a step that fails, tried from the last "
                        "converged state (0: none)", (0, 20, True, True)),
-        "max_step": _k(float, 0.1, "z0", "adhesive sweeps under approach control (not the relaxation): the "
+        "max_step": _k(float, None, "z0", "adhesive sweeps under approach control (not the relaxation): the "
                        "longest step in approach, in units of the law's range (z0, rho or w / sigma0); a longer "
                        "step of the values is taken in equal sub-steps, so that the states are those of the "
-                       "quasi-static path and not of the step (0: the values' own steps)", NONNEG),
-        "agreement": _k(float, 0.0, "z0", "adhesive sweeps under approach control (not the relaxation): check "
-                        "each sub-step against the quasi-static limit: where the state its four quarters reach "
-                        "differs from the sub-step's own by more than this gap anywhere (in units of the law's "
-                        "range), the sub-step was too coarse and is taken in quarters, each checked in turn; "
-                        "the curve's solver column says at which sub-step the pieces agreed (0: no check)", NONNEG),
-        "agreement_levels": _k(int, 2, "", "adhesive sweeps with protocol.agreement: divisions of a sub-step "
-                               "into quarters at most (the last level's quarters are taken unchecked)",
+                       "quasi-static path and not of the step (0: the values' own steps; default: 0 where "
+                       "protocol.agreement checks the steps by the energy descent's increments, else 0.1)", NONNEG),
+        "agreement": _k(float, None, "z0", "adhesive sweeps under approach control (not the relaxation): check "
+                        "each (sub-)step against the quasi-static limit, to this largest gap difference (in units "
+                        "of the law's range): under the energy descent (the default on periodic grids) the "
+                        "step descended whole is compared with it descended in 4, then 16, ... increments "
+                        "until two agree; otherwise with its four quarters, dividing it into them, each checked "
+                        "in turn, until they agree; the curve's solver column gives the verdict (0: no check; "
+                        "default: 1e-3 under the energy descent, else 0)", NONNEG),
+        "agreement_levels": _k(int, 2, "", "adhesive sweeps with protocol.agreement: refinements at most (4^this "
+                               "increments; or divisions into quarters, whose last are taken unchecked)",
                                (1, 10, True, True)),
     },
     "solver": {

@@ -23,6 +23,23 @@ from ..solvers.stability import leaves_checks_out
 from .output import RESTART_FIELDS
 
 NAN = float("nan")
+#: the defaults of ``protocol.max_step`` and ``protocol.agreement`` [the law's range] (``sub_steps``)
+MAX_STEP, AGREEMENT = 0.1, 1e-3
+
+
+def sub_steps(proto: dict, descends: bool) -> tuple[float, float]:
+    """(max_step, agreement) of an adhesive sweep, in units of the law's range: the scene's, or
+    by default the check of each step by the energy descent's increments where it is the
+    strategy (``descends``), whole steps then (on the rough benchmark the same states as the
+    limit of small steps, in fewer FFT pairs than sub-steps of 0.1: docs/performance.md,
+    "Quasi-static limit of a load-unload path"), else sub-steps of 0.1 unchecked."""
+    agreement = proto["agreement"]
+    if agreement is None:
+        agreement = AGREEMENT if descends else 0.0
+    max_step = proto["max_step"]
+    if max_step is None:
+        max_step = 0.0 if descends and agreement > 0 else MAX_STEP
+    return max_step, agreement
 
 
 def mean_gap(grid, st, error_scale: float) -> dict:
@@ -119,6 +136,9 @@ class AdhesiveSteps:
         self.pulls = self.proto["control"] == "approach"    #: a pull-off force
         self.refines = self.pulls and self.proto["refine_pull_off"]   #: refined at the end (``finish``)
         self.prev = None          #: (approach, force, dF/d delta) of the last state, for sweep
+        #: the sweep's sub-steps and their check [m]
+        self.max_step, self.agreement = (z * self.z0 for z in sub_steps(
+            self.proto, self.sweeping and problem.descends))
         self.header = (f"  {'step':>4} {'approach [m]':>12} {'force [N]':>11} {'contact':>8} {'adh. force':>11} "
                        f"{'error':>9} {'stable':>6} {'time [s]':>8}" + (f" {'alpha*':>8} {'W*':>9}"
                                                                        if self.sphere else ""))
@@ -211,8 +231,7 @@ class AdhesiveSteps:
         else:
             sweep(self.problem, [value], refine=self.proto["jump_refinement"], on_state=keep,
                   on_failure=keep, path=self.path, previous=self.prev, substeps=self.proto["substeps"],
-                  max_step=self.proto["max_step"] * self.z0, agreement=self.proto["agreement"] * self.z0,
-                  levels=self.proto["agreement_levels"])
+                  max_step=self.max_step, agreement=self.agreement, levels=self.proto["agreement_levels"])
         st = got[0]
         jumps = self.path.jumps[n:]
         if not st.converged:

@@ -299,6 +299,13 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
             self.coarse_levels.release()
 
     # -- public API --------------------------------------------------------------------------
+    @property
+    def descends(self) -> bool:
+        """Whether a solve at an approach descends from the last state (``-<prefix>strategy
+        descent``, the default on periodic grids with the nodal rule); sets the problem up."""
+        self._build()
+        return self.strategy == "descent"
+
     def solve_force(self, force: float, *, rel_tol: float = 1e-8, max_updates: int = 30,
                     raise_on_failure: bool = True) -> AdhesiveState:
         """Load control where it is stable: ``load_control.solve_force`` on this problem."""
@@ -308,7 +315,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
     @with_options
     def solve(self, *, approach: float | None = None, central_gap: float | None = None,
               raise_on_failure: bool = True, check_stability=None,
-              fallback: bool = True) -> AdhesiveState:
+              fallback: bool = True, increments: int | None = None) -> AdhesiveState:
         """Solve at one approach delta [m] or one central gap [m].
 
         ``check_stability``: None (``-<prefix>stability_check``), a bool, or a function
@@ -322,6 +329,10 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         separation (``_load_from_rest``).  Under displacement control, when Newton
         fails or lands on an unstable state, ``fallback`` continues with
         pseudo-transient continuation from the previous state (a jump).
+
+        ``increments``: under the descent strategy, the step from the last state is descended
+        in that many equal increments (``descent_step.descend_step``) instead of those of
+        ``-<prefix>descent_max_step``.
         """
         if (approach is None) == (central_gap is None):
             raise ValueError("give exactly one of approach (m) or central_gap (m)")
@@ -378,7 +389,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         if descend:
             # from the unknowns themselves: the descent saves them as it writes its state
             # (``saved_start``), so that its peak does not hold a copy
-            ok, d_reason, d_newton, d_linear, increments = descend_step(self, float(approach), self._x)
+            ok, d_reason, d_newton, d_linear, increments = descend_step(self, float(approach), self._x, increments)
             # the descent's PETSc objects (and through their contexts its arrays) are freed
             # here, not at the end of the solve: Newton and the check come first
             PETSc.garbage_cleanup(self.grid.comm)

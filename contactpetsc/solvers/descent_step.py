@@ -9,16 +9,21 @@ from .descent import EnergyDescent
 from .descent_options import descent_options
 
 
-def descend_step(problem, approach: float, start: PETSc.Vec) -> tuple[bool, str, int, int, int]:
+def descend_step(problem, approach: float, start: PETSc.Vec,
+                 increments: int | None = None) -> tuple[bool, str, int, int, int]:
     """The descent strategy's step of ``problem`` from ``start`` (its last state) to ``approach``
-    [m]: in increments of at most ``-<prefix>descent_max_step`` z0, each but the last descended
+    [m]: in increments of at most ``-<prefix>descent_max_step`` z0 (or in ``increments`` equal
+    ones, a path's check of its step: ``paths._agreed_increments``), each but the last descended
     only to ``-<prefix>descent_step_tol`` (a continuation in the approach: the asperities snap
     one increment at a time, in the order a quasi-static path meets them), the last to the
     descent's tolerance.  (converged, reason, iterations, Krylov iterations, increments taken)
     of them all; the state reached is in the problem's unknowns.  Collective."""
     prev = problem._start_approach    # the start's own (after a failed solve: the last converged)
     options = descent_options(problem.prefix)
-    increments = 1 if prev is None else pieces(approach - prev, options.max_step * problem.z0)
+    if prev is None:
+        increments = 1
+    elif increments is None:
+        increments = pieces(approach - prev, options.max_step * problem.z0)
     iterations = linear = 0
     taken = 1
     for k in range(1, increments):
