@@ -173,6 +173,8 @@ def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0
     and the path goes on from the last converged state, or,
     with ``stop_on_failure``, ends there (a run that must stay contiguous, to restart
     from).  Returns the Path with its jumps."""
+    if agreement > 0 and levels < 1:
+        raise ValueError(f"levels must be >= 1 where agreement > 0, got {levels!r}")
     path = Path() if path is None else path
     approaches = [float(a) for a in approaches]
     prev = previous      # (approach, force, stiffness) of the last state
@@ -226,7 +228,7 @@ def keep_for_search(path: Path, problem, last: tuple | None) -> tuple | None:
 
 
 def _advance(problem, target, prev, path, jump_tol, refine, substeps, max_step=0.0, agreement=0.0,
-             levels=0):
+             levels=2):
     """Solve at ``target`` from the present state in equal sub-steps of at most ``max_step``
     [m] (0: one step), testing each for a jump; where one fails, go back to the last converged
     state and get there in halved steps, at least 2**-``substeps`` of the sub-step each.  A step longer than Newton's basin is not the
@@ -258,6 +260,7 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps, max_step=0
     whole = target - prev[0]
     h0 = whole / pieces(whole, max_step)
     h, spent, done = h0, np.zeros(4), 0
+    base = h0               # the sub-step the failure halvings count from (the check's divisions move it)
     finest = abs(h0) * float(AGREEMENT_SPLIT) ** -levels    # the shortest sub-step checked against its pieces
     agreed = None           # the shortest sub-step [m] whose pieces agreed with it
     unsettled = False       # a sub-step of ``finest`` (the last level's pieces) was taken unchecked
@@ -274,12 +277,14 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps, max_step=0
             st, cost, verdict = _agreed_increments(problem, snap, prev, d, path, jump_tol, refine,
                                                    agreement, levels)
             spent += cost
-            verdicts.append(verdict)
+            if st.converged:
+                verdicts.append(verdict)
         elif check_it:
             st, cost = _agreed_piece(problem, snap, prev, d, path, jump_tol, refine, agreement)
             spent += cost
             if st is None:          # the pieces and the whole sub-step part: divide it
                 h /= AGREEMENT_SPLIT
+                base = h
                 snap.destroy()
                 continue
             agreed = min(agreed or np.inf, abs(d - prev[0]))
@@ -289,7 +294,7 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps, max_step=0
             unsettled |= agreement > 0 and st.converged
         # (a converged sub-step goes on even past a time budget: the next solve says so)
         final = (st.converged and d == target) or (not st.converged and (
-            substeps <= 0 or problem.out_of_time() or abs(h) <= abs(h0) * 2.0 ** -substeps * (1 + 1e-12)))
+            substeps <= 0 or problem.out_of_time() or abs(h) <= abs(base) * 2.0 ** -substeps * (1 + 1e-12)))
         if not final:
             spent += _cost(st)
             if st.converged:
@@ -392,13 +397,18 @@ def _agreed_piece(problem, snap, prev, d, path, jump_tol, refine, agreement):
     gap.destroy()
     if not agree:
         cost += _cost(st)
-        # undone: the pieces' jumps and what the watch saw of them
-        del path.jumps[n_jumps:]
-        if watched is not None:
-            path._watch = FoldWatch.restored(watched)
-        problem.restore(snap)
+        _undo(problem, snap, path, n_jumps, watched)
         return None, cost
     return st, cost
+
+
+def _undo(problem, snap, path, n_jumps, watched) -> None:
+    """Undo solves from ``snap``: the problem back to it, the path's jumps back to the first
+    ``n_jumps``, its fold watch back to the state ``watched`` (``FoldWatch.state``) or None."""
+    del path.jumps[n_jumps:]
+    if watched is not None:
+        path._watch = FoldWatch.restored(watched)
+    problem.restore(snap)
 
 
 def _agreed_increments(problem, snap, prev, d, path, jump_tol, refine, agreement, levels):
@@ -422,18 +432,20 @@ def _agreed_increments(problem, snap, prev, d, path, jump_tol, refine, agreement
         n_jumps = len(path.jumps)
         watched = None if path._watch is None else path._watch.state()
         st = _piece(problem, snap, prev, d, path, jump_tol, refine, increments=n)
-        agree = (st.converged and gap is not None and gap_difference(st.gap, gap) <= agreement)
+        # a descent that gave up on its increments took the step whole (``descend_step``): no
+        # finer way than the probe's, so nothing to agree
+        finer = getattr(problem, "increments_taken", n) == n
+        agree = st.converged and finer and gap is not None and gap_difference(st.gap, gap) <= agreement
         if agree or level == levels:
             break
         cost += _cost(st)
-        if gap is not None:
-            gap.destroy()
-        gap = st.gap if st.converged else None
+        if st.converged and finer:
+            # the next candidate's reference (a failed one keeps the one before)
+            if gap is not None:
+                gap.destroy()
+            gap = st.gap
         st.release_fields()
-        del path.jumps[n_jumps:]
-        if watched is not None:
-            path._watch = FoldWatch.restored(watched)
-        problem.restore(snap)
+        _undo(problem, snap, path, n_jumps, watched)
     if gap is not None:
         gap.destroy()
     return st, cost, (n, agree)

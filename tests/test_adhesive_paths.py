@@ -3,6 +3,7 @@
 Independent truths: the force slope (finite differences of the path), the loading and unloading
 branches meeting, the stability margin's bound.  Units: z0 = 1, E* = 1 (Greenwood's).
 """
+import json
 import re
 
 import numpy as np
@@ -251,8 +252,8 @@ def test_the_plan_says_how_a_sweeps_sub_steps_are_checked():
                 material=dict(e_star=10e9), interaction=dict(law="lj", work_of_adhesion=0.3, z0=0.3e-9),
                 protocol=dict(values=[-0.3e-9, 0.0, 0.3e-9]))
 
-    def plan(periodic=False, **proto):
-        scene = dict(base, protocol=dict(base["protocol"], **proto))
+    def plan(periodic=False, options=None, **proto):
+        scene = dict(base, protocol=dict(base["protocol"], **proto), solver=dict(options=options or {}))
         if periodic:
             scene["geometry"] = dict(kind="self-affine", nx=32, dx=0.3e-9, hurst=0.8, rms_height=0.6e-9, seed=1)
         scene = scenes.validate(scene)
@@ -262,13 +263,46 @@ def test_the_plan_says_how_a_sweeps_sub_steps_are_checked():
     assert "2 longer than 0.1 of the law's range (protocol.max_step), taken in 20 equal sub-steps" in plan()
     assert "protocol.agreement" not in plan()
     text = plan(agreement=1e-3, agreement_levels=3)
-    assert "each sub-step checked against its quarters to 0.001 of the law's range (protocol.agreement), " \
-        "divided at most 3 times where they part" in text, text
+    assert "each sub-step checked against its 4 equal pieces to 0.001 of the law's range (protocol.agreement), " \
+        "divided into them at most 3 times where they part" in text, text
     text = plan(periodic=True)
-    assert "sub-steps" not in text and "each step checked by the energy descent's increments to 0.001 of the " \
-        "law's range (protocol.agreement): descended whole, then in 4, ... 16 increments until two agree" in text, text
+    assert "equal sub-steps" not in text and "each step checked by the energy descent's increments to 0.001 of the " \
+        "law's range (protocol.agreement): descended as the descent's options say, then in 4, ... 16 increments " \
+        "until two agree; snaps within a step are in its state" in text, text
     text = plan(periodic=True, agreement=0.0)
     assert "taken in 20 equal sub-steps" in text and "protocol.agreement" not in text, text
+    # the strategy as the run's problem reads it, the option's dash and all
+    text = plan(periodic=True, options={"-strategy": "newton"})
+    assert "taken in 20 equal sub-steps" in text and "protocol.agreement" not in text, text
+
+
+@pytest.mark.serial   # a scene's comparison: no solve
+def test_a_restart_compares_the_sub_steps_its_steps_were_taken_in():
+    """A run stored before protocol.agreement existed (sub-steps of 0.1, no check) restarts
+    unchanged without adhesion, and with adhesion on a periodic cell only where the scene
+    asks for the old sub-steps: the default there (whole steps, checked) is another path."""
+    from contactpetsc.app import rundir, scenes
+    from contactpetsc.app.steppers import resolve_sub_steps
+    from contactpetsc.grid import SurfaceGrid
+    grid = SurfaceGrid(32, 32, 0.3e-9, periodic=True)
+    cell = dict(name="cell", geometry=dict(kind="self-affine", nx=32, dx=0.3e-9, hurst=0.8, rms_height=0.6e-9, seed=1),
+                material=dict(e_star=10e9), protocol=dict(values=[0.0, 0.3e-9]))
+    adhesive = dict(cell, interaction=dict(law="lj", work_of_adhesion=0.3, z0=0.3e-9))
+
+    def stored(scene):   # as scene.json was written before the keys existed
+        out = json.loads(json.dumps(resolve_sub_steps(scenes.validate(scene), grid)))
+        out["protocol"] = {k: v for k, v in out["protocol"].items() if not k.startswith("agreement")}
+        out["protocol"]["max_step"] = 0.1
+        return out
+
+    for scene in (cell, adhesive):
+        old = stored(scene)
+        now = resolve_sub_steps(scenes.validate(scene), grid)
+        diff = rundir.differences(old, now, 1)
+        assert diff == ([] if scene is cell else ["protocol.agreement: 0.0 on disk, 0.001 now",
+                                                  "protocol.max_step: 0.1 on disk, 0.0 now"]), diff
+    again = dict(adhesive, protocol=dict(adhesive["protocol"], max_step=0.1, agreement=0.0))
+    assert rundir.differences(stored(adhesive), resolve_sub_steps(scenes.validate(again), grid), 1) == []
 
 
 class _Bistable:

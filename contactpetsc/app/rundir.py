@@ -43,6 +43,8 @@ STEP_FILE = re.compile(r"step_\d{4,}\.(h5|xdmf)$")
 #: scene keys that may differ on a restart (they change the outputs or the numerics, not the problem)
 NOT_PHYSICS = ("name", "output.", "solver.", "protocol.refine_pull_off", "protocol.jump_refinement",
                "protocol.substeps", "protocol.values")
+#: physics keys added since runs were first stored, with what a run stored without them did
+ADDED_KEYS = {"protocol.agreement": 0.0, "protocol.agreement_levels": 2}
 
 
 class RunDirectoryError(RuntimeError):
@@ -110,6 +112,7 @@ def differences(old: dict, new: dict, done: int) -> list[str]:
     ``protocol.values`` is compared over the ``done`` steps already on disk."""
     from .scene_files import DIGEST
     a, b = _flat(json.loads(json.dumps(old))), _flat(json.loads(json.dumps(new)))
+    a = {**ADDED_KEYS, **a}
     out = [f"{k}: {a.get(k)!r} on disk, {b.get(k)!r} now" for k in sorted(set(a) | set(b))
            if not k.startswith(NOT_PHYSICS) and a.get(k) != b.get(k) and k != f"geometry.{DIGEST}"]
     was, now = a.get(f"geometry.{DIGEST}"), b.get(f"geometry.{DIGEST}")

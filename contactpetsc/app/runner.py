@@ -27,6 +27,8 @@ def plan(scene: dict, grid: SurfaceGrid, law=None, out_dir: str | None = None) -
     header); ``law`` the builder's (``builder.build_law``), None without adhesion."""
     from ..solvers.factory import describe_solver, grid_snap_number
     from .scenes import e_star
+    from .steppers import resolve_sub_steps, sweep_descends
+    scene = resolve_sub_steps(scene, grid)
     g, sol = scene["geometry"], scene["solver"]
     if law is not None:
         law_text = f"law {law.name}, w = {law.work_of_adhesion:g} J/m^2" + (
@@ -45,29 +47,26 @@ def plan(scene: dict, grid: SurfaceGrid, law=None, out_dir: str | None = None) -
             f"  rows per rank {[b - a for a, b in grid.y_ranges]}",
             chain,
             *builder.leave_out(scene),
-            _protocol_line(scene, law, grid),
+            _protocol_line(scene, law, sweep_descends(scene, grid)),
             f"  memory estimate: {per_rank / 2**20:.0f} MiB per rank" + _memory_note(grid, per_rank),
             _outputs_line(scene, grid.nx * grid.ny, out_dir or scene["output"]["directory"]),
             _stack_line(grid)]
 
 
-def _protocol_line(scene: dict, law, grid) -> str:
+def _protocol_line(scene: dict, law, descends: bool) -> str:
     """The steps, and under approach control with adhesion, those taken in sub-steps of at most
-    ``protocol.max_step`` of the law's range and how they are checked (``steppers.sub_steps``,
-    ``paths.sweep``: the quasi-static path)."""
+    ``protocol.max_step`` of the law's range and how they are checked (``scene`` resolved by
+    ``steppers.resolve_sub_steps``; ``descends``: ``steppers.sweep_descends``; ``paths.sweep``: the
+    quasi-static path)."""
     proto = scene["protocol"]
     line = f"  protocol: {proto['control']} x {len(proto['values'])} steps"
     if law is None or law.work_of_adhesion == 0 or proto["control"] != "approach":
         return line
     if scene["solver"]["method"] == "relaxation":
         return line
+    from ..paths import AGREEMENT_SPLIT
     from ..solvers.base import pieces
-    from .steppers import sub_steps
-    # the problem's own rule (``AdhesiveProblem._build``): the descent where it applies unless
-    # the scene's options say otherwise
-    nodal = grid.periodic and not scene["interaction"]["element_integration"]
-    descends = str(scene["solver"]["options"].get("strategy", "descent" if nodal else "newton")).lower() == "descent"
-    max_step, agreement = sub_steps(proto, descends)
+    max_step, agreement = proto["max_step"], proto["agreement"]
     values = proto["values"]
     counts = [pieces(b - a, max_step * law.length_scale()) for a, b in zip(values, values[1:])]
     long = [n for n in counts if n > 1]
@@ -76,11 +75,14 @@ def _protocol_line(scene: dict, law, grid) -> str:
                  f"taken in {sum(long)} equal sub-steps: the quasi-static path")
     if agreement and descends:
         line += (f"; each step checked by the energy descent's increments to {agreement:g} of the law's "
-                 f"range (protocol.agreement): descended whole, then in 4, ... {4 ** proto['agreement_levels']} "
-                 f"increments until two agree")
+                 f"range (protocol.agreement): descended as the descent's options say, then in "
+                 f"{AGREEMENT_SPLIT}, ... {AGREEMENT_SPLIT ** proto['agreement_levels']} increments until two agree")
+        if not max_step:
+            line += "; snaps within a step are in its state, located as jumps only with sub-steps (protocol.max_step)"
     elif agreement:
-        line += (f"; each sub-step checked against its quarters to {agreement:g} of the law's range "
-                 f"(protocol.agreement), divided at most {proto['agreement_levels']} times where they part")
+        line += (f"; each sub-step checked against its {AGREEMENT_SPLIT} equal pieces to {agreement:g} of the "
+                 f"law's range (protocol.agreement), divided into them at most {proto['agreement_levels']} "
+                 f"times where they part")
     return line
 
 
@@ -141,8 +143,10 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
     ``restart``: keep the steps on disk (the same physics, ``rundir``) and resume after
     the last one.  ``overwrite``: remove another run's files from the directory first.
     """
-    from .steppers import AdhesiveSteps, ContactSteps
+    from .steppers import AdhesiveSteps, ContactSteps, resolve_sub_steps
     grid = builder.build_grid(scene, comm)
+    # the sweep's sub-steps as the run takes them: scene.json keeps them for a restart
+    scene = resolve_sub_steps(scene, grid)
     law = builder.build_law(scene)
     builder.resolution_nodes(scene, law)   # the one resolution check, a dry run's too
     for line in plan(scene, grid, law, output):

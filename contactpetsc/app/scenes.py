@@ -119,8 +119,9 @@ _SCHEMA = {
                        "protocol.agreement checks the steps by the energy descent's increments, else 0.1)", NONNEG),
         "agreement": _k(float, None, "z0", "adhesive sweeps under approach control (not the relaxation): check "
                         "each (sub-)step against the quasi-static limit, to this largest gap difference (in units "
-                        "of the law's range): under the energy descent (the default on periodic grids) the "
-                        "step descended whole is compared with it descended in 4, then 16, ... increments "
+                        "of the law's range): under the energy descent (the default on periodic grids with "
+                        "the nodal rule) the step descended as the descent's options say (whole by default) is "
+                        "compared with it descended in 4, then 16, ... increments "
                         "until two agree; otherwise with its four quarters, dividing it into them, each checked "
                         "in turn, until they agree; the curve's solver column gives the verdict (0: no check; "
                         "default: 1e-3 under the energy descent, else 0)", NONNEG),

@@ -42,6 +42,29 @@ def sub_steps(proto: dict, descends: bool) -> tuple[float, float]:
     return max_step, agreement
 
 
+def resolve_sub_steps(scene: dict, grid) -> dict:
+    """``scene`` with ``protocol.max_step`` and ``protocol.agreement`` given (``sub_steps``), for
+    the strategy the run's problem will take (``factory.adhesive_strategy``: the scene's options
+    and the command line): what the plan prints and ``scene.json`` keeps, so that a restart
+    compares the sub-steps the steps on disk were taken in."""
+    proto = scene["protocol"]
+    if proto["max_step"] is not None and proto["agreement"] is not None:
+        return scene
+    max_step, agreement = sub_steps(proto, sweep_descends(scene, grid))
+    return {**scene, "protocol": {**proto, "max_step": max_step, "agreement": agreement}}
+
+
+def sweep_descends(scene: dict, grid) -> bool:
+    """Whether the scene's run is an adhesive sweep whose problem descends (``AdhesiveProblem.descends``),
+    told without building it (``factory.adhesive_strategy``: the scene's options and the command line)."""
+    from ..solvers.factory import adhesive_strategy
+    from .builder import ADHESION_PREFIX, adhesive
+    return bool(adhesive(scene) and scene["protocol"]["control"] == "approach"
+                and scene["solver"]["method"] == "newton"
+                and adhesive_strategy(ADHESION_PREFIX, scene["solver"]["options"], grid.periodic,
+                                      scene["interaction"]["element_integration"]) == "descent")
+
+
 def mean_gap(grid, st, error_scale: float) -> dict:
     """``mean_gap_m``: the mean separation of the surfaces, the mean of max(g, 0) over the
     grid's nodes [m] (``metrics.mean_gap``: the nominal area; on an isolated window the

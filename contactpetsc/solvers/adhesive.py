@@ -45,7 +45,7 @@ from .adhesive_residual import AdhesiveCallbacks
 from .base import AdhesiveSolveError, VIProblem, check_tolerance, reason_name, with_options
 from .continuation import Continuation
 from .descent_step import descend_step
-from .descent_options import descent_applies, descent_options, require_descent
+from .descent_options import descent_applies, descent_options, require_descent, strategy_option
 from .fallback import FallbackChain
 from .history import SolveHistory
 from .load_control import solve_force
@@ -129,6 +129,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self.history = SolveHistory()
         self._x = None
         self._started = False           # a state exists (solved, warm-started or restored)
+        self.increments_taken = 1       # the last descent's increments (``descend_step``; a path's check reads it)
         self._approach = None
         self._central_gap = None
         self._gap_rows = None           # repulsive rows in gap form at the last Jacobian (mask)
@@ -232,10 +233,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         # quasi-static states, but it is no descent (at a jump it runs and fails before the
         # fallback descends) and holds a third more memory (docs/performance.md, "The hard
         # wall under the descent strategy")
-        strategy = "descent" if descent_applies(self) else "newton"
-        self.strategy = opts.getString("strategy", strategy).lower()
-        if self.strategy not in ("newton", "descent"):
-            raise ValueError(f"-{self.prefix}strategy must be newton or descent, got {self.strategy!r}")
+        self.strategy = strategy_option(self.prefix, descent_applies(self))
         if self.strategy == "descent":
             require_descent(self, f"-{self.prefix}strategy descent")
         descent_options(self.prefix)    # bad input is refused at set-up, not at the first descent
@@ -390,6 +388,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
             # from the unknowns themselves: the descent saves them as it writes its state
             # (``saved_start``), so that its peak does not hold a copy
             ok, d_reason, d_newton, d_linear, increments = descend_step(self, float(approach), self._x, increments)
+            self.increments_taken = increments
             # the descent's PETSc objects (and through their contexts its arrays) are freed
             # here, not at the end of the solve: Newton and the check come first
             PETSc.garbage_cleanup(self.grid.comm)

@@ -77,6 +77,15 @@ def descent_applies(problem) -> bool:
     return bool(problem.grid.periodic and not problem.element_integration)
 
 
+def strategy_option(prefix: str, applies: bool) -> str:
+    """``-<prefix>strategy`` (newton or descent), by default the descent where it ``applies``
+    (``descent_applies``); read from the options as they stand (a problem's, inserted)."""
+    strategy = PETSc.Options(prefix).getString("strategy", "descent" if applies else "newton").lower()
+    if strategy not in ("newton", "descent"):
+        raise ValueError(f"-{prefix}strategy must be newton or descent, got {strategy!r}")
+    return strategy
+
+
 def require_descent(problem, what: str) -> None:
     """Refuse ``what`` (an option naming the descent) where ``descent_applies`` is false."""
     if not descent_applies(problem):

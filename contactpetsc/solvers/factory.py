@@ -101,6 +101,14 @@ def _describe_snes(opts: _Options, prefix: str, linesearch: str, ksp_type: str, 
         snes.destroy()
 
 
+def adhesive_strategy(prefix: str, petsc_options: dict | None, periodic: bool, element_integration: bool) -> str:
+    """The strategy (newton or descent) an ``AdhesiveProblem`` under ``prefix`` with these options
+    and the command line will take, without building it (``strategy_option``)."""
+    from .descent_options import strategy_option
+    with _Options(prefix, petsc_options).inserted_options():
+        return strategy_option(prefix, periodic and not element_integration)
+
+
 def describe_solver(law=None, method: str = "newton", prefix: str | None = None,
                     petsc_options: dict | None = None, snap: float | None = None) -> list[str]:
     """The SNES/KSP/PC types and options prefixes that ``make_problem`` would solve with, from
