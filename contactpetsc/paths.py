@@ -434,7 +434,7 @@ def _agreed_increments(problem, snap, prev, d, path, jump_tol, refine, agreement
         st = _piece(problem, snap, prev, d, path, jump_tol, refine, increments=n)
         # a descent that gave up on its increments took the step whole (``descend_step``): no
         # finer way than the probe's, so nothing to agree
-        finer = getattr(problem, "increments_taken", n) == n
+        finer = getattr(st, "descent_increments", n) == n
         agree = st.converged and finer and gap is not None and gap_difference(st.gap, gap) <= agreement
         if agree or level == levels:
             break

@@ -129,7 +129,6 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self.history = SolveHistory()
         self._x = None
         self._started = False           # a state exists (solved, warm-started or restored)
-        self.increments_taken = 1       # the last descent's increments (``descend_step``; a path's check reads it)
         self._approach = None
         self._central_gap = None
         self._gap_rows = None           # repulsive rows in gap form at the last Jacobian (mask)
@@ -388,7 +387,6 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
             # from the unknowns themselves: the descent saves them as it writes its state
             # (``saved_start``), so that its peak does not hold a copy
             ok, d_reason, d_newton, d_linear, increments = descend_step(self, float(approach), self._x, increments)
-            self.increments_taken = increments
             # the descent's PETSc objects (and through their contexts its arrays) are freed
             # here, not at the end of the solve: Newton and the check come first
             PETSc.garbage_cleanup(self.grid.comm)
@@ -439,6 +437,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
             self._drop_start()
         state = self.make_state(converged, reason, newton, linear, pairs0, t0, margin,
                                 solver, tangent=approach is not None and converged)
+        state.descent_increments = increments if descend else 0
         if converged:
             self._start_approach = self._approach
         else:

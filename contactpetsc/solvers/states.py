@@ -61,6 +61,8 @@ class AdhesiveState(ContactState):
     stability_converged: bool | None = None
     solver: str = "newton"
     fallback: bool = False        #: Newton from the previous state failed: a relaxation path was followed
+    #: the increments the energy descent took the step in (``descent_step.descend_step``; 0: no descent)
+    descent_increments: int = 0
     #: total potential energy at the prescribed approach [J]: the elastic energy 1/2 sum p v dA plus
     #: the interaction energy sum Phi(g) dA (Phi the law's energy per area, nodal rule).  At an
     #: equilibrium d(energy)/d(approach) = force; states reached at one approach compare by it.
