@@ -236,7 +236,7 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps, max_step=0
     shorter steps than its path gives (docs/studies.md).
 
     With ``agreement`` [m] > 0 each sub-step is checked against the quasi-static limit: the
-    state it reaches whole from the last one (a probe, without the stability check) is compared
+    state it reaches whole from the last one (a probe, without the stability check or the tangent) is compared
     with the state of a finer way there.  Under the energy descent that is the sub-step
     descended in 4, 16, ... increments (``_agreed_increments``); otherwise its
     ``AGREEMENT_SPLIT`` equal pieces (``_agreed_piece``).  Where their gaps differ by more than
@@ -376,7 +376,8 @@ def _agreed_piece(problem, snap, prev, d, path, jump_tol, refine, agreement):
     cost = np.zeros(4)
     n_jumps = len(path.jumps)
     watched = None if path._watch is None else path._watch.state()
-    probe = problem.solve(approach=d, raise_on_failure=False, check_stability=False)
+    # a probe: neither the stability check nor the tangent, only its gaps are wanted
+    probe = problem.solve(approach=d, raise_on_failure=False, check_stability=False, tangent=False)
     cost += _cost(probe)
     problem.restore(snap)
     if not probe.converged:
@@ -413,7 +414,7 @@ def _undo(problem, snap, path, n_jumps, watched) -> None:
 
 def _agreed_increments(problem, snap, prev, d, path, jump_tol, refine, agreement, levels):
     """The sub-step from ``prev`` (the state in ``snap``) to ``d`` [m] under the descent strategy:
-    descended whole (a probe, without the stability check), then in 4, 16, ... equal increments
+    descended whole (a probe, without the stability check or the tangent), then in 4, 16, ... equal increments
     (``AdhesiveProblem.solve(increments=)``: a continuation in the approach without the states
     between, the sub-steps' asperity order at a fraction of their cost), each a ``_piece``
     compared with the one before, until two agree to ``agreement`` [m] or ``levels`` were
@@ -421,7 +422,8 @@ def _agreed_increments(problem, snap, prev, d, path, jump_tol, refine, agreement
     watch saw) and is the next one's reference.  Returns (the last candidate's state, the
     cost of the probe and the candidates undone, (its increments, whether it agreed))."""
     cost = np.zeros(4)
-    probe = problem.solve(approach=d, raise_on_failure=False, check_stability=False)
+    # a probe: neither the stability check nor the tangent, only its gaps are wanted
+    probe = problem.solve(approach=d, raise_on_failure=False, check_stability=False, tangent=False)
     cost += _cost(probe)
     problem.restore(snap)
     gap = probe.gap if probe.converged else None

@@ -314,7 +314,8 @@ class _Bistable:
         self.reach, self.strategy, self.approach, self.off, self.solves = reach, strategy, None, 0.0, []
         self.descends = strategy == "descent"
 
-    def solve(self, approach, raise_on_failure=True, check_stability=None, fallback=True, increments=None):
+    def solve(self, approach, raise_on_failure=True, check_stability=None, fallback=True, increments=None,
+              tangent=True):
         from types import SimpleNamespace
         assert increments is None or self.strategy == "descent"
         step = 0.0 if self.approach is None else abs(approach - self.approach) / (increments or 1)

@@ -312,7 +312,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
     @with_options
     def solve(self, *, approach: float | None = None, central_gap: float | None = None,
               raise_on_failure: bool = True, check_stability=None,
-              fallback: bool = True, increments: int | None = None) -> AdhesiveState:
+              fallback: bool = True, increments: int | None = None, tangent: bool = True) -> AdhesiveState:
         """Solve at one approach delta [m] or one central gap [m].
 
         ``check_stability``: None (``-<prefix>stability_check``), a bool, or a function
@@ -329,7 +329,8 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
 
         ``increments``: under the descent strategy, the step from the last state is descended
         in that many equal increments (``descent_step.descend_step``) instead of those of
-        ``-<prefix>descent_max_step``.
+        ``-<prefix>descent_max_step``.  ``tangent``: false leaves the state's tangent stiffness out
+        (NaN) whatever ``-<prefix>stiffness`` says: a probe that is not kept (``paths``).
         """
         if (approach is None) == (central_gap is None):
             raise ValueError("give exactly one of approach (m) or central_gap (m)")
@@ -436,7 +437,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         if converged:
             self._drop_start()
         state = self.make_state(converged, reason, newton, linear, pairs0, t0, margin,
-                                solver, tangent=approach is not None and converged)
+                                solver, tangent=tangent and approach is not None and converged)
         state.descent_increments = increments if descend else 0
         if converged:
             self._start_approach = self._approach
