@@ -305,6 +305,25 @@ def test_a_restart_compares_the_sub_steps_its_steps_were_taken_in():
     assert rundir.differences(stored(adhesive), resolve_sub_steps(scenes.validate(again), grid), 1) == []
 
 
+@pytest.mark.serial   # a scene's run, its printed warning
+def test_a_run_warns_of_steps_whose_check_did_not_settle(tmp_path, capfd):
+    """A 32^2 periodic cell (full LJ, the energy descent) with an agreement no two ways meet
+    (1e-14 of the range) and one level: every step after the first is taken in 4 increments,
+    recorded as not agreeing with 1, and the run names those steps at its end."""
+    import csv
+    from contactpetsc.app import runner, scenes
+    scene = scenes.validate(dict(
+        name="unsettled", geometry=dict(kind="self-affine", nx=32, dx=1e-9, hurst=0.8, rms_height=2e-9, seed=4),
+        material=dict(e_star=1e9), interaction=dict(law="lj", work_of_adhesion=0.05, z0=1e-9),
+        protocol=dict(values=[-1e-9, -0.5e-9, 0.0], agreement=1e-14, agreement_levels=1),
+        output=dict(directory=str(tmp_path / "out"), fields=False, plots=False)))
+    runner.run(scene)
+    with open(tmp_path / "out" / "curve.csv") as f:
+        solvers = [r["solver"] for r in csv.DictReader(f)]
+    assert all(s.endswith("(4 increments, not agreeing with 1)") for s in solvers[1:]), solvers
+    assert "warning: in 2 step(s) (2, 3) the check of the sub-steps did not settle" in capfd.readouterr().out
+
+
 class _Bistable:
     """A duck-typed problem for ``sweep``: a state that stays on its branch (gap 0) under steps
     of at most ``reach`` [m] and snaps to another (gap 1) under a longer one, as an asperity

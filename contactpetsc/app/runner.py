@@ -187,6 +187,13 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
         states, plotted = _steps(scene, stepper, recorder)
         recorder.write_summary(**stepper.finish())
         recorder.flush_history(stepper.problem)
+        unsettled = [r["step"] for r in recorder.rows
+                     if "not agreeing with" in str(r["solver"]) or "not checked)" in str(r["solver"])]
+        if unsettled:
+            PETSc.Sys.Print(f"  warning: in {len(unsettled)} step(s) ({', '.join(map(str, unsettled[:8]))}"
+                            f"{', ...' if len(unsettled) > 8 else ''}) the check of the sub-steps did not settle "
+                            "(curve.csv solver): the states may depend on the steps; shorter steps or more "
+                            "protocol.agreement_levels")
         if recorder.edge_steps:
             PETSc.Sys.Print(f"  warning: in {len(recorder.edge_steps)} step(s) the pressure-carrying zone reached "
                             "the window's edge (curve.csv window_reach = 1): those forces are not the isolated "
