@@ -414,7 +414,8 @@ def _undo(problem, snap, path, n_jumps, watched) -> None:
 
 def _agreed_increments(problem, snap, prev, d, path, jump_tol, refine, agreement, levels):
     """The sub-step from ``prev`` (the state in ``snap``) to ``d`` [m] under the descent strategy:
-    descended whole (a probe, without the stability check or the tangent), then in 4, 16, ... equal increments
+    descended as its options say (a probe, without the stability check or the tangent: whole, or
+    in the n increments of ``-<prefix>descent_max_step``), then in 4n, 16n, ... equal increments
     (``AdhesiveProblem.solve(increments=)``: a continuation in the approach without the states
     between, the sub-steps' asperity order at a fraction of their cost), each a ``_piece``
     compared with the one before, until two agree to ``agreement`` [m] or ``levels`` were
@@ -428,7 +429,8 @@ def _agreed_increments(problem, snap, prev, d, path, jump_tol, refine, agreement
     problem.restore(snap)
     gap = probe.gap if probe.converged else None
     probe.release_fields()
-    n = 1
+    # the probe's own increments (``-<prefix>descent_max_step``; by default one): the ladder's foot
+    n = max(int(getattr(probe, "descent_increments", 1)), 1)
     for level in range(1, levels + 1):
         n *= AGREEMENT_SPLIT
         n_jumps = len(path.jumps)
