@@ -236,8 +236,8 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps, max_step=0
     shorter steps than its path gives (docs/studies.md).
 
     With ``agreement`` [m] > 0 each sub-step is checked against the quasi-static limit: the
-    state it reaches whole from the last one (a probe, without the stability check or the tangent) is compared
-    with the state of a finer way there.  Under the energy descent that is the sub-step
+    state it reaches whole from the last one (a probe, without the stability check or the
+    tangent) is compared with the state of a finer way there.  Under the energy descent that is the sub-step
     descended in 4, 16, ... increments (``_agreed_increments``); otherwise its
     ``AGREEMENT_SPLIT`` equal pieces (``_agreed_piece``).  Where their gaps differ by more than
     ``agreement`` anywhere, the sub-step was too coarse (the asperities that snap within it
@@ -324,7 +324,8 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps, max_step=0
                 settled = all(ok for _, ok in verdicts)
                 notes.append(f"{most} increments agree with {most // AGREEMENT_SPLIT}" if settled
                              else f"{most} increments, not agreeing with {most // AGREEMENT_SPLIT}")
-        st.solver += " (" + "; ".join(n for n in notes if n) + ")"
+        if any(notes):
+            st.solver += " (" + "; ".join(n for n in notes if n) + ")"
     if st.converged:
         prev = (st.approach, st.force, st.stiffness)
     return st, prev
