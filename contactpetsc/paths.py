@@ -154,7 +154,7 @@ def path_point(step, branch, st) -> PathPoint:
 def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0.05,
           refine: int = 6, on_state=None, path: Path | None = None, stop_on_failure: bool = False,
           on_failure=None, previous: tuple | None = None, substeps: int = 3, max_step: float = 0.0,
-          agreement: float = 0.0, levels: int = 2) -> Path:
+          agreement: float = 0.0, levels: int = 2, foot: float = 0.0) -> Path:
     """Displacement-controlled path through ``approaches`` [m] (loading where they rise,
     unloading where they fall).  ``on_state(step, state, point)`` is called for each
     converged step (e.g. to write fields), ``on_failure(step, state, point)`` for each
@@ -163,9 +163,9 @@ def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0
     it and the first step is found too.  A step longer than ``max_step`` [m] (0: any) is taken
     in equal sub-steps of at most that: the quasi-static path, whose states do not depend on
     the step (docs/formulation.md, "Loading paths").  With ``agreement`` [m] > 0 each sub-step
-    is checked against finer ways to its approach (more increments of the descent, or its
-    ``AGREEMENT_SPLIT`` pieces), at most ``levels`` times, until their states' gaps agree to
-    that (``_advance``).  A step or sub-step that fails is tried
+    is checked against finer ways to its approach (more increments of the descent, the first
+    of at most ``foot`` [m] (0: the descent's own), or its ``AGREEMENT_SPLIT`` pieces), at most
+    ``levels`` times, until their states' gaps agree to that (``_advance``).  A step or sub-step that fails is tried
     again from the last converged state in halved steps, down to 2**-``substeps`` of it
     (``_advance``); the sub-steps' states are not points of the path, their cost is counted in
     the step's.
@@ -181,7 +181,8 @@ def sweep(problem, approaches, *, branch: str | None = None, jump_tol: float = 0
     last = None          # (point index, snapshot) of the last point if it was stable
     for k, delta in enumerate(approaches):
         here = branch or ("loading" if prev is None or delta >= prev[0] else "unloading")
-        st, prev = _advance(problem, delta, prev, path, jump_tol, refine, substeps, max_step, agreement, levels)
+        st, prev = _advance(problem, delta, prev, path, jump_tol, refine, substeps, max_step, agreement, levels,
+                            foot)
         pt = path_point(k, here, st)
         path.points.append(pt)
         last = keep_for_search(path, problem, last)
@@ -228,7 +229,7 @@ def keep_for_search(path: Path, problem, last: tuple | None) -> tuple | None:
 
 
 def _advance(problem, target, prev, path, jump_tol, refine, substeps, max_step=0.0, agreement=0.0,
-             levels=2):
+             levels=2, foot=0.0):
     """Solve at ``target`` from the present state in equal sub-steps of at most ``max_step``
     [m] (0: one step), testing each for a jump; where one fails, go back to the last converged
     state and get there in halved steps, at least 2**-``substeps`` of the sub-step each.  A step longer than Newton's basin is not the
@@ -275,7 +276,7 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps, max_step=0
         check_it = agreement > 0 and abs(d - prev[0]) > finest * (1 + 1e-9) and not descends
         if descends:
             st, cost, verdict = _agreed_increments(problem, snap, prev, d, path, jump_tol, refine,
-                                                   agreement, levels)
+                                                   agreement, levels, foot)
             spent += cost
             if st.converged:
                 verdicts.append(verdict)
@@ -413,10 +414,10 @@ def _undo(problem, snap, path, n_jumps, watched) -> None:
     problem.restore(snap)
 
 
-def _agreed_increments(problem, snap, prev, d, path, jump_tol, refine, agreement, levels):
+def _agreed_increments(problem, snap, prev, d, path, jump_tol, refine, agreement, levels, foot=0.0):
     """The sub-step from ``prev`` (the state in ``snap``) to ``d`` [m] under the descent strategy:
-    descended as its options say (a probe, without the stability check or the tangent: whole, or
-    in the n increments of ``-<prefix>descent_max_step``), then in 4n, 16n, ... equal increments
+    descended in n increments of at most ``foot`` [m] (a probe, without the stability check or the
+    tangent; ``foot`` 0: as the descent's options say, by default whole), then in 4n, 16n, ... equal increments
     (``AdhesiveProblem.solve(increments=)``: a continuation in the approach without the states
     between, the sub-steps' asperity order at a fraction of their cost), each a ``_piece``
     compared with the one before, until two agree to ``agreement`` [m] or ``levels`` were
@@ -425,12 +426,14 @@ def _agreed_increments(problem, snap, prev, d, path, jump_tol, refine, agreement
     cost of the probe and the candidates undone, (its increments, whether it agreed))."""
     cost = np.zeros(4)
     # a probe: neither the stability check nor the tangent, only its gaps are wanted
-    probe = problem.solve(approach=d, raise_on_failure=False, check_stability=False, tangent=False)
+    foot_increments = {"increments": pieces(d - prev[0], foot)} if foot > 0 else {}
+    probe = problem.solve(approach=d, raise_on_failure=False, check_stability=False, tangent=False,
+                          **foot_increments)
     cost += _cost(probe)
     problem.restore(snap)
     gap = probe.gap if probe.converged else None
     probe.release_fields()
-    # the probe's own increments (``-<prefix>descent_max_step``; by default one): the ladder's foot
+    # the probe's own increments: the ladder's foot
     n = max(int(getattr(probe, "descent_increments", 1)), 1)
     for level in range(1, levels + 1):
         n *= AGREEMENT_SPLIT

@@ -267,8 +267,9 @@ def test_the_plan_says_how_a_sweeps_sub_steps_are_checked():
         "divided into them at most 3 times where they part" in text, text
     text = plan(periodic=True)
     assert "equal sub-steps" not in text and "each step checked by the energy descent's increments to 0.001 of the " \
-        "law's range (protocol.agreement): descended as the descent's options say, then in 4, ... 16 increments " \
-        "until two agree; snaps within a step are in its state" in text, text
+        "law's range (protocol.agreement): descended in increments of at most 0.25 of the range " \
+        "(protocol.agreement_increment), then in 4, ... 16 times as many until two agree; snaps within a step " \
+        "are in its state" in text, text
     text = plan(periodic=True, agreement=0.0)
     assert "taken in 20 equal sub-steps" in text and "protocol.agreement" not in text, text
     # the strategy as the run's problem reads it, the option's dash and all
@@ -300,6 +301,7 @@ def test_a_restart_compares_the_sub_steps_its_steps_were_taken_in():
         now = resolve_sub_steps(scenes.validate(scene), grid)
         diff = rundir.differences(old, now, 1)
         assert diff == ([] if scene is cell else ["protocol.agreement: 0.0 on disk, 0.001 now",
+                                                  "protocol.agreement_increment: 0.0 on disk, 0.25 now",
                                                   "protocol.max_step: 0.1 on disk, 0.0 now"]), diff
     again = dict(adhesive, protocol=dict(adhesive["protocol"], max_step=0.1, agreement=0.0))
     assert rundir.differences(stored(adhesive), resolve_sub_steps(scenes.validate(again), grid), 1) == []
@@ -308,8 +310,9 @@ def test_a_restart_compares_the_sub_steps_its_steps_were_taken_in():
 @pytest.mark.serial   # a scene's run, its printed warning
 def test_a_run_warns_of_steps_whose_check_did_not_settle(tmp_path, capfd):
     """A 32^2 periodic cell (full LJ, the energy descent) with an agreement no two ways meet
-    (1e-14 of the range) and one level: every step after the first is taken in 4 increments,
-    recorded as not agreeing with 1, and the run names those steps at its end."""
+    (1e-14 of the range) and one level: every step after the first (0.5 z0: probed in 2
+    increments of 0.25) is taken in 8, recorded as not agreeing with 2, and the run names those
+    steps at its end."""
     import csv
     from contactpetsc.app import runner, scenes
     scene = scenes.validate(dict(
@@ -320,7 +323,7 @@ def test_a_run_warns_of_steps_whose_check_did_not_settle(tmp_path, capfd):
     runner.run(scene)
     with open(tmp_path / "out" / "curve.csv") as f:
         solvers = [r["solver"] for r in csv.DictReader(f)]
-    assert all(s.endswith("(4 increments, not agreeing with 1)") for s in solvers[1:]), solvers
+    assert all(s.endswith("(8 increments, not agreeing with 2)") for s in solvers[1:]), solvers
     assert "warning: in 2 step(s) (2, 3) the check of the sub-steps did not settle" in capfd.readouterr().out
 
 
@@ -391,7 +394,8 @@ def test_agreement_under_the_descent_compares_the_step_in_more_increments():
     in 4 and 16 increments, until two agree.  A step of 1 m on a branch left by any increment
     longer than 0.3 m: the probe leaves it, 4 increments keep it but part from the probe, 16
     agree with 4: four solves in all, on the branch, the verdict in the solver column.  With
-    one level the 4 increments are taken, recorded as not agreeing.  Truth: counting."""
+    one level the 4 increments are taken, recorded as not agreeing; with the probe itself in
+    increments of at most 0.3 m (4), 16 agree with it at once.  Truth: counting."""
     pb = _Bistable(0.3, strategy="descent")
     path = sweep(pb, [0.0, 1.0], agreement=0.5, levels=2)
     assert len(pb.solves) == 1 + 3 and pb.off == 0.0, pb.solves
@@ -401,6 +405,10 @@ def test_agreement_under_the_descent_compares_the_step_in_more_increments():
     path = sweep(pb, [0.0, 1.0], agreement=0.5, levels=1)
     assert len(pb.solves) == 1 + 2 and pb.off == 0.0, pb.solves
     assert path.points[-1].solver == "bistable (4 increments, not agreeing with 1)"
+    pb = _Bistable(0.3, strategy="descent")      # the probe in increments of at most 0.3 m: 4
+    path = sweep(pb, [0.0, 1.0], agreement=0.5, levels=2, foot=0.3)
+    assert len(pb.solves) == 1 + 2 and pb.off == 0.0, pb.solves
+    assert path.points[-1].solver == "bistable (16 increments agree with 4)"
 
 
 class _LinearBranch:

@@ -44,7 +44,7 @@ STEP_FILE = re.compile(r"step_\d{4,}\.(h5|xdmf)$")
 NOT_PHYSICS = ("name", "output.", "solver.", "protocol.refine_pull_off", "protocol.jump_refinement",
                "protocol.substeps", "protocol.values")
 #: physics keys added since runs were first stored, with what a run stored without them did
-ADDED_KEYS = {"protocol.agreement": 0.0, "protocol.agreement_levels": 2}
+ADDED_KEYS = {"protocol.agreement": 0.0, "protocol.agreement_levels": 2, "protocol.agreement_increment": 0.0}
 
 
 class RunDirectoryError(RuntimeError):

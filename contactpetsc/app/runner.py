@@ -74,9 +74,12 @@ def _protocol_line(scene: dict, law, descends: bool) -> str:
         line += (f"; {len(long)} longer than {max_step:g} of the law's range (protocol.max_step), "
                  f"taken in {sum(long)} equal sub-steps: the quasi-static path")
     if agreement and descends:
+        foot = proto["agreement_increment"]
+        start = (f"descended in increments of at most {foot:g} of the range (protocol.agreement_increment)"
+                 if foot else "descended as the descent's options say")
         line += (f"; each step checked by the energy descent's increments to {agreement:g} of the law's "
-                 f"range (protocol.agreement): descended as the descent's options say, then in "
-                 f"{AGREEMENT_SPLIT}, ... {AGREEMENT_SPLIT ** proto['agreement_levels']} increments until two agree")
+                 f"range (protocol.agreement): {start}, then in {AGREEMENT_SPLIT}, ... "
+                 f"{AGREEMENT_SPLIT ** proto['agreement_levels']} times as many until two agree")
         if not max_step:
             line += "; snaps within a step are in its state, located as jumps only with sub-steps (protocol.max_step)"
     elif agreement:

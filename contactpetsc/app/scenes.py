@@ -125,6 +125,11 @@ _SCHEMA = {
                         "until two agree; otherwise with its four quarters, dividing it into them, each checked "
                         "in turn, until they agree; the curve's solver column gives the verdict (0: no check; "
                         "default: 1e-3 under the energy descent, else 0)", NONNEG),
+        "agreement_increment": _k(float, None, "z0", "adhesive sweeps with protocol.agreement under the energy "
+                                  "descent: the longest increment the check starts from (its probe), in units of the "
+                                  "law's range; the candidates take 4 and 16 times as many (0: the descent's own, "
+                                  "-adhesion_descent_max_step; default: 0.25 where the check runs under the "
+                                  "descent, else 0)", NONNEG),
         "agreement_levels": _k(int, 2, "", "adhesive sweeps with protocol.agreement: refinements at most (4^this "
                                "increments; or divisions into quarters, whose last are taken unchecked)",
                                (1, 10, True, True)),

@@ -23,23 +23,28 @@ from ..solvers.stability import leaves_checks_out
 from .output import RESTART_FIELDS
 
 NAN = float("nan")
-#: the defaults of ``protocol.max_step`` and ``protocol.agreement`` [the law's range] (``sub_steps``)
-MAX_STEP, AGREEMENT = 0.1, 1e-3
+#: the defaults of ``protocol.max_step``, ``agreement`` and ``agreement_increment`` [the law's
+#: range] (``sub_steps``)
+MAX_STEP, AGREEMENT, AGREEMENT_INCREMENT = 0.1, 1e-3, 0.25
 
 
-def sub_steps(proto: dict, descends: bool) -> tuple[float, float]:
-    """(max_step, agreement) of an adhesive sweep, in units of the law's range: the scene's, or
-    by default the check of each step by the energy descent's increments where it is the
-    strategy (``descends``), whole steps then (on the rough benchmark the same states as the
-    limit of small steps, in fewer FFT pairs than sub-steps of 0.1: docs/performance.md,
-    "Quasi-static limit of a load-unload path"), else sub-steps of 0.1 unchecked."""
+def sub_steps(proto: dict, descends: bool) -> tuple[float, float, float]:
+    """(max_step, agreement, agreement_increment) of an adhesive sweep, in units of the law's
+    range: the scene's, or by default the check of each step by the energy descent's increments
+    where it is the strategy (``descends``), whole steps then, probed in increments of 0.25 (on
+    the rough benchmark the states of the limit of small steps at 256^2 and 512^2, in fewer FFT
+    pairs than fixed sub-steps that reach it: docs/performance.md, "Quasi-static limit of a
+    load-unload path"), else sub-steps of 0.1 unchecked."""
     agreement = proto["agreement"]
     if agreement is None:
         agreement = AGREEMENT if descends else 0.0
     max_step = proto["max_step"]
     if max_step is None:
         max_step = 0.0 if descends and agreement > 0 else MAX_STEP
-    return max_step, agreement
+    foot = proto["agreement_increment"]
+    if foot is None:
+        foot = AGREEMENT_INCREMENT if descends and agreement > 0 else 0.0
+    return max_step, agreement, foot
 
 
 def resolve_sub_steps(scene: dict, grid) -> dict:
@@ -48,10 +53,11 @@ def resolve_sub_steps(scene: dict, grid) -> dict:
     and the command line): what the plan prints and ``scene.json`` keeps, so that a restart
     compares the sub-steps the steps on disk were taken in."""
     proto = scene["protocol"]
-    if proto["max_step"] is not None and proto["agreement"] is not None:
+    if None not in (proto["max_step"], proto["agreement"], proto["agreement_increment"]):
         return scene
-    max_step, agreement = sub_steps(proto, sweep_descends(scene, grid))
-    return {**scene, "protocol": {**proto, "max_step": max_step, "agreement": agreement}}
+    max_step, agreement, foot = sub_steps(proto, sweep_descends(scene, grid))
+    return {**scene, "protocol": {**proto, "max_step": max_step, "agreement": agreement,
+                                  "agreement_increment": foot}}
 
 
 def sweep_descends(scene: dict, grid) -> bool:
@@ -160,7 +166,7 @@ class AdhesiveSteps:
         self.refines = self.pulls and self.proto["refine_pull_off"]   #: refined at the end (``finish``)
         self.prev = None          #: (approach, force, dF/d delta) of the last state, for sweep
         #: the sweep's sub-steps and their check [m]
-        self.max_step, self.agreement = (z * self.z0 for z in sub_steps(
+        self.max_step, self.agreement, self.foot = (z * self.z0 for z in sub_steps(
             self.proto, self.sweeping and problem.descends))
         self.header = (f"  {'step':>4} {'approach [m]':>12} {'force [N]':>11} {'contact':>8} {'adh. force':>11} "
                        f"{'error':>9} {'stable':>6} {'time [s]':>8}" + (f" {'alpha*':>8} {'W*':>9}"
@@ -254,7 +260,8 @@ class AdhesiveSteps:
         else:
             sweep(self.problem, [value], refine=self.proto["jump_refinement"], on_state=keep,
                   on_failure=keep, path=self.path, previous=self.prev, substeps=self.proto["substeps"],
-                  max_step=self.max_step, agreement=self.agreement, levels=self.proto["agreement_levels"])
+                  max_step=self.max_step, agreement=self.agreement, levels=self.proto["agreement_levels"],
+                  foot=self.foot)
         st = got[0]
         jumps = self.path.jumps[n:]
         if not st.converged:
