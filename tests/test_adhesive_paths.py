@@ -353,6 +353,7 @@ class _Bistable:
                                fft_pairs=1.0, wall_time=0.0, newton_iterations=1, linear_iterations=1,
                                complementarity_error=0.0, adhesive_error=0.0, total_error=0.0, reason="",
                                stiffness=-1.0, stability_margin=nan, fallback=False, gap=gap,
+                               descent_increments=(increments or 1) if self.descends else 0,
                                release_fields=lambda: None)
 
     def snapshot(self):
