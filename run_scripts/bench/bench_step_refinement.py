@@ -13,7 +13,9 @@ Where the states differ, the lower energy says which path found the lower minimu
 With --sweep the path is also run as a scene's sweep runs it (``paths.sweep``, jumps located):
 its steps in sub-steps of at most --max-step z0, with --agreement TOL (z0) each checked against
 its quarters and divided until their gaps agree to TOL, at most --levels times
-(``protocol.agreement``), and compared with the finest run likewise (``refine`` = "sweep ...").
+(``protocol.agreement``; under the descent its increments, the probe's of at most --increment
+z0, ``protocol.agreement_increment``), and compared with the finest run likewise (``refine`` =
+"sweep ...").
 
 Per state one JSON line; pairs exact, CPU s one run (``process_time``).
 
@@ -42,6 +44,8 @@ ap.add_argument("--sweep", action="store_true", help="also the path as a scene's
 ap.add_argument("--agreement", type=float, default=0.0, help="the sweep's check against its quarters [z0] (0: none)")
 ap.add_argument("--max-step", type=float, default=0.1, help="the sweep's longest sub-step [z0]")
 ap.add_argument("--levels", type=int, default=2, help="the sweep's divisions at most (--agreement)")
+ap.add_argument("--increment", type=float, default=0.25,
+                help="the check's probe under the descent: increments of at most this [z0] (0: the descent's own)")
 args, petsc_args = ap.parse_known_args()
 petsc4py.init([sys.argv[0]] + petsc_args)
 
@@ -114,7 +118,7 @@ def main():
             compare(k, f"sweep (agreement {args.agreement:g})", st, totals["pairs"], time.process_time() - totals["t"], totals["failed"])
 
         sweep(pb, coarse, refine=6, max_step=args.max_step * z0, agreement=args.agreement * z0,
-              levels=args.levels, on_state=on_state, on_failure=on_state)
+              levels=args.levels, foot=args.increment * z0, on_state=on_state, on_failure=on_state)
 
 
 main()
