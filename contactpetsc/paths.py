@@ -19,16 +19,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from petsc4py import PETSc
 
 from .fold_watch import FoldWatch
+from .path_steps import Jump  # noqa: F401 (API: a Path's jumps)
+from .path_steps import (AGREEMENT_SPLIT, NOT_AGREEING, NOT_CHECKED, agreed_increments, agreed_pieces, cost_of,
+                         solve_step)
 from .solvers.base import pieces
 from .solvers.stability import leaves_checks_out
-
-#: the pieces a sub-step is checked against (``protocol.agreement``): a path refined 4x and 16x
-#: lands in the same states where it is the quasi-static one (issue 33's criterion)
-AGREEMENT_SPLIT = 4
-
 
 @dataclass
 class PathPoint:
@@ -51,16 +48,6 @@ class PathPoint:
     reason: str = ""          #: the solver's converged or diverged reason
     stiffness: float = float("nan")  #: tangent dF/d delta [N/m] (NaN when not computed)
     stability_margin: float = float("nan")  #: 1 - lambda_max(A S) (NaN where not checked)
-
-
-@dataclass
-class Jump:
-    """A jump between branches, located within [approach_before, approach_after]."""
-    kind: str                 #: jump-on | jump-off
-    approach_before: float    #: last approach on the old branch [m]
-    approach_after: float     #: first approach on the new branch [m]
-    force_before: float       #: [N]
-    force_after: float        #: [N]
 
 
 @dataclass
@@ -239,8 +226,8 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps, max_step=0
     With ``agreement`` [m] > 0 each sub-step is checked against the quasi-static limit: the
     state it reaches whole from the last one (a probe, without the stability check or the
     tangent) is compared with the state of a finer way there.  Under the energy descent that is the sub-step
-    descended in 4, 16, ... increments (``_agreed_increments``); otherwise its
-    ``AGREEMENT_SPLIT`` equal pieces (``_agreed_piece``).  Where their gaps differ by more than
+    descended in 4, 16, ... increments (``path_steps.agreed_increments``); otherwise its
+    ``AGREEMENT_SPLIT`` equal pieces (``path_steps.agreed_pieces``).  Where their gaps differ by more than
     ``agreement`` anywhere, the sub-step was too coarse (the asperities that snap within it
     snapped in another order): the increments are multiplied, or the pieces undone and the
     sub-step divided into them, at most ``levels`` times; the pieces of the last level are
@@ -275,13 +262,13 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps, max_step=0
         descends = agreement > 0 and getattr(problem, "descends", False)
         check_it = agreement > 0 and abs(d - prev[0]) > finest * (1 + 1e-9) and not descends
         if descends:
-            st, cost, verdict = _agreed_increments(problem, snap, prev, d, path, jump_tol, refine,
+            st, cost, verdict = agreed_increments(problem, snap, prev, d, path, jump_tol, refine,
                                                    agreement, levels, foot)
             spent += cost
             if st.converged:
                 verdicts.append(verdict)
         elif check_it:
-            st, cost = _agreed_piece(problem, snap, prev, d, path, jump_tol, refine, agreement)
+            st, cost = agreed_pieces(problem, snap, prev, d, path, jump_tol, refine, agreement)
             spent += cost
             if st is None:          # the pieces and the whole sub-step part: divide it
                 h /= AGREEMENT_SPLIT
@@ -291,13 +278,13 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps, max_step=0
             agreed = min(agreed or np.inf, abs(d - prev[0]))
             done += AGREEMENT_SPLIT - 1     # the pieces before the last
         else:
-            st = _piece(problem, snap, prev, d, path, jump_tol, refine)
+            st = solve_step(problem, snap, prev, d, path, jump_tol, refine)
             unsettled |= agreement > 0 and st.converged
         # (a converged sub-step goes on even past a time budget: the next solve says so)
         final = (st.converged and d == target) or (not st.converged and (
             substeps <= 0 or problem.out_of_time() or abs(h) <= abs(base) * 2.0 ** -substeps * (1 + 1e-12)))
         if not final:
-            spent += _cost(st)
+            spent += cost_of(st)
             if st.converged:
                 prev, done = (st.approach, st.force, st.stiffness), done + 1
             else:
@@ -317,200 +304,19 @@ def _advance(problem, target, prev, path, jump_tol, refine, substeps, max_step=0
         notes = [f"{done + 1} sub-steps" if done else ("no halved step converged" if not st.converged else "")]
         if agreement > 0 and st.converged:
             if unsettled:
-                notes.append(f"sub-steps of {finest:.3e} m not checked")
+                notes.append(f"sub-steps of {finest:.3e} m {NOT_CHECKED}")
             elif agreed is not None:
                 notes.append(f"pieces agree at sub-steps of {agreed:.3e} m")
             elif verdicts:
                 most = max(k for k, _ in verdicts)
                 settled = all(ok for _, ok in verdicts)
                 notes.append(f"{most} increments agree with {most // AGREEMENT_SPLIT}" if settled
-                             else f"{most} increments, not agreeing with {most // AGREEMENT_SPLIT}")
+                             else f"{most} increments, {NOT_AGREEING} {most // AGREEMENT_SPLIT}")
         if any(notes):
             st.solver += " (" + "; ".join(n for n in notes if n) + ")"
     if st.converged:
         prev = (st.approach, st.force, st.stiffness)
     return st, prev
-
-
-def _cost(st) -> np.ndarray:
-    return np.array([st.fft_pairs, st.wall_time, st.newton_iterations, st.linear_iterations], float)
-
-
-def _piece(problem, snap, prev, d, path, jump_tol, refine, increments=None):
-    """Solve one sub-step from ``prev`` (the state in ``snap``) to approach ``d`` [m] (under the
-    descent strategy in ``increments`` if given) and test it for a jump (recorded in
-    ``path.jumps``) and for the fold watch; returns its state."""
-    watch = path._watch
-    n_jumps = len(path.jumps)
-    check = None if watch is None else (
-        lambda newton, force: watch.reason(prev, d, newton, force) is not None)
-    more = {} if increments is None else {"increments": increments}
-    st = problem.solve(approach=d, raise_on_failure=False, check_stability=check, **more)
-    if st.converged:
-        d0, w0, k0 = prev
-        predicted = w0 + (k0 if np.isfinite(k0) else 0.0) * (d - d0)
-        scale = max(abs(w0), abs(st.force), np.finfo(float).tiny)
-        # the fallback was needed, or the force missed the tangent prediction by
-        # more than the predicted change itself: another branch
-        if st.fallback or abs(st.force - predicted) > max(jump_tol * scale, abs(predicted - w0)):
-            jump = _locate_jump(problem, snap, prev, st, refine)
-            if problem.out_of_time():
-                # the bisection's solves were cut short: neither the jump nor its absence
-                # is known, so the step is not done (a restart solves it again)
-                problem.restore(snap)
-                st.converged, jump = False, None
-                st.reason = problem.budget_reason + " (while locating a jump; the step is not kept)"
-            if jump is not None and abs(jump.force_after - jump.force_before) > jump_tol * scale:
-                jump.kind = "jump-on" if d > d0 else "jump-off"
-                path.jumps.append(jump)
-        if st.converged and watch is not None:
-            watch.seen(st, prev[0], jumped=st.fallback or len(path.jumps) > n_jumps)
-    return st
-
-
-def _agreed_piece(problem, snap, prev, d, path, jump_tol, refine, agreement):
-    """The sub-step from ``prev`` (the state in ``snap``) to ``d`` [m] in ``AGREEMENT_SPLIT``
-    equal pieces, each a ``_piece``, checked against a probe of the whole sub-step from the
-    same start.  Returns (the last piece's state or None, the cost of the probe and the pieces
-    before the last): None where the pieces part from the probe (their gaps differ by more than
-    ``agreement`` [m] somewhere) or a solve fails; the problem, the path's jumps and its fold
-    watch are then as they were before."""
-    cost = np.zeros(4)
-    n_jumps = len(path.jumps)
-    watched = None if path._watch is None else path._watch.state()
-    # a probe: neither the stability check nor the tangent, only its gaps are wanted
-    probe = problem.solve(approach=d, raise_on_failure=False, check_stability=False, tangent=False)
-    cost += _cost(probe)
-    problem.restore(snap)
-    if not probe.converged:
-        return None, cost
-    gap = probe.gap
-    probe.release_fields()
-    here, start = prev, snap
-    for k in range(1, AGREEMENT_SPLIT + 1):
-        st = _piece(problem, start, here, d if k == AGREEMENT_SPLIT else prev[0] + (d - prev[0]) * k / AGREEMENT_SPLIT,
-                    path, jump_tol, refine)
-        if start is not snap:
-            start.destroy()
-        if not st.converged or k == AGREEMENT_SPLIT:
-            break
-        cost += _cost(st)
-        here, start = (st.approach, st.force, st.stiffness), problem.snapshot()
-    agree = st.converged and gap_difference(st.gap, gap) <= agreement
-    gap.destroy()
-    if not agree:
-        cost += _cost(st)
-        _undo(problem, snap, path, n_jumps, watched)
-        return None, cost
-    return st, cost
-
-
-def _undo(problem, snap, path, n_jumps, watched) -> None:
-    """Undo solves from ``snap``: the problem back to it, the path's jumps back to the first
-    ``n_jumps``, its fold watch back to the state ``watched`` (``FoldWatch.state``) or None."""
-    del path.jumps[n_jumps:]
-    if watched is not None:
-        path._watch = FoldWatch.restored(watched)
-    problem.restore(snap)
-
-
-def _agreed_increments(problem, snap, prev, d, path, jump_tol, refine, agreement, levels, foot=0.0):
-    """The sub-step from ``prev`` (the state in ``snap``) to ``d`` [m] under the descent strategy:
-    descended in n increments of at most ``foot`` [m] (a probe, without the stability check or the
-    tangent; ``foot`` 0: as the descent's options say, by default whole), then in 4n, 16n, ... equal increments
-    (``AdhesiveProblem.solve(increments=)``: a continuation in the approach without the states
-    between, the sub-steps' asperity order at a fraction of their cost), each a ``_piece``
-    compared with the one before, until two agree to ``agreement`` [m] or ``levels`` were
-    tried.  A candidate that parts from the one before is undone (its jumps, what the fold
-    watch saw) and is the next one's reference.  Returns (the last candidate's state, the
-    cost of the probe and the candidates undone, (its increments, whether it agreed))."""
-    cost = np.zeros(4)
-    # a probe: neither the stability check nor the tangent, only its gaps are wanted
-    foot_increments = {"increments": pieces(d - prev[0], foot)} if foot > 0 else {}
-    probe = problem.solve(approach=d, raise_on_failure=False, check_stability=False, tangent=False,
-                          **foot_increments)
-    cost += _cost(probe)
-    problem.restore(snap)
-    gap = probe.gap if probe.converged else None
-    probe.release_fields()
-    # the probe's own increments: the ladder's foot
-    n = max(int(getattr(probe, "descent_increments", 1)), 1)
-    for level in range(1, levels + 1):
-        n *= AGREEMENT_SPLIT
-        n_jumps = len(path.jumps)
-        watched = None if path._watch is None else path._watch.state()
-        st = _piece(problem, snap, prev, d, path, jump_tol, refine, increments=n)
-        # a descent that gave up on its increments took the step whole (``descend_step``): no
-        # finer way than the probe's, so nothing to agree
-        finer = getattr(st, "descent_increments", n) == n
-        agree = st.converged and finer and gap is not None and gap_difference(st.gap, gap) <= agreement
-        if agree or level == levels:
-            break
-        cost += _cost(st)
-        if st.converged and finer:
-            # the next candidate's reference (a failed one keeps the one before)
-            if gap is not None:
-                gap.destroy()
-            gap = st.gap
-        st.release_fields()
-        _undo(problem, snap, path, n_jumps, watched)
-    if gap is not None:
-        gap.destroy()
-    return st, cost, (n, agree)
-
-
-def gap_difference(a, b) -> float:
-    """max |a - b| of two gap Vecs [m] over the grid (collective)."""
-    diff = a.copy()
-    diff.axpy(-1.0, b)
-    out = diff.norm(PETSc.NormType.NORM_INFINITY)
-    diff.destroy()
-    return out
-
-
-def _locate_jump(problem, snap, prev, after, refine) -> Jump | None:
-    """Bisect [prev approach, after.approach] with solves from the old branch, without the
-    fallback (the problem's strategy: Newton, or the descent then Newton); None when
-    the branch is continuous there: the force gap across the final bracket is no larger than
-    twice the larger branch slope times its width (a jump keeps its gap as the bracket
-    shrinks; a steep smooth branch does not)."""
-    d_lo, w_lo, k_lo = prev
-    d_hi, w_hi = after.approach, after.force
-    width0, gap0 = abs(d_hi - d_lo), abs(w_hi - w_lo)
-    new_branch = problem.snapshot()
-    problem.restore(snap)
-    snap = problem.snapshot()   # our own copy: the caller frees its own
-    for _ in range(refine):
-        mid = 0.5 * (d_lo + d_hi)
-        problem.restore(snap)
-        st = problem.solve(approach=mid, raise_on_failure=False, fallback=False)
-        # still on the old branch: converged from it, stable, and nearer the old force
-        on_old = (st.converged and st.stable is not False
-                  and abs(st.force - w_lo) < 0.5 * abs(w_hi - w_lo))
-        if on_old:
-            snap.destroy()
-            snap = problem.snapshot()
-            d_lo, w_lo, k_lo = mid, st.force, st.stiffness
-        else:
-            d_hi = mid
-    problem.restore(new_branch)
-    new_branch.destroy()
-    k_hi = after.stiffness
-    if refine and abs(d_hi - after.approach) > 0:
-        # the force just after the jump, on the new branch, at the bisected approach
-        st = problem.solve(approach=d_hi, raise_on_failure=False)
-        w_after, k_hi = st.force, st.stiffness
-        problem.solve(approach=after.approach, raise_on_failure=False)
-    else:
-        w_after = w_hi
-    snap.destroy()
-    width, gap = abs(d_hi - d_lo), abs(w_after - w_lo)
-    slope = max(abs(k_lo), abs(k_hi))
-    smooth = 2.0 * slope * width if np.isfinite(slope) else 4.0 * gap0 * width / max(width0, np.finfo(float).tiny)
-    if gap <= smooth:
-        return None
-    return Jump(kind="", approach_before=d_lo, approach_after=d_hi, force_before=w_lo,
-                force_after=w_after)
 
 
 def central_gap_path(problem, central_gaps, *, on_state=None, path: Path | None = None,

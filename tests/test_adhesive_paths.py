@@ -137,13 +137,13 @@ def test_a_budget_spent_while_a_jump_is_located_keeps_neither_step_nor_jump(coll
     problem is back at the last converged state -- the uninterrupted path's jump-on (that of
     ``example_sphere_path``, whose loading is this path) is found when the path goes on from
     there."""
-    from contactpetsc import paths
+    from contactpetsc import path_steps, paths
     approaches = EXAMPLE_LOADING
     reference = example_sphere_path[1]
     on = reference.jumps[0]
     assert on.kind == "jump-on" and on.approach_before < approaches[-1]     # the one jump of the loading
     pb = example_sphere()
-    locate = paths._locate_jump
+    locate = path_steps._locate_jump
     spent = {"now": False}
 
     def locate_then_spent(*args, **kw):
@@ -151,7 +151,7 @@ def test_a_budget_spent_while_a_jump_is_located_keeps_neither_step_nor_jump(coll
         spent["now"] = True
         return jump
 
-    monkeypatch.setattr(paths, "_locate_jump", locate_then_spent)
+    monkeypatch.setattr(path_steps, "_locate_jump", locate_then_spent)
     monkeypatch.setattr(pb, "out_of_time", lambda: spent["now"])
     path = sweep(pb, approaches, stop_on_failure=True)
     last = path.points[-1]

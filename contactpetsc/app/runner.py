@@ -64,7 +64,7 @@ def _protocol_line(scene: dict, law, descends: bool) -> str:
         return line
     if scene["solver"]["method"] == "relaxation":
         return line
-    from ..paths import AGREEMENT_SPLIT
+    from ..path_steps import AGREEMENT_SPLIT
     from ..solvers.base import pieces
     max_step, agreement = proto["max_step"], proto["agreement"]
     values = proto["values"]
@@ -146,6 +146,7 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
     ``restart``: keep the steps on disk (the same physics, ``rundir``) and resume after
     the last one.  ``overwrite``: remove another run's files from the directory first.
     """
+    from ..path_steps import unsettled as check_unsettled
     from .steppers import AdhesiveSteps, ContactSteps, resolve_sub_steps
     grid = builder.build_grid(scene, comm)
     # the sweep's sub-steps as the run takes them: scene.json keeps them for a restart
@@ -190,8 +191,7 @@ def run(scene: dict, *, output: str | None = None, dry_run: bool = False, comm=N
         states, plotted = _steps(scene, stepper, recorder)
         recorder.write_summary(**stepper.finish())
         recorder.flush_history(stepper.problem)
-        unsettled = [r["step"] for r in recorder.rows
-                     if "not agreeing with" in str(r["solver"]) or "not checked)" in str(r["solver"])]
+        unsettled = [r["step"] for r in recorder.rows if check_unsettled(str(r["solver"]))]
         if unsettled:
             PETSc.Sys.Print(f"  warning: in {len(unsettled)} step(s) ({', '.join(map(str, unsettled[:8]))}"
                             f"{', ...' if len(unsettled) > 8 else ''}) the check of the sub-steps did not settle "

@@ -13,7 +13,7 @@ def descend_step(problem, approach: float, start: PETSc.Vec,
                  increments: int | None = None) -> tuple[bool, str, int, int, int]:
     """The descent strategy's step of ``problem`` from ``start`` (its last state) to ``approach``
     [m]: in increments of at most ``-<prefix>descent_max_step`` z0 (or in ``increments`` equal
-    ones, a path's check of its step: ``paths._agreed_increments``), each but the last descended
+    ones, a path's check of its step: ``path_steps.agreed_increments``), each but the last descended
     only to ``-<prefix>descent_step_tol`` (a continuation in the approach: the asperities snap
     one increment at a time, in the order a quasi-static path meets them), the last to the
     descent's tolerance.  (converged, reason, iterations, Krylov iterations, increments taken)
