@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from .fold_watch import MARGIN_FLOOR
+from .path_steps import release_fields
 from .paths import Path, good_state
 from .solvers.stability import leaves_checks_out
 
@@ -115,18 +116,26 @@ def _continue(problem, snap, start, towards, xtol, max_solves, jump_tol, check=N
     ``start`` (``start``'s own without one).  ``check``: the solves' ``check_stability``."""
     problem.restore(snap)
     cur = (start.approach, start.force, start.stiffness if np.isfinite(start.stiffness) else slope)
-    states = [(cur[0], cur[1], None)]          # (approach, force, snapshot or None)
+    states = [(cur[0], cur[1])]                # (approach, force) of the states kept
+    # only the most tensile state beyond the start is wanted again (the golden section's start):
+    # a snapshot of every state kept had held up to max_solves copies of the unknowns
+    lowest = None
     h, solves, ended = (towards - start.approach) / 4.0, 0, False
     while solves < max_solves and abs(towards - cur[0]) > 1e-12 * max(abs(towards), xtol):
         d = towards if abs(towards - cur[0]) <= abs(h) * (1 + 1e-12) else cur[0] + h
         here = problem.snapshot()
         st = problem.solve(approach=d, raise_on_failure=False, fallback=False, check_stability=check)
         solves += 1
+        release_fields(st)
         predicted = cur[1] + (cur[2] if np.isfinite(cur[2]) else 0.0) * (d - cur[0])
         scale = max(abs(cur[1]), abs(st.force), np.finfo(float).tiny)
         if good_state(st) and abs(st.force - predicted) <= max(jump_tol * scale, abs(predicted - cur[1])):
             cur = (d, st.force, st.stiffness if np.isfinite(st.stiffness) else (st.force - cur[1]) / (d - cur[0]))
-            states.append((d, st.force, problem.snapshot()))
+            if st.force < min(f for _, f in states):
+                if lowest is not None:
+                    lowest.destroy()
+                lowest = problem.snapshot()
+            states.append((d, st.force))
             here.destroy()
         else:
             problem.restore(here)
@@ -139,11 +148,10 @@ def _continue(problem, snap, start, towards, xtol, max_solves, jump_tol, check=N
     nearest = states[min(1, len(states) - 1)][0]
     force, reached = (states[m][1], m < len(states) - 1 or ended) if m else (np.inf, False)
     if 0 < m < len(states) - 1:
-        force = min(force, _golden(problem, states[m][2], states[m - 1][0], states[m + 1][0], xtol, max_solves,
+        force = min(force, _golden(problem, lowest, states[m - 1][0], states[m + 1][0], xtol, max_solves,
                                    check))
-    for state in states:
-        if state[2] is not None:
-            state[2].destroy()
+    if lowest is not None:
+        lowest.destroy()
     return force, reached, nearest
 
 
@@ -158,6 +166,7 @@ def _golden(problem, snap, lo, hi, xtol, max_solves, check=None) -> float:
         nonlocal best
         problem.restore(snap)
         st = problem.solve(approach=delta, raise_on_failure=False, fallback=False, check_stability=check)
+        release_fields(st)
         if not good_state(st):
             return np.inf
         best = min(best, st.force)

@@ -203,3 +203,45 @@ def test_a_relaxation_sweep_refines_its_pull_off_to_the_newton_sweeps(coll, shar
     assert coll.max(sampled_pull_off(shared_tmp / "relaxation") / newton - 1) < -0.05
     plan = builder.leave_out(scenes.validate(dict(scene, solver=dict(method="relaxation"))))
     assert "pull-off refinement" in " ".join(plan)
+
+
+def test_the_pull_off_search_holds_one_searched_state_at_a_time(coll, monkeypatch):
+    """The search refines the flat cell's pull-off to the law's peak while holding, whatever its
+    length, no searched state's fields through the next solve and at most three copies of the
+    unknowns of its own (the path's end, the step's start, the most tensile state found): it had
+    kept a copy of every state it continued through and each state's fields until the next
+    solve returned (docs/performance.md, "Memory of an adhesive path")."""
+    from contactpetsc.solvers import tangent
+    n = 16
+    problem, law = flat_cell(n, 0.05, "flat_search_mem_")
+    path = sweep(problem, [-1.2, -0.6, 0.0, 0.3, 0.0, -0.6, -1.2])
+    live, most = set(), [0]
+    made, destroy = tangent.Snapshot.__init__, tangent.Snapshot.destroy
+
+    def counted_init(self, *a):
+        made(self, *a)
+        live.add(id(self))
+        most[0] = max(most[0], len(live))
+
+    def counted_destroy(self):
+        live.discard(id(self))
+        destroy(self)
+
+    monkeypatch.setattr(tangent.Snapshot, "__init__", counted_init)
+    monkeypatch.setattr(tangent.Snapshot, "destroy", counted_destroy)
+    solved, held = [], []
+    solve = problem.solve
+
+    def watched_solve(*a, **k):
+        held.append(sum(st.gap is not None for st in solved))
+        st = solve(*a, **k)
+        solved.append(st)
+        return st
+
+    monkeypatch.setattr(problem, "solve", watched_solve)
+    pull = refine_pull_off(problem, path, xtol=1e-5)
+    assert abs(pull / (-n * n * law.peak_attraction) - 1) < 1e-6
+    assert len(solved) > 8, len(solved)       # a search long enough to have held more
+    assert max(held) == 0, held
+    assert most[0] <= 3, most[0]
+    assert not live

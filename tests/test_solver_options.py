@@ -106,6 +106,22 @@ def test_describe_solver_reports_types_and_prefixes(coll):
     assert _left("popt_d_") == [] and not any(k.startswith("adhesion_") for k in PETSc.Options().getAll())
 
 
+@pytest.mark.parametrize("strategy", ["descent", "newton"])
+def test_a_hard_walls_newton_krylov_method_is_the_one_its_plan_names(coll, strategy):
+    """A hard wall's Newton steps take GMRES where they find the state and BiCGStab where they
+    polish the energy descent's (its basis had been a scene's peak of memory): the problem
+    builds what ``describe_solver`` (the plan) says, for either strategy."""
+    grid = SurfaceGrid(32, 32, 1.0, periodic=True)
+    h = sphere(grid, 100.0)
+    prefix = f"popt_kt_{strategy}_"
+    pb = AdhesiveProblem(grid, h, 1.0, HARD, prefix=prefix, petsc_options={"strategy": strategy})
+    assert pb.descends == (strategy == "descent")
+    built = pb.newton.snes.getKSP().getType()
+    assert built == ("bcgs" if strategy == "descent" else "gmres")
+    assert f"KSP {built}" in "\n".join(describe_solver(HARD, descends=pb.descends))
+    pb.destroy()
+
+
 def test_option_tables_in_the_docs_are_generated():
     """docs/formulation.md's option tables are the registry's (``solvers.options``)."""
     import os

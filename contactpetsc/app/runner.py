@@ -25,7 +25,7 @@ __all__ = ["run", "plan", "CURVE_COLUMNS"]
 def plan(scene: dict, grid: SurfaceGrid, law=None, out_dir: str | None = None) -> list[str]:
     """What a run will do: grid, decomposition, solver chain, memory, outputs (dry run and log
     header); ``law`` the builder's (``builder.build_law``), None without adhesion."""
-    from ..solvers.factory import describe_solver, grid_snap_number
+    from ..solvers.factory import adhesive_strategy, describe_solver, grid_snap_number
     from .scenes import e_star
     from .steppers import resolve_sub_steps, sweep_descends
     scene = resolve_sub_steps(scene, grid)
@@ -37,9 +37,11 @@ def plan(scene: dict, grid: SurfaceGrid, law=None, out_dir: str | None = None) -
         law_text = "no adhesion (Signorini)"
     # the solver stack as built from the code defaults, the scene and the command line
     snap = None if law is None else grid_snap_number(law, grid, e_star(scene))
+    descends = law is not None and sol["method"] == "newton" and adhesive_strategy(
+        builder.ADHESION_PREFIX, sol["options"], grid.periodic, scene["interaction"]["element_integration"]) == "descent"
     stack = describe_solver(law, sol["method"], builder.ADHESION_PREFIX if law is not None else builder.CONTACT_PREFIX,
                             petsc_options={**sol["options"], "preconditioner": builder.scene_preconditioner(scene)},
-                            snap=snap)
+                            snap=snap, descends=descends)
     chain = "\n".join("  solver: " + line if k == 0 else "          " + line for k, line in enumerate(stack))
     per_rank = builder.memory_per_rank(scene, grid.mpi_comm.Get_size())
     return [f"scene {scene['name']}: {g['kind']} surface, {_body_text(scene)}, {law_text}",

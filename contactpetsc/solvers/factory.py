@@ -110,11 +110,14 @@ def adhesive_strategy(prefix: str, petsc_options: dict | None, periodic: bool, e
 
 
 def describe_solver(law=None, method: str = "newton", prefix: str | None = None,
-                    petsc_options: dict | None = None, snap: float | None = None) -> list[str]:
+                    petsc_options: dict | None = None, snap: float | None = None,
+                    descends: bool = False) -> list[str]:
     """The SNES/KSP/PC types and options prefixes that ``make_problem`` would solve with, from
     the code defaults and the options (``petsc_options`` under the prefix, the command line);
     builds only those PETSc objects, no grid vectors.  ``snap``: the finest grid's snap number
-    (``grid_snap_number``), for the preconditioner ``auto`` picks there."""
+    (``grid_snap_number``), for the preconditioner ``auto`` picks there; ``descends``: the
+    adhesive problem's strategy is the energy descent (``adhesive_strategy``), which Newton
+    polishes (``newton.newton_ksp_type``)."""
     _check_method(law, method)
     adhesive = not _no_adhesion(law)
     prefix = prefix or ("adhesion_" if adhesive else "contact_")
@@ -146,9 +149,9 @@ def describe_solver(law=None, method: str = "newton", prefix: str | None = None,
                 choice = auto_adhesive_preconditioner(snap, law.hard_wall)
                 note += f" -> {choice} on the finest grid (snap number {snap:.3g}); {rule}"
         pc_path = ADHESIVE_PRECONDITIONERS.get(choice, ADHESIVE_PRECONDITIONERS["spectral"])
-        lines = _describe_snes(opts, prefix, newton_linesearch(law.hard_wall), newton_ksp_type(law.hard_wall),
-                               pc_path)
+        ksp_type = newton_ksp_type(law.hard_wall, descends)
+        lines = _describe_snes(opts, prefix, newton_linesearch(law.hard_wall), ksp_type, pc_path)
         lines.append(note)
         lines += ["fallback " + line for line in _describe_snes(opts, prefix + "ptc_", PTC_LINESEARCH,
-                                                                 newton_ksp_type(law.hard_wall), pc_path)]
+                                                                 ksp_type, pc_path)]
         return lines

@@ -35,14 +35,17 @@ def newton_linesearch(hard_wall: bool) -> str:
     return "bt" if hard_wall else "basic"
 
 
-def newton_ksp_type(hard_wall: bool) -> str:
+def newton_ksp_type(hard_wall: bool, descends: bool = False) -> str:
     """The Krylov method of the Newton and PTC steps (code default of ``-<prefix>ksp_type``).
 
     Full LJ curve: BiCGStab, which keeps no Krylov basis (GMRES's Gram-Schmidt on the
     whole grid costs as much as the FFTs; docs/performance.md, "Adhesive rough contact").
-    Hard-wall laws: GMRES.
+    Hard-wall laws: GMRES, where Newton finds the state (fewer FFT pairs); BiCGStab where it
+    polishes the energy descent's (``descends``: the problem's strategy is the descent), whose
+    few Newton steps need no fewer pairs with GMRES, and whose basis was a scene's peak of
+    memory (docs/performance.md, "Memory of an adhesive path").
     """
-    return "gmres" if hard_wall else "bcgs"
+    return "gmres" if hard_wall and not descends else "bcgs"
 
 
 class VINewton:
@@ -82,7 +85,7 @@ class VINewton:
         # of a stiff sphere (docs/formulation.md, "Adhesive contact: unknowns and Newton")
         pb.set_default(LINESEARCH_MAX_STEP, "1e300", prefix)
         ksp = snes.getKSP()
-        ksp.setType(newton_ksp_type(pb.hard_wall))
+        ksp.setType(newton_ksp_type(pb.hard_wall, pb.strategy == "descent"))
         # with the full LJ curve an inexact step is cheaper than an exact one far from the
         # solution (docs/performance.md, "Adhesive rough contact")
         rtol = PETSc.Options(pb.prefix).getReal("newton_ksp_rtol", code_default("adhesion", "newton_ksp_rtol"))
