@@ -317,31 +317,35 @@ class AdhesiveMLMIPC:
         kappa = pb.kappa
         d = pb.traction.diagonal
         masks = ctx.masks
-        self.q_set = masks[0] if pb.hard_wall else np.zeros(d.shape, bool)
-        free = masks[-1] | self.q_set
+        q_set = masks[0] if pb.hard_wall else np.zeros(d.shape, bool)
+        free = masks[-1] | q_set
         alpha = np.full(d.shape, kappa * (1.0 + pb.shift))
         beta = np.multiply(d, -kappa)
         if pb._gap_rows is not None:
             np.copyto(alpha, pb.shift * kappa - pb._gap_slope, where=pb._gap_rows)
             np.copyto(beta, 1.0, where=pb._gap_rows)
-        self.alpha = alpha
+        # the a rows of the contact nodes, kept on those nodes only (a few per cent of the grid:
+        # two full arrays had been held through the Newton run)
+        self.contact = np.flatnonzero(q_set)
+        self.alpha = alpha.reshape(-1)[self.contact]
+        self.a_gain = np.multiply(d.reshape(-1)[self.contact], kappa)
         k_ii = self.cycle.k_ii
         # in place (a set-up's temporaries had been the tangent's peak of memory)
         c, inv_beta = law_rows(alpha, beta, k_ii)
-        np.copyto(c, 0.0, where=self.q_set)
+        del alpha
+        np.copyto(c, 0.0, where=q_set)
         held = ~free
         np.copyto(c, C_CAP * k_ii, where=held)   # unknowns held at a bound: dp = 0
         np.copyto(inv_beta, 0.0, where=held)
-        np.copyto(inv_beta, 1.0, where=self.q_set)
+        np.copyto(inv_beta, 1.0, where=q_set)
+        del held, free
         self.inv_beta = inv_beta
-        self.a_gain = np.multiply(d, kappa)
         self.cycle.set_rows(c)
-        self.not_q = ~self.q_set
 
     def reset(self, pc):
         """Free the set-up's arrays between solves (the Newton solver resets its Krylov solver
         then; SNES VI also does where the inactive set changes, a set-up follows)."""
-        self.ctx = self.q_set = self.not_q = self.alpha = self.inv_beta = self.a_gain = None
+        self.ctx = self.contact = self.alpha = self.inv_beta = self.a_gain = None
         if getattr(self, "cycle", None) is not None:
             self.cycle.release()
 
@@ -354,18 +358,19 @@ class AdhesiveMLMIPC:
         # the right-hand side of (K + C) dp = f, row by row, in the a block of out until the
         # cycle is done; every block of out is then written whole (q and a with a hard wall)
         f = np.multiply(r_a, self.inv_beta, out=out[-1])
+        contact = self.contact
         if hard:
-            np.copyto(f, full[0], where=self.q_set)
+            r_q = full[0].reshape(-1)[contact]
+            f.reshape(-1)[contact] = r_q
         dp = self.cycle.solve(f)
+        np.copyto(out[-1], dp)
         if hard:
             # at a contact node the a row gives da from (K dp)_i = r_q,i
-            da_c = np.multiply(self.a_gain, full[0], out=out[0])
-            da_c += r_a
+            da_c = np.multiply(self.a_gain, r_q, out=r_q)
+            da_c += r_a.reshape(-1)[contact]
             da_c /= self.alpha
-            np.copyto(out[-1], dp)
-            np.copyto(out[-1], da_c, where=self.q_set)
-            np.subtract(dp, da_c, out=out[0])
-            np.copyto(out[0], 0.0, where=self.not_q)
-        else:
-            np.copyto(out[-1], dp)
+            out[-1].reshape(-1)[contact] = da_c
+            q = out[0]
+            q[...] = 0.0
+            q.reshape(-1)[contact] = dp.reshape(-1)[contact] - da_c
         ctx.finish(out, y)
