@@ -41,7 +41,7 @@ def build_grid(scene: dict, comm=None) -> SurfaceGrid:
 #: example scenes, docs/performance.md, "Memory of an adhesive path"): without adhesion at
 #: 1024^2; with a law without a hard wall (the full LJ curve) and with a hard wall at 512^2,
 #: where a run's fixed parts weigh more per node than on larger grids
-RUN_DOUBLES = {"contact": (36, 64), "adhesive": (54, 98), "hard wall": (91, 163)}
+RUN_DOUBLES = {"contact": (36, 64), "adhesive": (48, 98), "hard wall": (76, 163)}
 #: the process without a grid (Python, numpy, PETSc, MPI, FFTW) [bytes]
 PROCESS_BYTES = 110 * 2**20
 
