@@ -118,8 +118,26 @@ def test_a_hard_walls_newton_krylov_method_is_the_one_its_plan_names(coll, strat
     assert pb.descends == (strategy == "descent")
     built = pb.newton.snes.getKSP().getType()
     assert built == ("bcgs" if strategy == "descent" else "gmres")
-    assert f"KSP {built}" in "\n".join(describe_solver(HARD, descends=pb.descends))
+    plan = describe_solver(HARD, descends=pb.descends)
+    assert f"KSP {built}" in plan[1] and "fallback" not in plan[1]
+    # the PTC fallback finds the state whoever polishes: GMRES either way
+    assert pb.fallback.ptc.snes.getKSP().getType() == "gmres"
+    assert any(line.startswith("fallback") and "KSP gmres" in line for line in plan)
     pb.destroy()
+
+
+def test_the_plans_strategy_reads_the_element_integration_option(coll):
+    """The strategy the plan reports is the problem's: element integration given as an option
+    (not in the scene) leaves the descent out, as the problem reads it."""
+    from contactpetsc.solvers.factory import adhesive_strategy
+    assert adhesive_strategy("popt_ei_", {}, True, False) == "descent"
+    assert adhesive_strategy("popt_ei_", {"element_integration": True}, True, False) == "newton"
+    grid = SurfaceGrid(32, 32, 1.0, periodic=True)
+    pb = AdhesiveProblem(grid, sphere(grid, 100.0), 1.0, HARD, prefix="popt_ei_",
+                         petsc_options={"element_integration": True})
+    assert not pb.descends
+    pb.destroy()
+    assert _left("popt_ei_") == []
 
 
 def test_option_tables_in_the_docs_are_generated():

@@ -40,7 +40,9 @@ def build_grid(scene: dict, comm=None) -> SurfaceGrid:
 #: isolated window), measured on one rank (``run_scripts/bench/bench_run_memory.py`` on the
 #: example scenes, docs/performance.md, "Memory of an adhesive path"): without adhesion at
 #: 1024^2; with a law without a hard wall (the full LJ curve) and with a hard wall at 512^2,
-#: where a run's fixed parts weigh more per node than on larger grids
+#: where a run's fixed parts weigh more per node than on larger grids; a periodic hard wall
+#: under the energy descent (its default: Newton polishes with BiCGStab; under
+#: ``-adhesion_strategy newton`` GMRES's basis holds about 12 more)
 RUN_DOUBLES = {"contact": (36, 64), "adhesive": (48, 98), "hard wall": (76, 163)}
 #: the process without a grid (Python, numpy, PETSc, MPI, FFTW) [bytes]
 PROCESS_BYTES = 110 * 2**20

@@ -106,6 +106,8 @@ def adhesive_strategy(prefix: str, petsc_options: dict | None, periodic: bool, e
     and the command line will take, without building it (``strategy_option``)."""
     from .descent_options import strategy_option
     with _Options(prefix, petsc_options).inserted_options():
+        # the rule as the problem reads it: the option, else the scene's setting
+        element_integration = PETSc.Options(prefix).getBool("element_integration", element_integration)
         return strategy_option(prefix, periodic and not element_integration)
 
 
@@ -149,9 +151,9 @@ def describe_solver(law=None, method: str = "newton", prefix: str | None = None,
                 choice = auto_adhesive_preconditioner(snap, law.hard_wall)
                 note += f" -> {choice} on the finest grid (snap number {snap:.3g}); {rule}"
         pc_path = ADHESIVE_PRECONDITIONERS.get(choice, ADHESIVE_PRECONDITIONERS["spectral"])
-        ksp_type = newton_ksp_type(law.hard_wall, descends)
-        lines = _describe_snes(opts, prefix, newton_linesearch(law.hard_wall), ksp_type, pc_path)
+        lines = _describe_snes(opts, prefix, newton_linesearch(law.hard_wall),
+                               newton_ksp_type(law.hard_wall, descends), pc_path)
         lines.append(note)
         lines += ["fallback " + line for line in _describe_snes(opts, prefix + "ptc_", PTC_LINESEARCH,
-                                                                 ksp_type, pc_path)]
+                                                                 newton_ksp_type(law.hard_wall), pc_path)]
         return lines

@@ -40,10 +40,11 @@ def newton_ksp_type(hard_wall: bool, descends: bool = False) -> str:
 
     Full LJ curve: BiCGStab, which keeps no Krylov basis (GMRES's Gram-Schmidt on the
     whole grid costs as much as the FFTs; docs/performance.md, "Adhesive rough contact").
-    Hard-wall laws: GMRES, where Newton finds the state (fewer FFT pairs); BiCGStab where it
-    polishes the energy descent's (``descends``: the problem's strategy is the descent), whose
-    few Newton steps need no fewer pairs with GMRES, and whose basis was a scene's peak of
-    memory (docs/performance.md, "Memory of an adhesive path").
+    Hard-wall laws: GMRES, where Newton finds the state (fewer FFT pairs; the PTC fallback too);
+    BiCGStab where it polishes the energy descent's (``descends``: the problem's strategy is the
+    descent), whose few Newton steps need no fewer pairs with GMRES, and whose basis was a
+    scene's peak of memory (docs/performance.md, "Memory of an adhesive path").  Under central-gap
+    control nothing descends, yet the strategy's Newton keeps BiCGStab.
     """
     return "gmres" if hard_wall and not descends else "bcgs"
 
@@ -51,9 +52,11 @@ def newton_ksp_type(hard_wall: bool, descends: bool = False) -> str:
 class VINewton:
     """A VI Newton SNES on ``problem``'s (an ``AdhesiveProblem``'s) shared unknowns, Jacobian and
     bounds, options under ``prefix``; made inside the problem's ``inserted_options`` after
-    ``check_snes_options``."""
+    ``check_snes_options``.  ``polishes``: its runs polish the energy descent's states
+    (``newton_ksp_type``)."""
 
-    def __init__(self, problem, prefix: str, linesearch: str, max_it: int, ksp_max_it: int):
+    def __init__(self, problem, prefix: str, linesearch: str, max_it: int, ksp_max_it: int,
+                 polishes: bool = False):
         self.problem = pb = problem
         self.prefix = prefix
         opts = PETSc.Options(pb.prefix)
@@ -85,7 +88,7 @@ class VINewton:
         # of a stiff sphere (docs/formulation.md, "Adhesive contact: unknowns and Newton")
         pb.set_default(LINESEARCH_MAX_STEP, "1e300", prefix)
         ksp = snes.getKSP()
-        ksp.setType(newton_ksp_type(pb.hard_wall, pb.strategy == "descent"))
+        ksp.setType(newton_ksp_type(pb.hard_wall, polishes))
         # with the full LJ curve an inexact step is cheaper than an exact one far from the
         # solution (docs/performance.md, "Adhesive rough contact")
         rtol = PETSc.Options(pb.prefix).getReal("newton_ksp_rtol", code_default("adhesion", "newton_ksp_rtol"))
