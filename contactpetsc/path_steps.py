@@ -33,14 +33,6 @@ class Jump:
     force_after: float        #: [N]
 
 
-def release_fields(st) -> None:
-    """Drop a state's grid fields where only its numbers are wanted (a search's solves): held
-    until the next solve had returned, they were a second state's fields at its peak."""
-    release = getattr(st, "release_fields", None)
-    if release is not None:
-        release()
-
-
 def cost_of(st) -> np.ndarray:
     """A state's cost: (FFT pairs, wall time [s], Newton iterations, Krylov iterations)."""
     return np.array([st.fft_pairs, st.wall_time, st.newton_iterations, st.linear_iterations], float)
@@ -191,7 +183,9 @@ def _locate_jump(problem, snap, prev, after, refine) -> Jump | None:
         mid = 0.5 * (d_lo + d_hi)
         problem.restore(snap)
         st = problem.solve(approach=mid, raise_on_failure=False, fallback=False)
-        release_fields(st)
+        # only its numbers are wanted: its fields, held until the next solve had returned,
+        # were a second state's at that solve's peak
+        st.release_fields()
         # still on the old branch: converged from it, stable, and nearer the old force
         on_old = (st.converged and st.stable is not False
                   and abs(st.force - w_lo) < 0.5 * abs(w_hi - w_lo))
@@ -207,9 +201,9 @@ def _locate_jump(problem, snap, prev, after, refine) -> Jump | None:
     if refine and abs(d_hi - after.approach) > 0:
         # the force just after the jump, on the new branch, at the bisected approach
         st = problem.solve(approach=d_hi, raise_on_failure=False)
-        release_fields(st)
+        st.release_fields()
         w_after, k_hi = st.force, st.stiffness
-        release_fields(problem.solve(approach=after.approach, raise_on_failure=False))
+        problem.solve(approach=after.approach, raise_on_failure=False).release_fields()
     else:
         w_after = w_hi
     snap.destroy()

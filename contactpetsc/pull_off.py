@@ -12,7 +12,6 @@ from __future__ import annotations
 import numpy as np
 
 from .fold_watch import MARGIN_FLOOR
-from .path_steps import release_fields
 from .paths import Path, good_state
 from .solvers.stability import leaves_checks_out
 
@@ -126,7 +125,7 @@ def _continue(problem, snap, start, towards, xtol, max_solves, jump_tol, check=N
         here = problem.snapshot()
         st = problem.solve(approach=d, raise_on_failure=False, fallback=False, check_stability=check)
         solves += 1
-        release_fields(st)
+        st.release_fields()     # only its numbers are wanted (``path_steps._locate_jump``)
         predicted = cur[1] + (cur[2] if np.isfinite(cur[2]) else 0.0) * (d - cur[0])
         scale = max(abs(cur[1]), abs(st.force), np.finfo(float).tiny)
         if good_state(st) and abs(st.force - predicted) <= max(jump_tol * scale, abs(predicted - cur[1])):
@@ -166,7 +165,7 @@ def _golden(problem, snap, lo, hi, xtol, max_solves, check=None) -> float:
         nonlocal best
         problem.restore(snap)
         st = problem.solve(approach=delta, raise_on_failure=False, fallback=False, check_stability=check)
-        release_fields(st)
+        st.release_fields()
         if not good_state(st):
             return np.inf
         best = min(best, st.force)

@@ -25,9 +25,9 @@ __all__ = ["run", "plan", "CURVE_COLUMNS"]
 def plan(scene: dict, grid: SurfaceGrid, law=None, out_dir: str | None = None) -> list[str]:
     """What a run will do: grid, decomposition, solver chain, memory, outputs (dry run and log
     header); ``law`` the builder's (``builder.build_law``), None without adhesion."""
-    from ..solvers.factory import adhesive_strategy, describe_solver, grid_snap_number
+    from ..solvers.factory import describe_solver, grid_snap_number
     from .scenes import e_star
-    from .steppers import resolve_sub_steps, sweep_descends
+    from .steppers import resolve_sub_steps, scene_descends
     scene = resolve_sub_steps(scene, grid)
     g, sol = scene["geometry"], scene["solver"]
     if law is not None:
@@ -37,8 +37,7 @@ def plan(scene: dict, grid: SurfaceGrid, law=None, out_dir: str | None = None) -
         law_text = "no adhesion (Signorini)"
     # the solver stack as built from the code defaults, the scene and the command line
     snap = None if law is None else grid_snap_number(law, grid, e_star(scene))
-    descends = law is not None and sol["method"] == "newton" and adhesive_strategy(
-        builder.ADHESION_PREFIX, sol["options"], grid.periodic, scene["interaction"]["element_integration"]) == "descent"
+    descends = scene_descends(scene, grid)
     stack = describe_solver(law, sol["method"], builder.ADHESION_PREFIX if law is not None else builder.CONTACT_PREFIX,
                             petsc_options={**sol["options"], "preconditioner": builder.scene_preconditioner(scene)},
                             snap=snap, descends=descends)
@@ -49,7 +48,7 @@ def plan(scene: dict, grid: SurfaceGrid, law=None, out_dir: str | None = None) -
             f"  rows per rank {[b - a for a, b in grid.y_ranges]}",
             chain,
             *builder.leave_out(scene),
-            _protocol_line(scene, law, sweep_descends(scene, grid)),
+            _protocol_line(scene, law, descends),
             f"  memory estimate: {per_rank / 2**20:.0f} MiB per rank" + _memory_note(grid, per_rank),
             _outputs_line(scene, grid.nx * grid.ny, out_dir or scene["output"]["directory"]),
             _stack_line(grid)]
@@ -58,7 +57,7 @@ def plan(scene: dict, grid: SurfaceGrid, law=None, out_dir: str | None = None) -
 def _protocol_line(scene: dict, law, descends: bool) -> str:
     """The steps, and under approach control with adhesion, those taken in sub-steps of at most
     ``protocol.max_step`` of the law's range and how they are checked (``scene`` resolved by
-    ``steppers.resolve_sub_steps``; ``descends``: ``steppers.sweep_descends``; ``paths.sweep``: the
+    ``steppers.resolve_sub_steps``; ``descends``: ``steppers.scene_descends``; ``paths.sweep``: the
     quasi-static path)."""
     proto = scene["protocol"]
     line = f"  protocol: {proto['control']} x {len(proto['values'])} steps"

@@ -60,15 +60,20 @@ def resolve_sub_steps(scene: dict, grid) -> dict:
                                   "agreement_increment": foot}}
 
 
-def sweep_descends(scene: dict, grid) -> bool:
-    """Whether the scene's run is an adhesive sweep whose problem descends (``AdhesiveProblem.descends``),
-    told without building it (``factory.adhesive_strategy``: the scene's options and the command line)."""
+def scene_descends(scene: dict, grid) -> bool:
+    """Whether the scene's adhesive problem takes the energy descent as its strategy
+    (``AdhesiveProblem.descends``), told without building it (``factory.adhesive_strategy``: the
+    scene's options and the command line)."""
     from ..solvers.factory import adhesive_strategy
     from .builder import ADHESION_PREFIX, adhesive
-    return bool(adhesive(scene) and scene["protocol"]["control"] == "approach"
-                and scene["solver"]["method"] == "newton"
+    return bool(adhesive(scene) and scene["solver"]["method"] == "newton"
                 and adhesive_strategy(ADHESION_PREFIX, scene["solver"]["options"], grid.periodic,
                                       scene["interaction"]["element_integration"]) == "descent")
+
+
+def sweep_descends(scene: dict, grid) -> bool:
+    """Whether the scene's run is an adhesive sweep (approach control) whose problem descends."""
+    return scene["protocol"]["control"] == "approach" and scene_descends(scene, grid)
 
 
 def mean_gap(grid, st, error_scale: float) -> dict:
