@@ -20,7 +20,8 @@ made) minus the resident size before the problem, in doubles (8 B) per grid poin
     .venv/bin/python run_scripts/bench/bench_adhesion_path.py --size 1024 [--states 10]
         [--areas 0.01 0.10] [--law lj|exponential] [-path_<option> ...]
 
-One rank (the memory figure is the process's).
+On more than one rank (``mpirun -n 2 ...``) rank 0 prints, the memory figures are the ranks'
+summed and the summary names the ranks.
 """
 import argparse
 import os
@@ -52,16 +53,23 @@ from rough_surface import adhesive_law, calibrate, path_approaches, rough_surfac
 
 
 def main():
+    comm = PETSc.COMM_WORLD.tompi4py()
+    say = emit if comm.rank == 0 else (lambda **row: None)
+
+    def summed_kb(field):
+        # every rank's resident size over its own before the problem, in doubles per grid point
+        return comm.allreduce(status_kb(field) - base) * 1024.0 / (8.0 * n * n)
+
     n = args.size
     grid, h, _ = rough_surface(n)
     law = adhesive_law(grid, name=args.law)
     t = time.perf_counter()
     ends = calibrate(grid, h, law, args.areas, max_n=args.calibrate_max_n)
     if ends is None:
-        emit(n=n, solver="calibration", converged=False,
+        say(n=n, solver="calibration", converged=False,
              message="the calibration sweep converged at fewer than two approaches")
         return
-    emit(n=n, calibration_time=time.perf_counter() - t, approaches_at_areas=ends, areas=args.areas)
+    say(n=n, calibration_time=time.perf_counter() - t, approaches_at_areas=ends, areas=args.areas)
     opts = PETSc.Options("path_")
     if not opts.hasName("stiffness"):
         opts.setValue("stiffness", False)
@@ -77,12 +85,12 @@ def main():
                    newton=st.newton_iterations, krylov=st.linear_iterations, check_time=st.check_time,
                    contact_fraction=st.contact_fraction, converged=st.converged, stable=st.stable,
                    stability_settled=st.stability_converged, stability_margin=st.stability_margin,
-                   solver=st.solver, rss_doubles_per_point=(status_kb("VmRSS") - base) * 1024.0 / (8.0 * n * n))
+                   solver=st.solver, rss_doubles_per_point=summed_kb("VmRSS"))
         rows.append(row)
-        emit(**row)
+        say(**row)
         st.release_fields()   # as ``runner.run`` does before the next step: a path holds no state's fields
     total = time.perf_counter() - t_path
-    peak = status_kb("VmHWM")
+    peak_kb = comm.allreduce(status_kb("VmHWM"))
     # one bare FFT pair of the fine operator (forward + inverse), on a state-like field
     p = np.asarray(grid.rows(h, readonly=True)).copy()
     out = np.empty_like(p)
@@ -92,11 +100,11 @@ def main():
         pb.op.apply(p, out)
     pair = (time.perf_counter() - t) / args.pair_reps
     pairs = [r["fft_pairs"] for r in rows]
-    emit(n=n, law=args.law, summary=True, states=len(rows), converged=sum(r["converged"] for r in rows), total_time=total,
+    say(n=n, law=args.law, ranks=comm.size, summary=True, states=len(rows), converged=sum(r["converged"] for r in rows), total_time=total,
          fft_pairs_total=float(sum(pairs)), fft_pairs_median=float(np.median(pairs)),
          fft_pairs_max=float(max(pairs)), max_over_median=float(max(pairs) / np.median(pairs)),
-         pair_time=pair, time_per_pair=total / sum(pairs), peak_mb=peak / 1024.0,
-         doubles_per_point=(peak - base) * 1024.0 / (8.0 * n * n), load_average=os.getloadavg()[0])
+         pair_time=pair, time_per_pair=total / sum(pairs), peak_mb=peak_kb / 1024.0,
+         doubles_per_point=summed_kb("VmHWM"), load_average=os.getloadavg()[0])
 
 
 main()
