@@ -71,7 +71,7 @@ def embedded(descent, inactive: InactiveSet | None, product, x, y) -> None:
     if descent._embed is None:
         descent._embed = np.zeros(descent.shape)
     full = descent._embed
-    inactive.clear_outside(full)
+    full[...] = 0.0
     inactive.to_full(x, full)
     product(full, full)
     inactive.from_full(full, y)

@@ -102,34 +102,13 @@ class InactiveSet:
         self.scattered = self.idx[:self.head]
         self.run = slice(int(self.idx[self.head]), int(self.idx[-1]) + 1) if n else slice(0, 0)
         self.everything = n == full_size   # (sorted and unique: the whole array, one run)
-        # where most positions before the run are in the set (a rough contact's inactive set:
-        # all but the contact nodes), numpy copies through a boolean mask in about 0.6x the
-        # time of an indexed scatter, and the few positions outside are zeroed by index
-        self._mask = self._outside = None
-        if 4 * self.head > 3 * self.run.start:
-            self._mask = np.zeros(self.run.start, bool)
-            self._mask[self.scattered] = True
-            self._outside = np.flatnonzero(~self._mask)
 
     def to_full(self, x: PETSc.Vec, out: np.ndarray) -> np.ndarray:
         """Scatter a reduced Vec into a full local array (entries outside the set untouched)."""
         flat, src = out.reshape(-1), x.getArray(readonly=True)
-        if self._mask is None:
-            flat[self.scattered] = src[:self.head]
-        else:
-            flat[:self.run.start][self._mask] = src[:self.head]
+        flat[self.scattered] = src[:self.head]
         flat[self.run] = src[self.head:]
         return out
-
-    def clear_outside(self, full: np.ndarray) -> None:
-        """Zero a full local array outside the set, before ``to_full`` writes the set's entries
-        (which this leaves undefined: a sparse set's array is zeroed whole)."""
-        flat = full.reshape(-1)
-        if self._outside is None:
-            flat.fill(0.0)
-        else:
-            flat[self._outside] = 0.0
-            flat[self.run.stop:] = 0.0
 
     def from_full(self, full: np.ndarray, y: PETSc.Vec) -> None:
         """Gather the set's entries of a full local array into a reduced Vec."""
