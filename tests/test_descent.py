@@ -403,3 +403,17 @@ def test_the_energy_tangent_is_the_force_slope(coll, monkeypatch, hessian):
     finally:
         for name in ("tol", "tangent_ksp_rtol", "tangent_hessian"):
             opts.delValue(name)
+
+
+def test_a_hard_wall_descent_leaves_newtons_polish_nothing_to_do(coll):
+    """The descent's state is within the problem's tolerance as Newton's confirmation measures
+    it, its mean offset m included: Newton's gaps do not carry m, so next to the wall its
+    pressure error is m da/dg, 15.6 peak attractions per z0 for the hard-wall LJ law.  Held to
+    offset_tol in z0 alone, the offset left Newton a step (with its Krylov solve) to take
+    here."""
+    grid, law, pb, descent, ok, reason, reference, d1 = hard_wall_step("polish", 1.5, {})
+    assert ok, reason
+    assert rounds_in(reason) < descent.max_rounds, reason
+    pb.prepare(d1)
+    ok, reason, newton, _ = pb.newton.run()
+    assert ok and newton == 0, (reason, newton)

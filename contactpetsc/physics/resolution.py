@@ -43,6 +43,11 @@ def adhesive_zone_length(law: InteractionLaw, e_star: float, *, radius: float | 
     return out
 
 
+def _gaps(law: InteractionLaw) -> np.ndarray:
+    """Gaps [m] on which a law's slope is probed: 0 to 20 ranges."""
+    return np.linspace(0.0, 20.0, 20001) * law.length_scale()
+
+
 def snap_number(law: InteractionLaw, self_influence: float) -> float:
     """K_ii max da/dg of the pointwise law (dimensionless; K_ii [m/Pa] the self-influence).
 
@@ -52,8 +57,14 @@ def snap_number(law: InteractionLaw, self_influence: float) -> float:
     are nearly local (the preconditioner's choice, ``pc_registry.auto_adhesive_preconditioner``).
     The maximum lies on the attractive tail, g > 0, probed to 20 ranges.
     """
-    probe = np.linspace(0.0, 20.0, 20001)[1:] * law.length_scale()
-    return float(self_influence * max(0.0, float(np.max(law.derivative(probe)))))
+    return float(self_influence * max(0.0, float(np.max(law.derivative(_gaps(law)[1:])))))
+
+
+def steepest_slope(law: InteractionLaw) -> float:
+    """max |da/dg| of the pointwise law over g >= 0, probed to 20 ranges [Pa/m]: how far a gap
+    error moves the law's pressure (for the hard-wall LJ law at the wall, 15.6 peak
+    attractions per z0)."""
+    return float(np.max(np.abs(law.derivative(_gaps(law)))))
 
 
 def check_resolution(law: InteractionLaw, e_star: float, dx: float, *, radius: float | None = None,

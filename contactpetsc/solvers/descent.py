@@ -100,6 +100,16 @@ class EnergyDescent:
             # the mean no tighter: its rounds had stopped at their first iterate, error within
             # tol, and moved W blindly to max_rounds for an offset of 1e-6 z0
             self.offset_tol = max(self.offset_tol, tol)
+        # the rounds end where the offset m is within offset_tol as Newton's confirmation will
+        # measure it: its gaps do not carry m (K p has zero mean), so next to the wall its
+        # self-consistency residual is m da/dg, a pressure error of m max|da/dg| / P (the
+        # hard-wall LJ law's slope there is 15.6 P / z0, the exponential law's 1 P / rho).  In
+        # z0 alone, Newton took a Krylov step at those states, a scene's peak of memory
+        self.offset_limit = self.offset_tol * problem.z0
+        if tol is None and problem.hard_wall:
+            self.offset_limit = min(self.offset_limit,
+                                    self.offset_tol * problem.pressure_scale / problem.steepest_slope)
+        self._visible = np.inf       # what the last update of W moved the error by (``_round_target``)
         self.max_rounds = opts.getInt("max_rounds", code_default("adhesion", "descent_max_rounds"))
         options = descent_options(problem.prefix)
         self.pc_contact_factor, self.floor_factor = options.pc_contact_factor, options.floor_factor
@@ -286,13 +296,15 @@ class EnergyDescent:
         below the offset [z0] (the last polishing steps of every round but the last were lost).
         The descent's tolerance where the round may be the last."""
         if self.p.hard_wall and not self._offset_closed(mean_u) and self._round < self.max_rounds:
-            return max(self.tol, abs(mean_u) / self.p.z0)
+            # and below what the last update of W moved the error by, else the round stops at
+            # its first iterate without moving the state, and W moves on blind
+            return min(max(self.tol, abs(mean_u) / self.p.z0), self._visible)
         return self.tol
 
     def _offset_closed(self, mean_u: float) -> bool:
-        """Whether a hard wall's mean offset ``mean_u`` [m] is within ``offset_tol`` z0 (the
-        rounds end)."""
-        return abs(mean_u) <= self.offset_tol * self.p.z0
+        """Whether a hard wall's mean offset ``mean_u`` [m] is within ``offset_tol`` z0, and
+        within ``offset_tol`` of the pressure scale in Newton's pressure error (the rounds end)."""
+        return abs(mean_u) <= self.offset_limit
 
     def _converged(self, tao):
         g, a, mean_u, k_inv_u, p0 = self.fields(tao.getSolution())
@@ -428,6 +440,10 @@ class EnergyDescent:
                     step = -mean_u / slope
             last = (self.W, mean_u)
             self.W += step
+            if abs(mean_u) <= self.offset_tol * p.z0:
+                # held to its pressure effect only (``offset_limit``): an update of W below the
+                # tolerance's effect on the error measures
+                self._visible = 0.5 * abs(step) * max(self.kappa / p.z0, 1.0 / p.pressure_scale)
             self._valid = False
 
     def _write_state(self, x: PETSc.Vec, at_bound: np.ndarray | None) -> None:
