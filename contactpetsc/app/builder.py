@@ -43,7 +43,7 @@ def build_grid(scene: dict, comm=None) -> SurfaceGrid:
 #: where a run's fixed parts weigh more per node than on larger grids; a periodic hard wall
 #: under the energy descent (its default: Newton polishes with BiCGStab; under
 #: ``-adhesion_strategy newton`` GMRES's basis holds about 12 more)
-RUN_DOUBLES = {"contact": (36, 64), "adhesive": (48, 98), "hard wall": (76, 163)}
+RUN_DOUBLES = {"contact": (36, 64), "adhesive": (48, 98), "hard wall": (66, 163)}
 #: the process without a grid (Python, numpy, PETSc, MPI, FFTW) [bytes]
 PROCESS_BYTES = 110 * 2**20
 

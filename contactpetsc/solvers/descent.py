@@ -34,9 +34,9 @@ the same in nanometres as in metres.
   c/2 N mean(u)^2 + W N mean(u) (c the largest modal stiffness, W the mean-pressure
   multiplier): a state with mean(u) = m is exactly an equilibrium at approach delta - m.
   W is updated to the measured mean pressure between rounds (Uzawa; from the second round
-  on, by the secant of m(W)) until |m| is below ``offset_tol`` z0; Newton then closes the
-  last offset.  A round that another follows stops at an error below its offset
-  (``_round_target``).
+  on, by the secant of m(W)) until |m| is below ``offset_tol`` z0 and its effect on Newton's
+  pressure error, m max|da/dg|, below ``offset_tol`` P; Newton then closes the last offset.
+  A round that another follows stops at an error below its offset (``_round_target``).
 
 Its stopping test is the problem's own error measures (``AdhesiveProblem._measures``) on
 the descent iterate, to ``-<prefix>descent_tol`` (default: the problem's ``tol``, half of it with a hard wall; Newton's
