@@ -297,8 +297,10 @@ class EnergyDescent:
         The descent's tolerance where the round may be the last."""
         if self.p.hard_wall and not self._offset_closed(mean_u) and self._round < self.max_rounds:
             # and below what the last update of W moved the error by, else the round stops at
-            # its first iterate without moving the state, and W moves on blind
-            return min(max(self.tol, abs(mean_u) / self.p.z0), self._visible)
+            # its first iterate without moving the state, and W moves on blind (a hundredth of
+            # the tolerance at least: within the measures' round-off at any grid, where a
+            # blind round costs one evaluation and an unreachable target TAO's max_it)
+            return min(max(self.tol, abs(mean_u) / self.p.z0), max(self._visible, 0.01 * self.tol))
         return self.tol
 
     def _offset_closed(self, mean_u: float) -> bool:
