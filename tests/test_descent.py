@@ -417,3 +417,14 @@ def test_a_hard_wall_descent_leaves_newtons_polish_nothing_to_do(coll):
     pb.prepare(d1)
     ok, reason, newton, _ = pb.newton.run()
     assert ok and newton == 0, (reason, newton)
+
+
+def test_a_hard_wall_law_without_a_slope_descends(coll):
+    """Dugdale's law has no slope (da/dg = 0 inside its range): the offset's effect on Newton's
+    measures is m / z0 itself, and the descent on a periodic cell (its default strategy)
+    reaches a converged state (the tighter offset had divided by the zero slope)."""
+    law = make_law("dugdale", work_of_adhesion=0.05, sigma0=0.05)
+    grid, h = rough(PETSc.COMM_WORLD)
+    pb = AdhesiveProblem(grid, h, 1.0, law, prefix="dugd_")
+    st = pb.solve(approach=h.min()[1] + 0.5, raise_on_failure=False)
+    assert st.converged and st.solver.startswith("descent"), (st.solver, st.reason)

@@ -102,13 +102,15 @@ class EnergyDescent:
             self.offset_tol = max(self.offset_tol, tol)
         # the rounds end where the offset m is within offset_tol as Newton's confirmation will
         # measure it: its gaps do not carry m (K p has zero mean), so next to the wall its
-        # self-consistency residual is m da/dg, a pressure error of m max|da/dg| / P (the
-        # hard-wall LJ law's slope there is 15.6 P / z0, the exponential law's 1 P / rho).  In
-        # z0 alone, Newton took a Krylov step at those states, a scene's peak of memory
+        # self-consistency residual is m da/dg, an error of m max|da/dg| max(K_ii / z0, 1 / P)
+        # in its measures (the hard-wall LJ law's slope there is 15.6 P / z0, the exponential
+        # law's 1 P / rho: there m / z0 itself, unless K_ii P / z0 > 1).  In z0 alone, Newton
+        # took a Krylov step at those states, a scene's peak of memory.  Only where the law is
+        # steeper than that (a law without a slope, Dugdale's, keeps m / z0)
         self.offset_limit = self.offset_tol * problem.z0
-        if tol is None and problem.hard_wall:
-            self.offset_limit = min(self.offset_limit,
-                                    self.offset_tol * problem.pressure_scale / problem.steepest_slope)
+        effect = problem.steepest_slope * max(problem.kappa / problem.z0, 1.0 / problem.pressure_scale)
+        if tol is None and problem.hard_wall and np.isfinite(effect) and effect * problem.z0 > 1.0 + 1e-9:
+            self.offset_limit = self.offset_tol / effect
         self._visible = np.inf       # what the last update of W moved the error by (``_round_target``)
         self.max_rounds = opts.getInt("max_rounds", code_default("adhesion", "descent_max_rounds"))
         options = descent_options(problem.prefix)
@@ -417,6 +419,7 @@ class EnergyDescent:
         p, grid = self.p, self.grid
         iterations = rounds = 0
         last = None     # (W, mean u) of the round before
+        self._visible = np.inf
         while True:
             self.pinned = False
             self._round = rounds + 1
@@ -430,6 +433,10 @@ class EnergyDescent:
                 self.floor.lower(grid.rows(bounds[0]), grid.rows(x, readonly=True))
                 continue
             mean_u = self.fields(x)[2]
+            if code < 0 and self._visible < np.inf and self.last_error <= self.tol:
+                # a round asked below the tolerance (``_round_target``) that TAO could not
+                # reach: its state is within the tolerance, the rounds go on from it
+                code = TAO_REASON.CONVERGED_USER
             if not p.hard_wall or code < 0 or rounds >= self.max_rounds or self._offset_closed(mean_u):
                 return code, iterations, rounds
             # the measured mean pressure, W + c m, is the next round's multiplier; from the
@@ -442,10 +449,10 @@ class EnergyDescent:
                     step = -mean_u / slope
             last = (self.W, mean_u)
             self.W += step
-            if abs(mean_u) <= self.offset_tol * p.z0:
-                # held to its pressure effect only (``offset_limit``): an update of W below the
-                # tolerance's effect on the error measures
-                self._visible = 0.5 * abs(step) * max(self.kappa / p.z0, 1.0 / p.pressure_scale)
+            # where m is held to its effect on Newton's measures only (``offset_limit``): an
+            # update of W below the tolerance's effect on the error measures
+            self._visible = (0.5 * abs(step) * max(self.kappa / p.z0, 1.0 / p.pressure_scale)
+                             if abs(mean_u) <= self.offset_tol * p.z0 else np.inf)
             self._valid = False
 
     def _write_state(self, x: PETSc.Vec, at_bound: np.ndarray | None) -> None:
