@@ -35,7 +35,8 @@ the same in nanometres as in metres.
   multiplier): a state with mean(u) = m is exactly an equilibrium at approach delta - m.
   W is updated to the measured mean pressure between rounds (Uzawa; from the second round
   on, by the secant of m(W)) until |m| is below ``offset_tol`` z0 and its effect on Newton's
-  pressure error, m max|da/dg|, below ``offset_tol`` P; Newton then closes the last offset.
+  measures, m max|da/dg| max(K_ii / z0, 1 / P), below ``offset_tol``; Newton then closes the
+  last offset.
   A round that another follows stops at an error below its offset (``_round_target``).
 
 Its stopping test is the problem's own error measures (``AdhesiveProblem._measures``) on
