@@ -109,7 +109,10 @@ class EnergyDescent:
         # took a Krylov step at those states, a scene's peak of memory.  Only where the law is
         # steeper than that (a law without a slope, Dugdale's, keeps m / z0)
         self.offset_limit = self.offset_tol * problem.z0
-        effect = problem.steepest_slope * max(problem.kappa / problem.z0, 1.0 / problem.pressure_scale)
+        # a pressure error's weight in the error measures [1/Pa]: K_ii / z0 in the gaps' and
+        # 1 / P in the pressures', the larger counts
+        self.per_pascal = max(problem.kappa / problem.z0, 1.0 / problem.pressure_scale)
+        effect = problem.steepest_slope * self.per_pascal
         if tol is None and problem.hard_wall and np.isfinite(effect) and effect * problem.z0 > 1.0 + 1e-9:
             self.offset_limit = self.offset_tol / effect
         self._visible = np.inf       # what the last update of W moved the error by (``_round_target``)
@@ -307,8 +310,8 @@ class EnergyDescent:
         return self.tol
 
     def _offset_closed(self, mean_u: float) -> bool:
-        """Whether a hard wall's mean offset ``mean_u`` [m] is within ``offset_tol`` z0, and
-        within ``offset_tol`` of the pressure scale in Newton's pressure error (the rounds end)."""
+        """Whether a hard wall's mean offset ``mean_u`` [m] is within ``offset_tol`` z0, and its
+        effect on Newton's error measures within ``offset_tol`` (``offset_limit``; the rounds end)."""
         return abs(mean_u) <= self.offset_limit
 
     def _converged(self, tao):
@@ -452,7 +455,7 @@ class EnergyDescent:
             self.W += step
             # where m is held to its effect on Newton's measures only (``offset_limit``): an
             # update of W below the tolerance's effect on the error measures
-            self._visible = (0.5 * abs(step) * max(self.kappa / p.z0, 1.0 / p.pressure_scale)
+            self._visible = (0.5 * abs(step) * self.per_pascal
                              if abs(mean_u) <= self.offset_tol * p.z0 else np.inf)
             self._valid = False
 
