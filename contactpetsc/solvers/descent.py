@@ -31,13 +31,8 @@ the same in nanometres as in metres.
   goes on.  The stopping test is the unconstrained error, so a state reached is never held.
 * Hard wall: the bound u >= delta - h is TAO's variable bound (the contact nodes are its
   active set; the multiplier q = p - a(g) >= 0).  The mean of u is held by a penalty
-  c/2 N mean(u)^2 + W N mean(u) (c the largest modal stiffness, W the mean-pressure
-  multiplier): a state with mean(u) = m is exactly an equilibrium at approach delta - m.
-  W is updated to the measured mean pressure between rounds (Uzawa; from the second round
-  on, by the secant of m(W)) until |m| is below ``offset_tol`` z0 and its effect on Newton's
-  measures, m max|da/dg| max(K_ii / z0, 1 / P), below ``offset_tol``; Newton then closes the
-  last offset.
-  A round that another follows stops at an error below its offset (``_round_target``).
+  c/2 N mean(u)^2 + W N mean(u), W updated between TAO's rounds until the offset is within
+  what Newton measures (``descent_mean.MeanMultiplier``); Newton then closes the last offset.
 
 Its stopping test is the problem's own error measures (``AdhesiveProblem._measures``) on
 the descent iterate, to ``-<prefix>descent_tol`` (default: the problem's ``tol``, half of it with a hard wall; Newton's
@@ -45,8 +40,7 @@ polish then only confirms the state and builds its Jacobian).  Periodic grids an
 K^-1 is then diagonal in Fourier space and Phi is the law's energy at the nodes.
 
 Options (prefix ``<problem prefix>descent_``): ``tol`` (error measure, z0), ``max_rounds``
-(Uzawa rounds of a hard wall), ``offset_tol`` (z0; default a tenth of the problem's ``tol``; at
-least the descent's own ``tol`` where its caller gives one), ``pc_contact_factor`` (f above,
+and ``offset_tol`` (a hard wall's rounds, ``descent_mean.py``), ``pc_contact_factor`` (f above,
 default 10; 0: the compliance alone), ``floor_factor`` (F above,
 default 4; 0: no floor), ``max_step`` and ``step_tol`` (``descent_step.py``), and every ``tao_*``
 option (code defaults: ``descent_options.TAO_DEFAULTS`` and ``natural_norm``;
@@ -65,8 +59,8 @@ from .adhesive_residual import total_pressure
 from .base import reason_name
 from .descent_contexts import Compliance, Hessian
 from .descent_floor import GapFloor
+from .descent_mean import MeanMultiplier
 from .descent_options import TAO_DEFAULTS, descent_options, natural_norm, require_descent
-from .options import code_default
 
 #: TAO's converged reasons (petsc4py >= 3.20 also names them ConvergedReason)
 TAO_REASON = getattr(PETSc.TAO, "ConvergedReason", None) or PETSc.TAO.Reason
@@ -95,28 +89,6 @@ class EnergyDescent:
         # offset of tol, and handed them on to the relaxation's cycles.  The full LJ curve has
         # no offset: tol itself (half of it cost more descent, in the coarse levels too)
         self.tol = tol if tol is not None else opts.getReal("tol", (0.5 if problem.hard_wall else 1.0) * problem.tol)
-        self.offset_tol = opts.getReal("offset_tol", 0.1 * problem.tol)
-        if tol is not None:
-            # a descent to a looser error (an increment of a step, ``descent_step.py``) holds
-            # the mean no tighter: its rounds had stopped at their first iterate, error within
-            # tol, and moved W blindly to max_rounds for an offset of 1e-6 z0
-            self.offset_tol = max(self.offset_tol, tol)
-        # the rounds end where the offset m is within offset_tol as Newton's confirmation will
-        # measure it: its gaps do not carry m (K p has zero mean), so next to the wall its
-        # self-consistency residual is m da/dg, an error of m max|da/dg| max(K_ii / z0, 1 / P)
-        # in its measures (the hard-wall LJ law's slope there is 15.6 P / z0, the exponential
-        # law's 1 P / rho: there m / z0 itself, unless K_ii P / z0 > 1).  In z0 alone, Newton
-        # took a Krylov step at those states, a scene's peak of memory.  Only where the law is
-        # steeper than that (a law without a slope, Dugdale's, keeps m / z0)
-        self.offset_limit = self.offset_tol * problem.z0
-        # a pressure error's weight in the error measures [1/Pa]: K_ii / z0 in the gaps' and
-        # 1 / P in the pressures', the larger counts
-        self.per_pascal = max(problem.kappa / problem.z0, 1.0 / problem.pressure_scale)
-        effect = problem.steepest_slope * self.per_pascal
-        if tol is None and problem.hard_wall and np.isfinite(effect) and effect * problem.z0 > 1.0 + 1e-9:
-            self.offset_limit = self.offset_tol / effect
-        self._visible = np.inf       # what the last update of W moved the error by (``_round_target``)
-        self.max_rounds = opts.getInt("max_rounds", code_default("adhesion", "descent_max_rounds"))
         options = descent_options(problem.prefix)
         self.pc_contact_factor, self.floor_factor = options.pc_contact_factor, options.floor_factor
         for key, value in TAO_DEFAULTS.items():
@@ -126,6 +98,8 @@ class EnergyDescent:
         norm = 1.0 / (fft.Nx * fft.Ny)
         stiffness = op.inverse_kernel / norm             # modal stiffness E* |q| / 2 [Pa/m], 0 on the mean
         self.c = (self.comm.allreduce(float(stiffness.max()), op=MPI.MAX) if problem.hard_wall else 0.0)
+        # a hard wall's mean multiplier and rounds (none on the full LJ curve)
+        self.mean = MeanMultiplier(problem, self.prefix, self.c, tol) if problem.hard_wall else None
         mean_mode = stiffness == 0
         # the mean mode (no stiffness of its own): a hard wall's penalty c, else 1 / K_ii, the
         # Hessian's scale there (a unit would be off by the units' scale in metres and pascals)
@@ -140,7 +114,6 @@ class EnergyDescent:
         # absolute size, were off by many orders and its line search failed from the first steps)
         self.length = problem.z0
         self.kappa = problem.kappa
-        self.W = 0.0
         self.delta = 0.0
         self.curvature = np.zeros(self.shape)
         self.pc_scale = None         # S of the preconditioner (None: S = 1)
@@ -150,8 +123,12 @@ class EnergyDescent:
         # (v copy, g, a, K^-1 u) rows, mean u and p0; ``_valid`` whether they are v's
         self._rows, self._mean_u, self._p0, self._valid = None, 0.0, 0.0, False
         self.pc_applies = 0
-        self._round = 1              # the hard wall's round under way (``_round_target``)
         self.floor = None            # the full LJ curve's gap floor (``descent_floor.GapFloor``)
+
+    @property
+    def max_rounds(self) -> int:
+        """A hard wall's most rounds (``MeanMultiplier``; 1 on the full LJ curve)."""
+        return self.mean.max_rounds if self.mean is not None else 1
 
     # -- PETSc objects ------------------------------------------------------------------
     def shell(self, sizes, ctx) -> PETSc.Mat:
@@ -190,7 +167,7 @@ class EnergyDescent:
         if p.hard_wall:
             g -= self.delta
             p.traction.pressure(g, out=a)
-            self._p0 = self.c * mean_u + self.W
+            self._p0 = self.mean.pressure(mean_u)
         else:
             g -= mean_u + self.delta
             p.traction.pressure(g, out=a)
@@ -210,7 +187,7 @@ class EnergyDescent:
         np.add(k_inv_u, p0, out=grad)       # p, then p - a
         grad -= a
         if self.p.hard_wall:
-            energy += self.n * mean_u * (0.5 * self.c * mean_u + self.W)
+            energy += self.mean.energy(mean_u, self.n)
         else:
             grad -= self._sum(float(grad.sum())) / self.n    # the mean is a null direction
         grad *= self.kappa / self.length
@@ -295,25 +272,6 @@ class EnergyDescent:
             local = max(local, *(np.inf if m != m else m for m in measures))
         return max_error(self.comm, local)
 
-    def _round_target(self, mean_u: float) -> float:
-        """The error this round of the descent stops at, the mean of u being ``mean_u`` [m]: a
-        hard wall's round that leaves an offset above ``offset_tol`` is followed by another, whose
-        new multiplier W moves the state by about that offset: it stops once its error [z0] is
-        below the offset [z0] (the last polishing steps of every round but the last were lost).
-        The descent's tolerance where the round may be the last."""
-        if self.p.hard_wall and not self._offset_closed(mean_u) and self._round < self.max_rounds:
-            # and below what the last update of W moved the error by, else the round stops at
-            # its first iterate without moving the state, and W moves on blind (a hundredth of
-            # the tolerance at least: within the measures' round-off at any grid, where a
-            # blind round costs one evaluation and an unreachable target TAO's max_it)
-            return min(max(self.tol, abs(mean_u) / self.p.z0), max(self._visible, 0.01 * self.tol))
-        return self.tol
-
-    def _offset_closed(self, mean_u: float) -> bool:
-        """Whether a hard wall's mean offset ``mean_u`` [m] is within ``offset_tol`` z0, and its
-        effect on Newton's error measures within ``offset_tol`` (``offset_limit``; the rounds end)."""
-        return abs(mean_u) <= self.offset_limit
-
     def _converged(self, tao):
         g, a, mean_u, k_inv_u, p0 = self.fields(tao.getSolution())
         err = self.error(g, k_inv_u, p0, a)
@@ -329,7 +287,7 @@ class EnergyDescent:
         self.last_error = err
         if tao.getConvergedReason() < 0:
             return       # TAO's own failure (line search, ...)
-        if err <= self._round_target(mean_u):
+        if err <= (self.mean.target(mean_u, self.tol) if self.mean is not None else self.tol):
             tao.setConvergedReason(TAO_REASON.CONVERGED_USER)
         elif self.floor is not None and self.floor.active and self.floor.holds(tao, k_inv_u, p0, a):
             self.pinned = True
@@ -361,7 +319,7 @@ class EnergyDescent:
         u = grid.rows(x)
         p.op.apply(pressure0, u)
         if p.hard_wall:
-            self.W = self._sum(float(pressure0.sum())) / self.n
+            self.mean.start(self._sum(float(pressure0.sum())) / self.n)
             np.maximum(u, approach - self.h, out=u)
         else:
             largest = self.comm.allreduce(float(pressure0.max(initial=0.0)), op=MPI.MAX)
@@ -418,15 +376,12 @@ class EnergyDescent:
 
     def _rounds(self, tao, x, bounds) -> tuple[int, int, int]:
         """TAO's solves from ``x``: a hard wall's rounds (its multiplier W updated between
-        them), the full LJ curve's floor lowered where it holds nodes; (TAO's reason,
-        iterations, rounds)."""
-        p, grid = self.p, self.grid
+        them, ``MeanMultiplier``), the full LJ curve's floor lowered where it holds nodes;
+        (TAO's reason, iterations, rounds)."""
+        grid, mean = self.grid, self.mean
         iterations = rounds = 0
-        last = None     # (W, mean u) of the round before
-        self._visible = np.inf
         while True:
             self.pinned = False
-            self._round = rounds + 1
             tao.solve()
             rounds += 1
             iterations += tao.getIterationNumber()
@@ -436,27 +391,16 @@ class EnergyDescent:
                 # pressure 8x, the third time removed), the descent goes on from there
                 self.floor.lower(grid.rows(bounds[0]), grid.rows(x, readonly=True))
                 continue
-            mean_u = self.fields(x)[2]
-            if code < 0 and self._visible < np.inf and self.last_error <= self.tol:
-                # a round asked below the tolerance (``_round_target``) that TAO could not
-                # reach: its state is within the tolerance, the rounds go on from it
-                code = TAO_REASON.CONVERGED_USER
-            if not p.hard_wall or code < 0 or rounds >= self.max_rounds or self._offset_closed(mean_u):
+            if mean is None:
                 return code, iterations, rounds
-            # the measured mean pressure, W + c m, is the next round's multiplier; from the
-            # second round on, the secant of m(W) where it falls as it should (slope below
-            # -1/c's sign): the offset then falls superlinearly instead of by k / (c + k)
-            step = self.c * mean_u
-            if last is not None and mean_u != last[1]:
-                slope = (mean_u - last[1]) / (self.W - last[0])
-                if slope < 0:
-                    step = -mean_u / slope
-            last = (self.W, mean_u)
-            self.W += step
-            # where m is held to its effect on Newton's measures only (``offset_limit``): an
-            # update of W below the tolerance's effect on the error measures
-            self._visible = (0.5 * abs(step) * self.per_pascal
-                             if abs(mean_u) <= self.offset_tol * p.z0 else np.inf)
+            mean_u = self.fields(x)[2]
+            if code < 0 and mean.visible < np.inf and self.last_error <= self.tol:
+                # a round asked below the tolerance (``MeanMultiplier.target``) that TAO could
+                # not reach: its state is within the tolerance, the rounds go on from it
+                code = TAO_REASON.CONVERGED_USER
+            if code < 0 or rounds >= mean.max_rounds or mean.closed(mean_u):
+                return code, iterations, rounds
+            mean.update(mean_u)
             self._valid = False
 
     def _write_state(self, x: PETSc.Vec, at_bound: np.ndarray | None) -> None:
