@@ -1,0 +1,126 @@
+#!/usr/bin/env python3
+"""Benchmark: the adhesive sphere's load-unload path against the non-adhesive solve (issue 33, goal 1).
+
+A sphere of radius --radius z0 on an isolated window --window z0 wide (E* = 1), the law --law
+(the full LJ curve, or hard-wall LJ) with the work of adhesion of each Tabor parameter of --tabor,
+mu = (R w^2 / (E*^2 z0^3))^(1/3), on the grid that resolves it: dx = z0, z0 / 2, z0 / 4, ... the
+first whose adhesive zone spans 4 nodes and whose snap number K_ii max da/dg is below 1 (the
+problem's own criteria: coarser, the code warns that the adhesion is under-resolved).  One problem per Tabor parameter, solved with warm starts along
+a load-unload path in steps of --step z0 with every default a scene gets (the stability check
+and the tangent stiffness included): from -2 z0 up to +--depth z0, then down to 1.2 times the
+JKR pull-off approach of that w (at least -2 z0; Maugis-Dugdale's is smaller), so that the
+path jumps on and off.  The unit of the ratios is the non-adhesive solve (``ContactProblem``,
+the Hertz state) of the same heights at the path's largest approach, cold, to the same tolerance.
+
+One JSON line per state (approach, FFT pairs, CPU s, Newton and Krylov counts, contact
+fraction, force, converged, stable, solver, the pairs and CPU over the unit), then per Tabor
+parameter a summary: the states converged, the largest and median ratios, the largest over the
+median.  One rank.
+
+    .venv/bin/python run_scripts/bench/bench_sphere_path.py [--window 128] [--tabor 0.1 0.5 1 2 5]
+        [--law lj|hardwall-lj] [--radius 100] [--step 0.25] [-sphere_<option> ...]
+"""
+import argparse
+import os
+import sys
+import time
+
+import petsc4py
+
+from bench_args import emit
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+ap.add_argument("--window", type=int, default=128, help="window width [z0]")
+ap.add_argument("--tabor", type=float, nargs="+", default=[0.1, 0.5, 1.0, 2.0, 5.0])
+ap.add_argument("--law", default="lj", choices=("lj", "hardwall-lj"))
+ap.add_argument("--radius", type=float, default=100.0, help="sphere radius [z0]")
+ap.add_argument("--step", type=float, default=0.25, help="approach step [z0]")
+ap.add_argument("--depth", type=float, default=2.0, help="largest approach [z0]")
+args, petsc_args = ap.parse_known_args()
+petsc4py.init([sys.argv[0]] + petsc_args)
+
+import numpy as np  # noqa: E402
+from petsc4py import PETSc  # noqa: E402
+
+from contactpetsc.geometry.surfaces import sphere  # noqa: E402
+from contactpetsc.grid import SurfaceGrid  # noqa: E402
+from contactpetsc.physics.closed_forms import maugis_units  # noqa: E402
+from contactpetsc.physics.interactions import make_law  # noqa: E402
+from contactpetsc.physics.resolution import RESOLUTION_NODES, check_resolution  # noqa: E402
+from contactpetsc.solvers.adhesive import AdhesiveProblem  # noqa: E402
+from contactpetsc.solvers.problem import ContactProblem  # noqa: E402
+
+assert PETSc.COMM_WORLD.getSize() == 1, "one rank"
+#: the JKR pull-off approach under displacement control, in Maugis' units (the minimum of
+#: Delta(A) = A^2 - 2 sqrt(6 A) / 3, at A = 6^-1/3)
+JKR_PULL_OFF_DELTA = (6.0 ** (-2.0 / 3.0)) - 2.0 * np.sqrt(6.0 * 6.0 ** (-1.0 / 3.0)) / 3.0
+
+
+def path(w: float, z0: float, radius: float) -> np.ndarray:
+    """The approaches [m]: up from -2 z0 to --depth z0, down to 1.2 x JKR's pull-off (or -2 z0)."""
+    h = args.step * z0
+    up = np.arange(-2.0 * z0, args.depth * z0 + 0.5 * h, h)
+    end = min(-2.0 * z0, 1.2 * JKR_PULL_OFF_DELTA * maugis_units(1.0, radius, w)[0])
+    down = np.arange(up[-1] - h, end - 0.5 * h, -h)
+    return np.concatenate([up, down])
+
+
+def resolved(law, radius: float, z0: float):
+    """(grid, heights, problem) on the coarsest dx = z0 / 2^k that resolves ``law``."""
+    dx = z0
+    while True:
+        n = int(round(args.window * z0 / dx))
+        if check_resolution(law, 1.0, dx, warn=False) >= RESOLUTION_NODES:
+            grid = SurfaceGrid(n, n, dx, periodic=False)
+            heights = sphere(grid, radius)
+            pb = AdhesiveProblem(grid, heights, 1.0, law, prefix="sphere_")
+            if pb.snap_number < 1.0:
+                return grid, heights, pb
+            pb.destroy()
+            heights.destroy()
+        dx *= 0.5
+
+
+def main():
+    z0 = 1.0
+    radius = args.radius * z0
+    for mu in args.tabor:
+        w = float(np.sqrt(mu ** 3 * z0 ** 3 / radius))
+        approaches = path(w, z0, radius)
+        law = make_law(args.law, work_of_adhesion=w, z0=z0)
+        grid, heights, pb = resolved(law, radius, z0)
+        # the unit: the non-adhesive solve at the path's largest approach, cold
+        t = time.process_time()
+        unit = ContactProblem(grid, heights, 1.0, prefix="unit_", tol=1e-8).solve(approach=float(approaches.max()))
+        unit_cpu, unit_pairs = time.process_time() - t, unit.fft_pairs
+        emit(tabor=mu, law=args.law, n=grid.nx, dx_z0=grid.dx / z0, radius_z0=args.radius, work_of_adhesion=w,
+             states=len(approaches), unit_pairs=unit_pairs, unit_cpu=unit_cpu, snap_number=pb.snap_number,
+             zone_nodes=pb.zone_nodes)
+        rows = []
+        for k, d in enumerate(approaches):
+            t = time.process_time()
+            st = pb.solve(approach=float(d), raise_on_failure=False)
+            cpu = time.process_time() - t
+            row = dict(tabor=mu, state=k, approach=float(d), fft_pairs=st.fft_pairs, cpu=cpu,
+                       newton=st.newton_iterations, krylov=st.linear_iterations,
+                       contact_fraction=st.contact_fraction, force=st.force, converged=st.converged,
+                       stable=st.stable, solver=st.solver, pairs_ratio=st.fft_pairs / unit_pairs,
+                       cpu_ratio=cpu / unit_cpu)
+            if not st.converged:
+                row["reason"] = st.reason
+            rows.append(row)
+            emit(**row)
+            st.release_fields()
+        pairs = np.array([r["pairs_ratio"] for r in rows])
+        cpus = np.array([r["cpu_ratio"] for r in rows])
+        emit(tabor=mu, summary=True, states=len(rows), converged=sum(r["converged"] for r in rows),
+             stable=sum(r["stable"] is True for r in rows), pairs_ratio_max=float(pairs.max()),
+             pairs_ratio_median=float(np.median(pairs)), cpu_ratio_max=float(cpus.max()),
+             cpu_ratio_median=float(np.median(cpus)), max_over_median=float(pairs.max() / np.median(pairs)),
+             states_above_3x=int((pairs > 3.0).sum()), fft_pairs_total=float(sum(r["fft_pairs"] for r in rows)))
+        pb.destroy()
+        heights.destroy()
+
+
+main()
