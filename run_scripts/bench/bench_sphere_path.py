@@ -37,6 +37,7 @@ ap.add_argument("--law", default="lj", choices=("lj", "hardwall-lj"))
 ap.add_argument("--radius", type=float, default=100.0, help="sphere radius [z0]")
 ap.add_argument("--step", type=float, default=0.25, help="approach step [z0]")
 ap.add_argument("--depth", type=float, default=2.0, help="largest approach [z0]")
+ap.add_argument("--first", type=int, default=None, help="only the path's first states (a probe)")
 args, petsc_args = ap.parse_known_args()
 petsc4py.init([sys.argv[0]] + petsc_args)
 
@@ -87,7 +88,7 @@ def main():
     radius = args.radius * z0
     for mu in args.tabor:
         w = float(np.sqrt(mu ** 3 * z0 ** 3 / radius))
-        approaches = path(w, z0, radius)
+        approaches = path(w, z0, radius)[:args.first]
         law = make_law(args.law, work_of_adhesion=w, z0=z0)
         grid, heights, pb = resolved(law, radius, z0)
         # the unit: the non-adhesive solve at the path's largest approach, cold
