@@ -2,15 +2,17 @@
 """Benchmark: the adhesive sphere's load-unload path against the non-adhesive solve (issue 33, goal 1).
 
 A sphere of radius --radius z0 on an isolated window --window z0 wide (E* = 1), the law --law
-(the full LJ curve, or hard-wall LJ) with the work of adhesion of each Tabor parameter of --tabor,
-mu = (R w^2 / (E*^2 z0^3))^(1/3), on the grid that resolves it: dx = z0, z0 / 2, z0 / 4, ... the
-first whose adhesive zone spans 4 nodes and whose snap number K_ii max da/dg is below 1 (the
-problem's own criteria: coarser, the code warns that the adhesion is under-resolved).  One problem per Tabor parameter, solved with warm starts along
-a load-unload path in steps of --step z0 with every default a scene gets (the stability check
-and the tangent stiffness included): from -2 z0 up to +--depth z0, then down to 1.2 times the
-JKR pull-off approach of that w (at least -2 z0; Maugis-Dugdale's is smaller), so that the
+(the full LJ curve, or hard-wall LJ) with the work of adhesion of each Tabor parameter of
+--tabor, mu = (R w^2 / (E*^2 z0^3))^(1/3), on the grid that resolves it: dx = z0, z0 / 2,
+z0 / 4, ... the first whose adhesive zone spans 4 nodes and whose snap number K_ii max da/dg is
+below 1 (the problem's own criteria: coarser, the code warns that the adhesion is
+under-resolved).  One problem per Tabor parameter, solved with warm starts along a load-unload
+path in steps of --step z0 with every default a scene gets (the stability check and the
+tangent stiffness included): from --start z0 up to --depth z0, then down to 1.2 times the JKR
+pull-off approach of that w (at least to --start; Maugis-Dugdale's is smaller), so that the
 path jumps on and off.  The unit of the ratios is the non-adhesive solve (``ContactProblem``,
-the Hertz state) of the same heights at the path's largest approach, cold, to the same tolerance.
+the Hertz state) of the same heights at the path's largest approach, cold, to the same
+tolerance.
 
 One JSON line per state (approach, FFT pairs, CPU s, Newton and Krylov counts, contact
 fraction, force, converged, stable, solver, the pairs and CPU over the unit), then per Tabor
@@ -37,6 +39,7 @@ ap.add_argument("--law", default="lj", choices=("lj", "hardwall-lj"))
 ap.add_argument("--radius", type=float, default=100.0, help="sphere radius [z0]")
 ap.add_argument("--step", type=float, default=0.25, help="approach step [z0]")
 ap.add_argument("--depth", type=float, default=2.0, help="largest approach [z0]")
+ap.add_argument("--start", type=float, default=-2.0, help="the path's first approach [z0]")
 ap.add_argument("--first", type=int, default=None, help="only the path's first states (a probe)")
 args, petsc_args = ap.parse_known_args()
 petsc4py.init([sys.argv[0]] + petsc_args)
@@ -59,10 +62,10 @@ JKR_PULL_OFF_DELTA = (6.0 ** (-2.0 / 3.0)) - 2.0 * np.sqrt(6.0 * 6.0 ** (-1.0 / 
 
 
 def path(w: float, z0: float, radius: float) -> np.ndarray:
-    """The approaches [m]: up from -2 z0 to --depth z0, down to 1.2 x JKR's pull-off (or -2 z0)."""
+    """The approaches [m]: up from --start z0 to --depth z0, down to 1.2 x JKR's pull-off (or --start)."""
     h = args.step * z0
-    up = np.arange(-2.0 * z0, args.depth * z0 + 0.5 * h, h)
-    end = min(-2.0 * z0, 1.2 * JKR_PULL_OFF_DELTA * maugis_units(1.0, radius, w)[0])
+    up = np.arange(args.start * z0, args.depth * z0 + 0.5 * h, h)
+    end = min(args.start * z0, 1.2 * JKR_PULL_OFF_DELTA * maugis_units(1.0, radius, w)[0])
     down = np.arange(up[-1] - h, end - 0.5 * h, -h)
     return np.concatenate([up, down])
 
