@@ -91,12 +91,14 @@ def main():
     radius = args.radius * z0
     for mu in args.tabor:
         w = float(np.sqrt(mu ** 3 * z0 ** 3 / radius))
-        approaches = path(w, z0, radius)[:args.first]
+        approaches = path(w, z0, radius)
+        largest = float(approaches.max())      # the unit's approach, on the whole path
+        approaches = approaches[:args.first]
         law = make_law(args.law, work_of_adhesion=w, z0=z0)
         grid, heights, pb = resolved(law, radius, z0)
         # the unit: the non-adhesive solve at the path's largest approach, cold
         t = time.process_time()
-        unit = ContactProblem(grid, heights, 1.0, prefix="unit_", tol=1e-8).solve(approach=float(approaches.max()))
+        unit = ContactProblem(grid, heights, 1.0, prefix="unit_", tol=1e-8).solve(approach=largest)
         unit_cpu, unit_pairs = time.process_time() - t, unit.fft_pairs
         emit(tabor=mu, law=args.law, n=grid.nx, dx_z0=grid.dx / z0, radius_z0=args.radius, work_of_adhesion=w,
              states=len(approaches), unit_pairs=unit_pairs, unit_cpu=unit_cpu, snap_number=pb.snap_number,
