@@ -16,8 +16,11 @@ Two discretisations of an interaction law (``interactions.py``):
   is the integral of p along the piecewise-linear gap profile, whatever
   the position of the nodes relative to the adhesive zone.
 
-Hard-wall laws only act for g > 0 (eq. 7): a = p(max(g, 0)), and the
-derivative is zero where g <= 0, where the contact pressure takes over.
+Hard-wall laws only act for g >= 0 (eq. 7), where every converged state's gaps lie; below
+the wall, where only iterates go, a law is continued by its Taylor polynomial at g = 0 (a
+slope that jumped there, from 0 to the hard-wall LJ law's -6 p_s / z0, made the VI Newton's
+direction no descent direction wherever an inexact Krylov step moved contact nodes across it:
+docs/performance.md, "The adhesive sphere's states").
 A singular law declares a ``safe_gap``: the full Lennard-Jones curve (eq. 8)
 is singular at z = g + z0 = 0, and below z = z_safe (0.5 z0, where the law's pressure is already 504 times the
 adhesive pressure scale 8w/(3 z0)) it is continued linearly, so that no
@@ -71,10 +74,13 @@ class AdhesiveTraction:
         self.element_integration = bool(element_integration)
         self.hard_wall = law.hard_wall
         self.g_safe = None if law.hard_wall else law.safe_gap
-        if self.g_safe is not None:
-            self._p_safe = float(law.pressure(self.g_safe))
-            self._d_safe = float(law.derivative(self.g_safe))
-            self._e_safe = float(law.energy(self.g_safe))
+        # where the law is continued by its Taylor polynomial: a singular law's safe gap, a
+        # hard wall's g = 0 (the law C1 through the wall)
+        self._g_cont = 0.0 if law.hard_wall else self.g_safe
+        if self._g_cont is not None:
+            self._p_safe = float(law.pressure(self._g_cont))
+            self._d_safe = float(law.derivative(self._g_cont))
+            self._e_safe = float(law.energy(self._g_cont))
         nx = grid.nx
         self._lo, self._hi = np.empty(nx), np.empty(nx)
         self.diagonal = None      # d a_i / d g_i after ``linearise``
@@ -82,48 +88,41 @@ class AdhesiveTraction:
 
     # -- pointwise law with the guards above -------------------------------------
     def _continued(self, g, values, order: int):
-        """``values`` of the law at max(g, g_safe), below g_safe replaced by the law's Taylor
-        polynomial there in t = g - g_safe: pressure (order 1: p + p' t), energy (order 2: the
+        """``values`` of the law at max(g, g_c), below g_c (``_g_cont``) replaced by the law's Taylor
+        polynomial there in t = g - g_c: pressure (order 1: p + p' t), energy (order 2: the
         integral of the former, Phi - t (p + p' t / 2)), derivative (order 0: p').  Only the
         nodes below are touched: a full-grid np.where cost as much as the law itself."""
         g = np.asarray(g)
-        below = g < self.g_safe
+        below = g < self._g_cont
         if not below.any():
             return values
         values = np.asarray(values)
         if order == 0:
             values[below] = self._d_safe
         else:
-            t = g[below] - self.g_safe
+            t = g[below] - self._g_cont
             values[below] = (self._p_safe + self._d_safe * t if order == 1
                              else self._e_safe - t * (self._p_safe + 0.5 * self._d_safe * t))
         return values[()]
 
     def _pressure(self, g):
-        if self.hard_wall:
-            return self.law.pressure(np.maximum(g, 0.0))
-        if self.g_safe is None:
+        if self._g_cont is None:
             return self.law.pressure(g)
-        return self._continued(g, self.law.pressure(np.maximum(g, self.g_safe)), 1)
+        return self._continued(g, self.law.pressure(np.maximum(g, self._g_cont)), 1)
 
     def nodal_derivative(self, g, out: np.ndarray | None = None):
-        """da/dg [Pa/m] of the guarded pointwise law at the gaps ``g`` [m] (zero on a hard wall's
-        contact, linear continuation below a singular law's safe gap); into ``out`` when given
-        (a block at a time)."""
+        """da/dg [Pa/m] of the guarded pointwise law at the gaps ``g`` [m] (below a hard wall or a
+        singular law's safe gap, the slope there); into ``out`` when given (a block at a time)."""
         if out is not None:
             return blockwise(self.nodal_derivative, g, out)
-        if self.hard_wall:
-            return np.where(g > 0, self.law.derivative(np.maximum(g, 0.0)), 0.0)
-        if self.g_safe is None:
+        if self._g_cont is None:
             return self.law.derivative(g)
-        return self._continued(g, self.law.derivative(np.maximum(g, self.g_safe)), 0)
+        return self._continued(g, self.law.derivative(np.maximum(g, self._g_cont)), 0)
 
     def _energy(self, g):
-        if self.hard_wall:
-            return self.law.energy(np.maximum(g, 0.0))
-        if self.g_safe is None:
+        if self._g_cont is None:
             return self.law.energy(g)
-        return self._continued(g, self.law.energy(np.maximum(g, self.g_safe)), 2)
+        return self._continued(g, self.law.energy(np.maximum(g, self._g_cont)), 2)
 
     def _segment(self, a, b):
         """(m, dm/da, dm/db) of the mean pressure along a linear profile from gap a to b."""
