@@ -72,15 +72,14 @@ class AdhesiveTraction:
     def __init__(self, law: InteractionLaw, grid: SurfaceGrid, element_integration: bool = False):
         self.law, self.grid = law, grid
         self.element_integration = bool(element_integration)
-        self.hard_wall = law.hard_wall
         self.g_safe = None if law.hard_wall else law.safe_gap
         # where the law is continued by its Taylor polynomial: a singular law's safe gap, a
         # hard wall's g = 0 (the law C1 through the wall)
         self._g_cont = 0.0 if law.hard_wall else self.g_safe
         if self._g_cont is not None:
-            self._p_safe = float(law.pressure(self._g_cont))
-            self._d_safe = float(law.derivative(self._g_cont))
-            self._e_safe = float(law.energy(self._g_cont))
+            self._p_cont = float(law.pressure(self._g_cont))
+            self._d_cont = float(law.derivative(self._g_cont))
+            self._e_cont = float(law.energy(self._g_cont))
         nx = grid.nx
         self._lo, self._hi = np.empty(nx), np.empty(nx)
         self.diagonal = None      # d a_i / d g_i after ``linearise``
@@ -98,11 +97,11 @@ class AdhesiveTraction:
             return values
         values = np.asarray(values)
         if order == 0:
-            values[below] = self._d_safe
+            values[below] = self._d_cont
         else:
             t = g[below] - self._g_cont
-            values[below] = (self._p_safe + self._d_safe * t if order == 1
-                             else self._e_safe - t * (self._p_safe + 0.5 * self._d_safe * t))
+            values[below] = (self._p_cont + self._d_cont * t if order == 1
+                             else self._e_cont - t * (self._p_cont + 0.5 * self._d_cont * t))
         return values[()]
 
     def _pressure(self, g):
@@ -213,7 +212,7 @@ class AdhesiveTraction:
             if np.all(np.abs(dt) <= 1e-15 * t):
                 break
         gap = law.z0 / np.cbrt(t) - law.z0
-        gap = np.where(a > self._p_safe, self.g_safe + (a - self._p_safe) / self._d_safe, gap)
+        gap = np.where(a > self._p_cont, self.g_safe + (a - self._p_cont) / self._d_cont, gap)
         slope = 1.0 / self.nodal_derivative(gap)
         # a < 0 has no repulsive preimage: continue G linearly (C1 at a = 0), so that a
         # node in the wall with an attractive trial pressure still gets a gap-form row

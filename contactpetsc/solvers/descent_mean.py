@@ -21,7 +21,7 @@ class MeanMultiplier:
 
     def __init__(self, problem, prefix: str, c: float, tol: float | None):
         opts = PETSc.Options(prefix)
-        self.c, self.W = c, 0.0
+        self.c = c
         self.z0 = problem.z0
         self.max_rounds = opts.getInt("max_rounds", code_default("adhesion", "descent_max_rounds"))
         self.offset_tol = opts.getReal("offset_tol", 0.1 * problem.tol)
