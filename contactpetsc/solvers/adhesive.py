@@ -37,7 +37,7 @@ from petsc4py import PETSc
 from ..grid import SurfaceGrid
 from ..operators.elastic import HalfSpaceOperator
 from ..physics.interactions import InteractionLaw
-from ..physics.resolution import RESOLUTION_NODES, check_resolution, snap_number, steepest_slope
+from ..physics.resolution import RESOLUTION_NODES, check_resolution, snap_number
 from ..physics.traction import AdhesiveTraction
 from .adhesive_jacobian import AdhesiveJacobian, minloc
 from .adhesive_levels import CoarseLevels
@@ -112,7 +112,6 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self.traction = AdhesiveTraction(law, grid, self.element_integration)
         self.zone_nodes = check_resolution(law, self.e_star, max(grid.dx, grid.dy))
         self.snap_number = snap_number(law, self.kappa)   # K_ii max da/dg
-        self.steepest_slope = steepest_slope(law)         # max |da/dg| [Pa/m]
         self.hard_wall = law.hard_wall
         self.n_blocks = 2 if self.hard_wall else 1
         self._defaults = dict(tol=tol, preconditioner=preconditioner, stability_check=stability_check)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 from petsc4py import PETSc
 
+from ..physics.resolution import steepest_slope
 from .options import code_default
 
 
@@ -41,9 +42,10 @@ class MeanMultiplier:
         # a pressure error's weight in the error measures [1/Pa]: K_ii / z0 in the gaps' and
         # 1 / P in the pressures', the larger counts
         self.per_pascal = max(problem.kappa / problem.z0, 1.0 / problem.pressure_scale)
-        effect = problem.steepest_slope * self.per_pascal
-        if tol is None and np.isfinite(effect) and effect * problem.z0 > 1.0 + 1e-9:
-            self.limit = self.offset_tol / effect
+        if tol is None:
+            effect = steepest_slope(problem.law) * self.per_pascal
+            if np.isfinite(effect) and effect * problem.z0 > 1.0 + 1e-9:
+                self.limit = self.offset_tol / effect
         self.start(0.0)
 
     def start(self, W: float) -> None:
