@@ -9,6 +9,17 @@ from contactpetsc.geometry.surfaces import sphere
 R = 1000.0
 
 
+def energy_moved(state, law, grid, step):
+    """The total energy [J] of the state ``state`` (an ``AdhesiveState``) moved by an approach
+    ``step`` [m]: the same displacement and pressure, every gap ``step`` smaller (the start of a
+    descent at the new approach)."""
+    from contactpetsc.physics.traction import AdhesiveTraction
+    rows = grid.rows
+    return grid.element_area * grid.mpi_comm.allreduce(
+        0.5 * float(np.sum(rows(state.pressure, readonly=True) * rows(state.displacement, readonly=True)))
+        + float(np.sum(AdhesiveTraction(law, grid).energy(rows(state.gap, readonly=True) - step))))
+
+
 def work_for(mu, radius=R):
     """w giving Tabor parameter mu with E* = z0 = 1."""
     return np.sqrt(mu ** 3 / radius)

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
+from adhesive_setup import energy_moved
 from contactpetsc.grid import SurfaceGrid
 from contactpetsc.geometry.surfaces import self_affine
 from contactpetsc.physics.interactions import make_law
-from contactpetsc.physics.traction import AdhesiveTraction
 from contactpetsc.solvers.adhesive import AdhesiveProblem
 from contactpetsc.solvers import energy_tangent
 from contactpetsc.solvers.descent import EnergyDescent
@@ -296,13 +296,7 @@ def test_a_snap_in_is_a_descent_to_a_stable_state(coll):
             after = pb.solve(approach=hmin)
             assert after.solver.endswith("+descent") and after.fallback, after.solver
             assert after.converged and after.stable
-            # the start's energy at the new approach: the same displacement, every gap 0.5 z0 smaller
-            traction = AdhesiveTraction(law, grid)
-            rows = grid.rows
-            start_energy = grid.element_area * grid.mpi_comm.allreduce(
-                0.5 * float(np.sum(rows(before.pressure, readonly=True) * rows(before.displacement, readonly=True)))
-                + float(np.sum(traction.energy(rows(before.gap, readonly=True) - 0.5))))
-            assert after.energy < start_energy
+            assert after.energy < energy_moved(before, law, grid, 0.5)
             gaps.append(grid.gather(after.gap))
     finally:
         for name in ("max_it", "descent_tol", "strategy"):

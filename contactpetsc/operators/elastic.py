@@ -66,6 +66,15 @@ def fft_threads(comm, value, name: str = "fft_threads") -> int:
     return n
 
 
+def convolve(fft, kernel_pairs: np.ndarray, rows_in: np.ndarray, rows_out: np.ndarray) -> np.ndarray:
+    """rows_out = the transform ``fft``'s convolution of rows_in with a real spectrum given as
+    (re, im) pairs (``HalfSpaceOperator.as_pairs``); one FFT pair."""
+    spec = fft.forward(rows_in)
+    pairs = spec.view(np.float64).reshape(kernel_pairs.shape)
+    np.multiply(pairs, kernel_pairs, out=pairs)
+    return fft.backward(rows_out)
+
+
 class HalfSpaceOperator:
     """Common part: v = K p and its inverse through one distributed FFT pair.
 
@@ -83,6 +92,7 @@ class HalfSpaceOperator:
         threads = fft_threads(grid.mpi_comm, threads, f"{prefix}fft_threads")
         planner = opts.getString("fft_planner", "measure" if planner is None else planner)
         self.grid, self.e_star, self.prefix = grid, float(e_star), prefix
+        self.threads, self.planner = threads, planner
         self.fft = grid_rfft(grid, pad=pad, threads=threads, planner=planner)
 
     def on_grid(self, grid: SurfaceGrid, **kw) -> "HalfSpaceOperator":
@@ -96,6 +106,11 @@ class HalfSpaceOperator:
         self.kernel = self._kernel_pairs[..., 0]
         self._inverse_pairs = self.as_pairs(self.inverse_kernel)
         self.inverse_kernel = self._inverse_pairs[..., 0]
+
+    @property
+    def kernel_pairs(self) -> np.ndarray:
+        """K's spectrum in the pair layout of ``convolve`` (read-only use)."""
+        return self._kernel_pairs
 
     @property
     def inverse_pairs(self) -> np.ndarray:
@@ -122,10 +137,7 @@ class HalfSpaceOperator:
         return np.ascontiguousarray(np.repeat(kernel[..., None], 2, axis=-1))
 
     def convolve(self, kernel_pairs: np.ndarray, rows_in: np.ndarray, rows_out: np.ndarray) -> np.ndarray:
-        spec = self.fft.forward(rows_in)
-        pairs = spec.view(np.float64).reshape(kernel_pairs.shape)
-        np.multiply(pairs, kernel_pairs, out=pairs)
-        return self.fft.backward(rows_out)
+        return convolve(self.fft, kernel_pairs, rows_in, rows_out)
 
     def apply(self, pressure_rows: np.ndarray, out_rows: np.ndarray) -> np.ndarray:
         """Displacement v = K p [m] for pressure p [Pa], both local (ny_loc, nx_loc) rows."""

@@ -232,7 +232,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         # quasi-static states, but it is no descent (at a jump it runs and fails before the
         # fallback descends) and holds a third more memory (docs/performance.md, "The hard
         # wall under the descent strategy")
-        self.strategy = strategy_option(self.prefix, descent_applies(self))
+        self.strategy = strategy_option(self.prefix, descent_applies(self) and self.grid.periodic)
         if self.strategy == "descent":
             require_descent(self, f"-{self.prefix}strategy descent")
         descent_options(self.prefix)    # bad input is refused at set-up, not at the first descent

@@ -35,9 +35,12 @@ the same in nanometres as in metres.
   what Newton measures (``descent_mean.MeanMultiplier``); Newton then closes the last offset.
 
 Its stopping test is the problem's own error measures (``AdhesiveProblem._measures``) on
-the descent iterate, to ``-<prefix>descent_tol`` (default: the problem's ``tol``, half of it with a hard wall; Newton's
-polish then only confirms the state and builds its Jacobian).  Periodic grids and the nodal rule only:
-K^-1 is then diagonal in Fourier space and Phi is the law's energy at the nodes.
+the descent iterate, to ``-<prefix>descent_tol`` (default: the problem's ``tol``, half of it with a
+hard wall on a cell; Newton's polish then only confirms the state and builds its Jacobian).  The
+nodal rule only (Phi the law's energy at the nodes), on a periodic grid, where K^-1 is diagonal
+in Fourier space, or on an isolated window split along y: there u lives on the window's padded
+grid, whose circulant's inverse is diagonal, with the law on the window's nodes and no mean to
+hold (``descent_space.py``).
 
 Options (prefix ``<problem prefix>descent_``): ``tol`` (error measure, z0), ``max_rounds``
 and ``offset_tol`` (a hard wall's rounds, ``descent_mean.py``), ``pc_contact_factor`` (f above,
@@ -61,6 +64,7 @@ from .descent_contexts import Compliance, Hessian
 from .descent_floor import GapFloor
 from .descent_mean import MeanMultiplier
 from .descent_options import TAO_DEFAULTS, descent_options, natural_norm, require_descent
+from .descent_space import descent_space
 
 #: TAO's converged reasons (petsc4py >= 3.20 also names them ConvergedReason)
 TAO_REASON = getattr(PETSc.TAO, "ConvergedReason", None) or PETSc.TAO.Reason
@@ -76,19 +80,27 @@ class EnergyDescent:
     def __init__(self, problem, tol: float | None = None):
         require_descent(problem, "EnergyDescent")
         self.p = problem
-        grid = problem.grid
+        # the unknown's grid: the cell, or an isolated window's padded grid (``descent_space``)
+        self.space = space = descent_space(problem)
+        grid = space.grid
         self.comm, self.grid = grid.mpi_comm, grid
         self.prefix = problem.prefix + "descent_"
         self.shape = (grid.ny_local, grid.nx)
         self.offset = grid.offset
         self.n = grid.nx * grid.ny
+        self.nodes = problem.grid.nx * problem.grid.ny      # the law's (the window's)
+        self.win = space.window
+        # the mean of u: a null mode of K^-1 on a cell (a hard wall's penalty, the full LJ
+        # curve's projection), none on an isolated window
+        self.projects_mean = space.projects_mean and not problem.hard_wall
         opts = PETSc.Options(self.prefix)
         # inside the problem's own tolerance, the descent's error and a hard wall's offset
         # together: Newton's confirmation then converges at its first iterate.  Its backtracking
         # line search failed from hard-wall states descended to 1e-4 - 1e-7, or to tol with an
-        # offset of tol, and handed them on to the relaxation's cycles.  The full LJ curve has
-        # no offset: tol itself (half of it cost more descent, in the coarse levels too)
-        self.tol = tol if tol is not None else opts.getReal("tol", (0.5 if problem.hard_wall else 1.0) * problem.tol)
+        # offset of tol, and handed them on to the relaxation's cycles.  The full LJ curve and
+        # a window have no offset: tol itself (half of it cost more descent, in the coarse levels too)
+        cell_wall = problem.hard_wall and space.projects_mean
+        self.tol = tol if tol is not None else opts.getReal("tol", (0.5 if cell_wall else 1.0) * problem.tol)
         options = descent_options(problem.prefix)
         self.pc_contact_factor, self.floor_factor = options.pc_contact_factor, options.floor_factor
         for key, value in TAO_DEFAULTS.items():
@@ -97,9 +109,9 @@ class EnergyDescent:
         fft = op.fft
         norm = 1.0 / (fft.Nx * fft.Ny)
         stiffness = op.inverse_kernel / norm             # modal stiffness E* |q| / 2 [Pa/m], 0 on the mean
-        self.c = (self.comm.allreduce(float(stiffness.max()), op=MPI.MAX) if problem.hard_wall else 0.0)
-        # a hard wall's mean multiplier and rounds (none on the full LJ curve)
-        self.mean = MeanMultiplier(problem, self.prefix, self.c, tol) if problem.hard_wall else None
+        self.c = self.comm.allreduce(float(stiffness.max()), op=MPI.MAX) if cell_wall else 0.0
+        # a hard wall's mean multiplier and rounds on a cell (none on the full LJ curve or a window)
+        self.mean = MeanMultiplier(problem, self.prefix, self.c, tol) if cell_wall else None
         mean_mode = stiffness == 0
         # the mean mode (no stiffness of its own): a hard wall's penalty c, else 1 / K_ii, the
         # Hessian's scale there (a unit would be off by the units' scale in metres and pascals)
@@ -108,14 +120,15 @@ class EnergyDescent:
         self._k_inv = op.inverse_pairs
         # K / K_ii: the preconditioner's compliance in the dimensionless v
         self._compliance = op.as_pairs(compliance * (norm / problem.kappa))
-        self.h = grid.rows(problem.heights, readonly=True)
+        self.h = space.from_problem(problem.grid.rows(problem.heights, readonly=True))   # the window's
         # TAO works in v = u / z0 on the energy times K_ii / z0^2: gradient, Hessian and steps of
         # order one at any units (in metres and pascals BNK's gradient steps and shifts, of
         # absolute size, were off by many orders and its line search failed from the first steps)
         self.length = problem.z0
         self.kappa = problem.kappa
         self.delta = 0.0
-        self.curvature = np.zeros(self.shape)
+        self.curvature = np.zeros(self.shape)        # zero outside a window
+        self._scratch = None         # a window-sized array for the law's values (not on a cell)
         self.pc_scale = None         # S of the preconditioner (None: S = 1)
         self._embed = None           # the full array the products on a proper inactive set embed in
         self._dx = None              # the Hessian product's diagonal term
@@ -155,23 +168,23 @@ class EnergyDescent:
         if self.comm.allreduce(same, op=MPI.LAND):
             return self._rows[1], self._rows[2], self._mean_u, self._rows[3], self._p0
         if self._rows is None:
-            self._rows = tuple(np.empty(self.shape) for _ in range(4))
+            self._rows = (np.empty(self.shape), np.empty(self.h.shape), np.empty(self.h.shape), np.empty(self.shape))
         v_copy, g, a, k_inv_u = self._rows
         v_copy[...] = v
         p = self.p
-        mean_u = self._sum(float(v_copy.sum())) * self.length / self.n
-        p.op.convolve(self._k_inv, v_copy, k_inv_u)
+        mean_u = self._sum(float(v_copy.sum())) * self.length / self.n if self.space.projects_mean else 0.0
+        self.space.convolve(self._k_inv, v_copy, k_inv_u)
         k_inv_u *= self.length
-        np.multiply(v_copy, self.length, out=g)
+        np.multiply(v_copy[self.win], self.length, out=g)
         g += self.h
-        if p.hard_wall:
-            g -= self.delta
-            p.traction.pressure(g, out=a)
+        g -= self.delta
+        if self.projects_mean:
+            g -= mean_u
+        p.traction.pressure(g, out=a)
+        if self.mean is not None:
             self._p0 = self.mean.pressure(mean_u)
         else:
-            g -= mean_u + self.delta
-            p.traction.pressure(g, out=a)
-            self._p0 = self._sum(float(a.sum())) / self.n
+            self._p0 = self._sum(float(a.sum())) / self.n if self.projects_mean else 0.0
         self._mean_u, self._valid = mean_u, True
         return g, a, mean_u, k_inv_u, self._p0
 
@@ -180,15 +193,15 @@ class EnergyDescent:
         over the nodes) times K_ii / z0^2, and its gradient (p - a(g)) K_ii / z0."""
         grad = gradient.getArray().reshape(self.shape)
         g, a, mean_u, k_inv_u, p0 = self.fields(x)
-        # the law's energy in the gradient's array first (no grid-sized temporary)
+        # the law's energy in the gradient's array first on a cell (no grid-sized temporary)
         local = (0.5 * self.length * float(np.dot(self._rows[0].ravel(), k_inv_u.ravel()))
-                 + float(self.p.traction.energy(g, out=grad).sum()))
+                 + float(self.p.traction.energy(g, out=self._law_rows(grad)).sum()))
         energy = self._sum(local)
         np.add(k_inv_u, p0, out=grad)       # p, then p - a
-        grad -= a
-        if self.p.hard_wall:
+        grad[self.win] -= a
+        if self.mean is not None:
             energy += self.mean.energy(mean_u, self.n)
-        else:
+        elif self.projects_mean:
             grad -= self._sum(float(grad.sum())) / self.n    # the mean is a null direction
         grad *= self.kappa / self.length
         return energy * self.kappa / self.length ** 2
@@ -197,10 +210,20 @@ class EnergyDescent:
         self.set_curvature(self.fields(x)[0])
         H.getPythonContext().shift_value = 0.0
 
+    def _law_rows(self, rows: np.ndarray) -> np.ndarray:
+        """An array for the law's values at the window's nodes: ``rows`` itself on a cell, else
+        the descent's window-sized scratch."""
+        if self.space.projects_mean:
+            return rows
+        if self._scratch is None:
+            self._scratch = np.empty(self.h.shape)
+        return self._scratch
+
     def set_curvature(self, g: np.ndarray) -> None:
-        """The Hessian's diagonal term Phi''(g) = -da/dg at the gaps g [m], and the
-        preconditioner's scaling S from it."""
-        np.negative(self.p.traction.nodal_derivative(g, out=self.curvature), out=self.curvature)
+        """The Hessian's diagonal term Phi''(g) = -da/dg at the gaps g [m] (the window's), and
+        the preconditioner's scaling S from it."""
+        d = self.p.traction.nodal_derivative(g, out=self._law_rows(self.curvature))
+        np.negative(d, out=self.curvature[self.win])
         if self.pc_contact_factor:
             s = np.clip(self.kappa * self.curvature, 0.0, 1.0, out=self.pc_scale)
             s *= self.pc_contact_factor
@@ -214,32 +237,33 @@ class EnergyDescent:
         """The Hessian's diagonal term and the preconditioner's scaling at the problem's present
         state, from its own gaps (``AdhesiveCallbacks._gap``, one FFT pair); returns those [m]."""
         p = self.p
-        g = p._gap(p.blocks(p._x, readonly=True), p._g)
+        g = self.space.from_problem(p._gap(p.blocks(p._x, readonly=True), p._g))
         self.set_curvature(g)
         return g
 
     def hessian_mult(self, x: np.ndarray, y: np.ndarray) -> None:
         """y = H x on rows of the dimensionless v = u / z0 (the scaled energy's Hessian); ``y``
         may be ``x`` (the diagonal term is taken before the convolution overwrites it)."""
-        mean_x = self._sum(float(x.sum())) / self.n
         if self._dx is None:
             # lives as long as the descent: a fresh grid-sized array per product cost a page-
             # faulting allocation each time, and the product's own temporary was alive at the
             # descent's peak anyway
             self._dx = np.empty(self.shape)
-        if self.p.hard_wall:
+        if not self.projects_mean:
             dx = np.multiply(self.curvature, x, out=self._dx)
-            shift = self.c * mean_x
+            shift = self.c * self._sum(float(x.sum())) / self.n if self.c else 0.0
         else:
             # P0 D P0 + 1 / K_ii on the mean (the compliance's inverse there): symmetric on
             # every vector, a mean component included, which the scaled preconditioner's
             # output has
+            mean_x = self._sum(float(x.sum())) / self.n
             dx = np.subtract(x, mean_x, out=self._dx)
             dx *= self.curvature
             shift = mean_x / self.kappa - self._sum(float(dx.sum())) / self.n
-        self.p.op.convolve(self._k_inv, x, y)
+        self.space.convolve(self._k_inv, x, y)
         y += dx
-        y += shift
+        if shift:
+            y += shift
         y *= self.kappa     # the Hessian in v = u / z0 of the scaled energy
 
     def precondition(self, x: np.ndarray, y: np.ndarray) -> None:
@@ -247,18 +271,20 @@ class EnergyDescent:
         down on the repulsive nodes; ``y`` may be ``x`` (the FFT's spectrum is a buffer of its own)."""
         s = self.pc_scale
         if s is None:
-            self.p.op.convolve(self._compliance, x, y)
+            self.space.convolve(self._compliance, x, y)
         else:
-            self.p.op.convolve(self._compliance, np.multiply(s, x, out=y), y)
+            self.space.convolve(self._compliance, np.multiply(s, x, out=y), y)
             y *= s
 
     # -- measures ----------------------------------------------------------------------
     def error(self, g, k_inv_u, p0, a) -> float:
         """The problem's error measures (``AdhesiveProblem._measures``) on (g, p = K^-1 u + p0, a),
-        their max; a block of nodes at a time (the measures' temporaries are a block's)."""
+        their max; a block of nodes at a time (the measures' temporaries are a block's).  Outside
+        a window, where p must vanish, the gap error its pressure makes, K_ii |p| / z0."""
         p = self.p
-        local = 0.0
-        g, k_inv_u, a = g.reshape(-1), k_inv_u.reshape(-1), a.reshape(-1)
+        local = max((p.kappa * float(np.abs(rows).max(initial=0.0)) / p.z0 for rows in self.space.outside(k_inv_u)),
+                    default=0.0)
+        g, k_inv_u, a = g.reshape(-1), k_inv_u[self.win].reshape(-1), a.reshape(-1)
         for block in node_blocks(g.size):
             gb, ab = g[block], a[block]
             d = (k_inv_u[block] + p0) - ab
@@ -277,11 +303,12 @@ class EnergyDescent:
         err = self.error(g, k_inv_u, p0, a)
         it = tao.getIterationNumber()
         p = self.p
-        contact = self._sum(float(np.count_nonzero(k_inv_u > -p0))) / self.n
+        window = k_inv_u[self.win]
+        contact = self._sum(float(np.count_nonzero(window > -p0))) / self.nodes
         p.history.append(
             solve=p.solve_count, iteration=it, fft_pairs=p.fft_pairs(), linear_iterations=self._lin0 + self.pc_applies,
             complementarity_error=err if p.hard_wall else float("nan"), load_error=float("nan"),
-            approach=self.delta - mean_u, mean_pressure=self._sum(float(k_inv_u.sum())) / self.n + p0,
+            approach=self.delta - mean_u, mean_pressure=self._sum(float(window.sum())) / self.nodes + p0,
             contact_fraction=contact, solver="descent", adhesive_error=float("nan") if p.hard_wall else err,
             pressure_error=err)
         self.last_error = err
@@ -314,13 +341,14 @@ class EnergyDescent:
         self.delta = approach
         self._valid = False
         pressure0 = total_pressure(p.blocks(start, readonly=True))
-        # the start's displacement: u = K p (zero mean), the bound projected
-        x = grid.create_vec()
+        # the start's displacement: u = K p (zero mean on a cell), the bound projected
+        x = self.space.create_vec()
         u = grid.rows(x)
-        p.op.apply(pressure0, u)
+        self.space.displacement(pressure0, u)
         if p.hard_wall:
-            self.mean.start(self._sum(float(pressure0.sum())) / self.n)
-            np.maximum(u, approach - self.h, out=u)
+            if self.mean is not None:
+                self.mean.start(self._sum(float(pressure0.sum())) / self.n)
+            np.maximum(u[self.win], approach - self.h, out=u[self.win])
         else:
             largest = self.comm.allreduce(float(pressure0.max(initial=0.0)), op=MPI.MAX)
         del pressure0       # a grid array that TAO's peak need not hold
@@ -337,7 +365,8 @@ class EnergyDescent:
             lower, upper = x.duplicate(), x.duplicate()
             upper.set(PETSc.INFINITY)
             if p.hard_wall:
-                grid.rows(lower)[...] = (approach - self.h) / self.length
+                lower.set(PETSc.NINFINITY)      # outside a window: no law, no bound
+                grid.rows(lower)[self.win] = (approach - self.h) / self.length
             else:
                 self.floor = GapFloor(self, largest)
                 self.floor.set_bound(grid.rows(lower), u)
@@ -360,7 +389,7 @@ class EnergyDescent:
                 code, iterations, rounds = self._rounds(tao, x, bounds)
                 at_bound = None
                 if p.hard_wall:
-                    at_bound = grid.rows(x, readonly=True) <= grid.rows(bounds[0], readonly=True)
+                    at_bound = grid.rows(x, readonly=True)[self.win] <= grid.rows(bounds[0], readonly=True)[self.win]
             finally:
                 # TAO's vectors before the state's: the start's copy (``saved_start``) is made as
                 # the state is written, not beside TAO's peak
@@ -412,12 +441,13 @@ class EnergyDescent:
         g, a, _, k_inv_u, p0 = self.fields(x)
         p.saved_start()      # the unknowns as they were, for the solve's fallbacks, before they change
         xb = p.blocks(p._x)
+        pressure = k_inv_u[self.win] + p0
         if p.hard_wall:
             # the multiplier lives on the contact nodes, where u sits on its bound: elsewhere
             # p - a is the descent's residual, ~1e-9 of the peak attraction, which the VI's
             # Newton and the tangent would take for contact rows (q > 0)
-            xb[0] = np.where(at_bound, np.maximum((k_inv_u + p0) - a, 0.0), 0.0)
-            xb[1] = a
+            self.space.to_problem(np.where(at_bound, np.maximum(pressure - a, 0.0), 0.0), xb[0])
+            self.space.to_problem(a, xb[1])
         else:
-            np.add(k_inv_u, p0, out=xb[0])
+            self.space.to_problem(pressure, xb[0])
         self._valid = False

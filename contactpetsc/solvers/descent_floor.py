@@ -23,6 +23,8 @@ class GapFloor:
     def __init__(self, descent, largest: float):
         self.traction, self.grid, self.comm = descent.p.traction, descent.grid, descent.comm
         self.h, self.delta, self.length, self.n = descent.h, descent.delta, descent.length, descent.n
+        # the window's nodes (the law's) and whether the gaps move with the mean of v (a cell)
+        self.win, self.cell = descent.win, descent.space.projects_mean
         self.pressure = descent.floor_factor * max(descent.p.pressure_scale, largest)
         self.lowered = 0
 
@@ -32,13 +34,14 @@ class GapFloor:
 
     def set_bound(self, lower: np.ndarray, v: np.ndarray) -> None:
         """TAO's lower bound (rows ``lower`` of v = u / z0): the gap where the law's repulsion is
-        ``pressure`` (none where that is infinite), at the present mean of v (the rows ``v``)."""
+        ``pressure`` (none where that is infinite, or outside a window), on a cell at the present
+        mean of v (the rows ``v``)."""
+        lower[...] = PETSc.NINFINITY
         if not self.active:
-            lower[...] = PETSc.NINFINITY
             return
         floor = float(self.traction.repulsive_gap(np.array([self.pressure]))[0][0])
-        mean_v = self.comm.allreduce(float(v.sum())) / self.n
-        lower[...] = (floor - self.h + self.delta) / self.length + mean_v
+        mean_v = self.comm.allreduce(float(v.sum())) / self.n if self.cell else 0.0
+        lower[self.win] = (floor - self.h + self.delta) / self.length + mean_v
 
     def lower(self, lower: np.ndarray, v: np.ndarray) -> None:
         """Lower the floor (its pressure LOWER_FACTOR x, removed the MAX_LOWERINGS-th time) and
@@ -54,6 +57,6 @@ class GapFloor:
         and the bounded Newton steps, which do not drop it from the system, would crawl."""
         lower = tao.getVariableBounds()[0]
         v = self.grid.rows(tao.getSolution(), readonly=True)   # rank-local rows: reduced below
-        at_floor = v <= self.grid.rows(lower, readonly=True)
-        held = bool(np.any(at_floor & (k_inv_u + p0 > a)))
+        at_floor = v[self.win] <= self.grid.rows(lower, readonly=True)[self.win]
+        held = bool(np.any(at_floor & (k_inv_u[self.win] + p0 > a)))
         return self.comm.allreduce(held, op=MPI.LOR)

@@ -72,9 +72,11 @@ def descent_options(prefix: str) -> DescentOptions:
 
 
 def descent_applies(problem) -> bool:
-    """Whether ``EnergyDescent`` can drive ``problem``: a periodic grid (K^-1 diagonal in
-    Fourier space) and the nodal rule (the law's energy at the nodes)."""
-    return bool(problem.grid.periodic and not problem.element_integration)
+    """Whether ``EnergyDescent`` can drive ``problem``: the nodal rule (the law's energy at the
+    nodes) on a periodic grid (K^-1 diagonal in Fourier space) or on an isolated window split
+    along y (its padded grid's, ``descent_space.PaddedWindow``)."""
+    grid = problem.grid
+    return bool((grid.periodic or grid.px == 1) and not problem.element_integration)
 
 
 def strategy_option(prefix: str, applies: bool) -> str:
@@ -89,5 +91,6 @@ def strategy_option(prefix: str, applies: bool) -> str:
 def require_descent(problem, what: str) -> None:
     """Refuse ``what`` (an option naming the descent) where ``descent_applies`` is false."""
     if not descent_applies(problem):
-        raise ValueError(f"{what} needs the energy descent, which needs a periodic grid and the nodal rule "
-                         f"(-{problem.prefix}element_integration false): K^-1 diagonal in Fourier space")
+        raise ValueError(f"{what} needs the energy descent, which needs the nodal rule "
+                         f"(-{problem.prefix}element_integration false) on a periodic grid or on an isolated "
+                         f"window split along y only (-grid_px 1)")

@@ -94,8 +94,9 @@ ADHESION = (
            "first solve: load from separation in steps of at most this many z0"),
     Option(("strategy",), "descent (periodic grids with the nodal rule) or newton",
            "newton (from the predicted state) or descent (the energy descent from the last state, then Newton; "
-           "periodic grids, nodal rule)"),
-    Option(("fallback",), "descent first on periodic nodal grids, then relaxation,ptc (hard wall) or ptc",
+           "the nodal rule on a periodic grid or an isolated window split along y)"),
+    Option(("fallback",), "descent first with the nodal rule (periodic grids, isolated windows split along y), "
+           "then relaxation,ptc (hard wall) or ptc",
            "where Newton fails or ends unstable: these in turn"),
     Option(("descent_max_rounds",), (40,), "energy descent: a hard wall's mean-pressure rounds"),
     Option(("descent_pc_contact_factor",), (10.0,),

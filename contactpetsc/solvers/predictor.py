@@ -114,7 +114,7 @@ class TangentPredictor:
         """(dx/d delta, dF/d delta [N/m]) at the problem's present unknowns."""
         pb = self.problem
         grid = pb.grid
-        if self.by_hessian and not pb.hard_wall and descent_applies(pb):
+        if self.by_hessian and not pb.hard_wall and pb.grid.periodic and descent_applies(pb):
             # the full LJ curve: CG on the energy's Hessian, preconditioned as the descent's
             # steps; a stable state's Hessian is positive definite, an unstable one's falls
             # back on the Jacobian's Krylov solve below

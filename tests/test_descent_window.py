@@ -1,0 +1,101 @@
+"""The energy descent on an isolated window (``solvers/descent_space.py``): the displacement on
+the padded grid, the law on the window.
+
+Independent truths: the window operator K_w (Love's coefficients, linear convolution) against
+the padded grid's circulant, the equilibrium Newton reaches on the window's own unknowns from
+the same start, the Lanczos stability check, the descent property (a state reached across a
+jump has less energy than its start at the new approach), and COMM_WORLD against COMM_SELF.
+Units: z0 = 1, E* = 1, dx = 1.
+"""
+import numpy as np
+import pytest
+from petsc4py import PETSc
+
+from adhesive_setup import energy_moved, sphere_problem
+from contactpetsc.grid import SurfaceGrid
+from contactpetsc.operators.elastic import IsolatedHalfSpace
+from contactpetsc.solvers.descent import EnergyDescent
+from contactpetsc.solvers.descent_space import PaddedWindow
+
+
+class _Problem:
+    """What ``PaddedWindow`` reads of a problem."""
+
+    def __init__(self, grid, op):
+        self.grid, self.op = grid, op
+
+
+def test_the_padded_displacement_is_the_windows_with_no_pressure_outside(coll):
+    """u = C E p on the padded grid is K_w p on the window, and C^-1 u is p there and zero
+    outside (the equilibrium the padded energy's minimum is, module doc), on a window whose
+    rows do not split evenly."""
+    grid = SurfaceGrid(24, 22, 0.7, periodic=False, comm=PETSc.COMM_WORLD)
+    op = IsolatedHalfSpace(grid, 2.5)
+    space = PaddedWindow(_Problem(grid, op))
+    rng = np.random.default_rng(3)
+    p = rng.standard_normal((grid.ny, grid.nx))[grid.ys:grid.ye]
+    u = np.empty((space.grid.ny_local, space.grid.nx))
+    space.displacement(p, u)
+    k_p = op.apply(p, np.empty_like(p))
+    back = np.empty_like(p)
+    space.to_problem(np.ascontiguousarray(u[space.window]), back)
+    scale = coll.max(np.abs(k_p))
+    assert coll.max(np.abs(back - k_p)) < 1e-12 * scale
+    pressure = space.convolve(op.inverse_pairs, u, np.empty_like(u))
+    space.to_problem(np.ascontiguousarray(pressure[space.window]), back)
+    assert coll.max(np.abs(back - p)) < 1e-10
+    outside = max((float(np.abs(rows).max(initial=0.0)) for rows in space.outside(pressure)), default=0.0)
+    assert coll.max(outside) < 1e-10
+
+
+@pytest.mark.parametrize("law_name", ["lj", "hardwall-lj"])
+def test_a_windows_descent_reaches_newtons_state_on_any_rank_count(coll, law_name):
+    """From the converged state of the adhesive sphere (Tabor 1) on its loading path after its
+    jump on, the descent alone (to 1e-9) reaches the state Newton reaches a step of z0 further,
+    with the sphere pressed into contact, and the same on one rank as on all."""
+    key = law_name.replace("-", "")
+    pressures = []
+    for comm in (PETSc.COMM_WORLD, PETSc.COMM_SELF):
+        kw = dict(law=law_name, n=48, dx=1.0, radius=100.0, comm=comm)
+        newton = sphere_problem(1.0, prefix=f"wnewt{key}_", petsc_options={"strategy": "newton"}, **kw)
+        for approach in np.arange(-2.0, -0.99, 0.25):
+            newton.solve(approach=approach)
+        start = newton._x.copy()
+        reference = newton.solve(approach=0.0)
+        pb = sphere_problem(1.0, prefix=f"wdesc{key}_", petsc_options={"descent_tol": 1e-9}, **kw)
+        pb.prepare(-1.0)
+        ok, reason, iterations, _ = EnergyDescent(pb).descend(0.0, start)
+        assert ok and iterations > 0, reason
+        grid = pb.grid
+        p = pb.blocks(pb._x, readonly=True).sum(axis=0)
+        assert reference.contact_fraction > 0.02
+        diff = coll.max(np.abs(p - grid.rows(reference.pressure, readonly=True))) / float(pb.law.peak_attraction)
+        assert diff < 1e-6, diff
+        pressures.append(grid.gather(reference.pressure))
+        pressures.append(grid.gather(_as_vec(grid, p)))
+    assert coll.max(np.abs(pressures[1] - pressures[3])) / 1.0 < 1e-8
+
+
+def _as_vec(grid, rows):
+    v = grid.create_vec()
+    grid.rows(v)[...] = rows
+    return v
+
+
+def test_a_spheres_jump_on_is_a_descent_to_a_stable_state(coll):
+    """The adhesive sphere (full LJ, Tabor 1) jumps on between approaches -1.75 and -1.5 z0; with
+    Newton capped at 3 steps, too few for the jump, the fallback descends from the state out
+    of contact to a converged, stable state of lower energy than that state has at the new
+    approach, the same on one rank as on all."""
+    gaps = []
+    for comm in (PETSc.COMM_WORLD, PETSc.COMM_SELF):
+        pb = sphere_problem(1.0, law="lj", n=64, dx=1.0, radius=100.0, comm=comm, prefix="wjump_",
+                            petsc_options={"max_it": 3, "descent_tol": 1e-9})
+        before = pb.solve(approach=-1.75)
+        after = pb.solve(approach=-1.5)
+        assert "+descent" in after.solver and after.fallback, after.solver
+        assert after.converged and after.stable
+        assert after.force < 2.0 * before.force        # jumped on: the pull more than doubles
+        assert after.energy < energy_moved(before, pb.law, pb.grid, 0.25)
+        gaps.append(pb.grid.gather(after.gap))
+    assert coll.max(np.abs(gaps[0] - gaps[1])) < 1e-7
