@@ -90,11 +90,13 @@ class CoarseLevels:
         coarse.tol = max(self.tol, fine.tol)
         if "descent" in coarse.fallback.methods:
             # a level only predicts: where its descent does not reach a state, the level is
-            # dropped rather than followed by thousands of relaxation cycles or PTC steps.  An
-            # isolated window's level is dropped where its Newton fails: the descents of its
-            # padded grid cost more than the predictions they kept (docs/performance.md, "The
-            # adhesive sphere's states")
-            coarse.fallback.methods = ["descent"] if gc.periodic else []
+            # dropped rather than followed by thousands of relaxation cycles or PTC steps.  A
+            # hard wall's level on an isolated window is dropped where its Newton fails: its
+            # padded descents cost more than the predictions they kept, and the tangent predictor
+            # reaches the same states.  The full LJ curve's keeps them: without the level its
+            # Newton step hopped to the detached branch a z0 before the attached one ended
+            # (docs/performance.md, "The adhesive sphere's states")
+            coarse.fallback.methods = [] if fine.hard_wall and not gc.periodic else ["descent"]
         coarse.predictor.predicts = coarse.predictor.wanted = False   # a level needs no tangent
         coarse.coarse_levels.step_levels = self.step_levels - 1
         coarse.coarse_levels.restore(self._pending[1:])
