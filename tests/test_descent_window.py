@@ -9,11 +9,13 @@ Units: z0 = 1, E* = 1, dx = 1.
 """
 import numpy as np
 import pytest
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from adhesive_setup import energy_moved, sphere_problem
 from contactpetsc.grid import SurfaceGrid
 from contactpetsc.operators.elastic import IsolatedHalfSpace
+from contactpetsc.operators.love import love_displacement
 from contactpetsc.solvers.descent import EnergyDescent
 from contactpetsc.solvers.descent_space import PaddedWindow
 
@@ -26,37 +28,48 @@ class _Problem:
 
 
 def test_the_padded_displacement_is_the_windows_with_no_pressure_outside(coll):
-    """u = C E p on the padded grid is K_w p on the window, and C^-1 u is p there and zero
-    outside (the equilibrium the padded energy's minimum is, module doc), on a window whose
-    rows do not split evenly."""
-    grid = SurfaceGrid(24, 22, 0.7, periodic=False, comm=PETSc.COMM_WORLD)
-    op = IsolatedHalfSpace(grid, 2.5)
+    """u = C E p on the padded grid is, on the window, Love's displacement of p (the dense sum
+    of the rectangles' influence coefficients), and C^-1 u is p there and zero outside (the
+    equilibrium the padded energy's minimum is, module doc); on a window whose rows leave one
+    of three ranks none."""
+    grid = SurfaceGrid(12, 20, 0.7, 0.9, periodic=False, comm=PETSc.COMM_WORLD)
+    e_star = 2.5
+    op = IsolatedHalfSpace(grid, e_star)
     space = PaddedWindow(_Problem(grid, op))
-    rng = np.random.default_rng(3)
-    p = rng.standard_normal((grid.ny, grid.nx))[grid.ys:grid.ye]
+    p_all = np.random.default_rng(3).standard_normal((grid.ny, grid.nx))
+    p = p_all[grid.ys:grid.ye]
     u = np.empty((space.grid.ny_local, space.grid.nx))
     space.displacement(p, u)
-    k_p = op.apply(p, np.empty_like(p))
     back = np.empty_like(p)
     space.to_problem(np.ascontiguousarray(u[space.window]), back)
-    scale = coll.max(np.abs(k_p))
-    assert coll.max(np.abs(back - k_p)) < 1e-12 * scale
+    y, x = (c.ravel() for c in np.meshgrid(np.arange(grid.ny) * grid.dy, np.arange(grid.nx) * grid.dx,
+                                           indexing="ij"))
+    mine = slice(grid.ys * grid.nx, grid.ye * grid.nx)
+    coeff = love_displacement(x[mine, None] - x[None, :], y[mine, None] - y[None, :], 0.5 * grid.dx, 0.5 * grid.dy,
+                              e_star)
+    love = (coeff @ p_all.ravel()).reshape(p.shape)
+    assert coll.max(np.abs(back - love)) < 1e-12 * coll.max(np.abs(love))
     pressure = space.convolve(op.inverse_pairs, u, np.empty_like(u))
     space.to_problem(np.ascontiguousarray(pressure[space.window]), back)
     assert coll.max(np.abs(back - p)) < 1e-10
-    outside = max((float(np.abs(rows).max(initial=0.0)) for rows in space.outside(pressure)), default=0.0)
-    assert coll.max(outside) < 1e-10
+    assert coll.max(space.outside_gap(pressure)) < 1e-10 * coll.max(np.abs(love))
+    pressure[space.window] = 0.0
+    assert coll.max(np.abs(pressure)) < 1e-10
+    if grid.mpi_comm.Get_size() == 3:
+        held = space.window[0].stop - space.window[0].start
+        assert grid.mpi_comm.allreduce(held == 0, op=MPI.LOR)     # a rank without window rows
 
 
 @pytest.mark.parametrize("law_name", ["lj", "hardwall-lj"])
 def test_a_windows_descent_reaches_newtons_state_on_any_rank_count(coll, law_name):
     """From the converged state of the adhesive sphere (Tabor 1) on its loading path after its
     jump on, the descent alone (to 1e-9) reaches the state Newton reaches a step of z0 further,
-    with the sphere pressed into contact, and the same on one rank as on all."""
+    with the sphere pressed into contact (a hard wall's contact pressure and adhesive traction
+    each), and the same on one rank as on all (on three, one holds no window rows)."""
     key = law_name.replace("-", "")
     pressures = []
     for comm in (PETSc.COMM_WORLD, PETSc.COMM_SELF):
-        kw = dict(law=law_name, n=48, dx=1.0, radius=100.0, comm=comm)
+        kw = dict(law=law_name, n=40, dx=1.0, radius=100.0, comm=comm)
         newton = sphere_problem(1.0, prefix=f"wnewt{key}_", petsc_options={"strategy": "newton"}, **kw)
         for approach in np.arange(-2.0, -0.99, 0.25):
             newton.solve(approach=approach)
@@ -69,8 +82,11 @@ def test_a_windows_descent_reaches_newtons_state_on_any_rank_count(coll, law_nam
         grid = pb.grid
         p = pb.blocks(pb._x, readonly=True).sum(axis=0)
         assert reference.contact_fraction > 0.02
-        diff = coll.max(np.abs(p - grid.rows(reference.pressure, readonly=True))) / float(pb.law.peak_attraction)
+        scale = float(pb.law.peak_attraction)
+        diff = coll.max(np.abs(p - grid.rows(reference.pressure, readonly=True))) / scale
         assert diff < 1e-6, diff
+        for mine, newtons in zip(pb.blocks(pb._x, readonly=True), newton.blocks(newton._x, readonly=True)):
+            assert coll.max(np.abs(mine - newtons)) < 1e-6 * scale
         pressures.append(grid.gather(reference.pressure))
         pressures.append(grid.gather(_as_vec(grid, p)))
     assert coll.max(np.abs(pressures[1] - pressures[3])) / 1.0 < 1e-8

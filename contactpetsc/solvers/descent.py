@@ -177,9 +177,10 @@ class EnergyDescent:
         k_inv_u *= self.length
         np.multiply(v_copy[self.win], self.length, out=g)
         g += self.h
-        g -= self.delta
         if self.projects_mean:
-            g -= mean_u
+            g -= mean_u + self.delta
+        else:
+            g -= self.delta
         p.traction.pressure(g, out=a)
         if self.mean is not None:
             self._p0 = self.mean.pressure(mean_u)
@@ -251,7 +252,7 @@ class EnergyDescent:
             self._dx = np.empty(self.shape)
         if not self.projects_mean:
             dx = np.multiply(self.curvature, x, out=self._dx)
-            shift = self.c * self._sum(float(x.sum())) / self.n if self.c else 0.0
+            shift = self.c * (self._sum(float(x.sum())) / self.n) if self.c else 0.0
         else:
             # P0 D P0 + 1 / K_ii on the mean (the compliance's inverse there): symmetric on
             # every vector, a mean component included, which the scaled preconditioner's
@@ -279,11 +280,11 @@ class EnergyDescent:
     # -- measures ----------------------------------------------------------------------
     def error(self, g, k_inv_u, p0, a) -> float:
         """The problem's error measures (``AdhesiveProblem._measures``) on (g, p = K^-1 u + p0, a),
-        their max; a block of nodes at a time (the measures' temporaries are a block's).  Outside
-        a window, where p must vanish, the gap error its pressure makes, K_ii |p| / z0."""
+        their max; a block of nodes at a time (the measures' temporaries are a block's).  On a
+        window, with the gap error [z0] that the pressure left outside it makes on its gaps
+        (``PaddedWindow.outside_gap``, one FFT pair)."""
         p = self.p
-        local = max((p.kappa * float(np.abs(rows).max(initial=0.0)) / p.z0 for rows in self.space.outside(k_inv_u)),
-                    default=0.0)
+        local = self.space.outside_gap(k_inv_u) / p.z0
         g, k_inv_u, a = g.reshape(-1), k_inv_u[self.win].reshape(-1), a.reshape(-1)
         for block in node_blocks(g.size):
             gb, ab = g[block], a[block]

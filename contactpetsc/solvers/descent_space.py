@@ -60,9 +60,9 @@ class CellSpace:
         """A window field on the descent's ``window`` block, into the problem's rows ``out_rows``."""
         np.copyto(out_rows, block)
 
-    def outside(self, rows):
-        """The descent's rows outside the window: none."""
-        return ()
+    def outside_gap(self, pressure_rows) -> float:
+        """The gap error [m] of a pressure outside the window: none on a cell."""
+        return 0.0
 
     def create_vec(self):
         return self.grid.create_vec()
@@ -87,7 +87,7 @@ class PaddedWindow:
         if (self.fft.kx_ranges, self.fft.Ny) != (self.op.fft.kx_ranges, self.op.fft.Ny):
             raise AssertionError("the padded grid's spectrum is not laid out as the window operator's")
         # the window's rows are the padded grid's [o, o + ny) (the circulant does not see where):
-        # centred, two ranks hold half of them each
+        # centred, so that on an even split of the padded rows two ranks hold half of them each
         o = self.ny // 2
         ys, ye = self.grid.ys, self.grid.ye
         first, last = min(max(o - ys, 0), ye - ys), min(max(o + self.ny - ys, 0), ye - ys)
@@ -96,11 +96,15 @@ class PaddedWindow:
         self._problem_ranges = list(window.y_ranges)
         self._space_ranges = [(min(max(a - o, 0), self.ny), min(max(b - o, 0), self.ny))
                               for a, b in self.grid.y_ranges]
+        self._outside = None         # a padded array for ``outside_gap``
 
     def convolve(self, kernel_pairs, rows_in, rows_out):
-        """A convolution on the padded grid (``kernel_pairs`` in the operator's layout)."""
+        """A convolution on the padded grid (``kernel_pairs`` in the operator's layout), counted
+        as one of the operator's pairs: the same transform on one rank; on several the
+        operator's skips the zero rows along x and sends none of them, this one cannot (u
+        fills the padded grid), and costs more (about 1.4x on two ranks)."""
         convolve(self.fft, kernel_pairs, rows_in, rows_out)
-        self.op.fft.fft_pairs += 1       # a pair of the operator's own (padded) size
+        self.op.fft.fft_pairs += 1
         return rows_out
 
     def displacement(self, pressure_rows, out_rows):
@@ -128,11 +132,18 @@ class PaddedWindow:
     def to_problem(self, block, out_rows):
         np.copyto(out_rows, self._move(block, self._space_ranges, self._problem_ranges))
 
-    def outside(self, rows):
-        """Views of ``rows`` (the descent's grid) outside the window: the rows before it, its
-        columns beyond nx on the window's rows, and the rows after it."""
-        first, last = self.window[0].start, self.window[0].stop
-        return rows[:first], rows[first:last, self.nx:], rows[last:]
+    def outside_gap(self, pressure_rows) -> float:
+        """max over this rank's window nodes of |(C p_out)| [m], p_out the pressure [Pa] on the
+        descent's rows ``pressure_rows`` outside the window (which must vanish there): what it
+        moves the window's gaps by, the state's gaps under K_w being those without it (one FFT
+        pair, collective; the max is the rank's)."""
+        if self._outside is None:
+            self._outside = np.empty(pressure_rows.shape)
+        out = self._outside
+        np.copyto(out, pressure_rows)
+        out[self.window] = 0.0
+        self.convolve(self.op.kernel_pairs, out, out)
+        return float(np.abs(out[self.window]).max(initial=0.0))
 
     def create_vec(self):
         """A Vec of the padded grid's rows: no DMDA (its index maps would cost five integers a

@@ -22,8 +22,9 @@ def tangent(descent: EnergyDescent) -> tuple[np.ndarray, float] | None:
     indefinite H; where it converges its solution is the tangent whatever H's inertia).
     Collective."""
     p = descent.p
-    if p.hard_wall:
-        raise ValueError("energy_tangent: the full LJ curve only (a hard wall's tangent is the Jacobian's)")
+    if p.hard_wall or not p.grid.periodic:
+        raise ValueError("energy_tangent: the full LJ curve on a periodic grid only (a hard wall's tangent, "
+                         "and an isolated window's, is the Jacobian's)")
     descent.at_state()
     H = descent.shell((descent.grid.n_local, descent.n), Hessian(descent))
     b, t = H.createVecs()

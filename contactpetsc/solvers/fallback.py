@@ -88,6 +88,8 @@ class FallbackChain:
             (pb.newton.x_best if stalled and method == "ptc" else x_start).copy(pb._x)
             if method == "descent":
                 ok, reason, n2, l2 = EnergyDescent(pb).descend(approach, pb._x)
+                # its TAO's contexts hold its arrays (a window's padded grid's): freed before the polish
+                PETSc.garbage_cleanup(pb.grid.comm)
             elif method == "relaxation":
                 relax = RelaxationSolver(pb, tol=self.tol, max_cycles=self.max_cycles)
                 ok, reason, n2, l2 = relax.relax(approach, polished=True)
