@@ -212,9 +212,9 @@ class EnergyDescent:
         H.getPythonContext().shift_value = 0.0
 
     def _law_rows(self, rows: np.ndarray) -> np.ndarray:
-        """An array for the law's values at the window's nodes: ``rows`` itself on a cell, else
-        the descent's window-sized scratch."""
-        if self.space.projects_mean:
+        """An array for the law's values at the window's nodes: ``rows`` itself where they are
+        the window's (a cell), else the descent's window-sized scratch."""
+        if rows.shape == self.h.shape:
             return rows
         if self._scratch is None:
             self._scratch = np.empty(self.h.shape)
@@ -442,7 +442,9 @@ class EnergyDescent:
         g, a, _, k_inv_u, p0 = self.fields(x)
         p.saved_start()      # the unknowns as they were, for the solve's fallbacks, before they change
         xb = p.blocks(p._x)
-        pressure = k_inv_u[self.win] + p0
+        # p = K^-1 u + p0 in place (on a cell; a window's scratch): no grid-sized temporary
+        # beside the start's copy, and the fields are the last evaluation's no longer
+        pressure = np.add(k_inv_u[self.win], p0, out=self._law_rows(k_inv_u))
         if p.hard_wall:
             # the multiplier lives on the contact nodes, where u sits on its bound: elsewhere
             # p - a is the descent's residual, ~1e-9 of the peak attraction, which the VI's
