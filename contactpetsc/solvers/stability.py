@@ -31,8 +31,11 @@ Two ways to lambda_max:
 * Isolated windows (K^-1 not diagonal): Lanczos on A S, S = ((K^-1)_NN)^-1 =
   K_NN - K_NC K_CC^-1 K_CN the compliance of N with C clamped, self-adjoint in
   the S inner product.  S is one FFT pair, plus (with contact nodes) a CG solve
-  on K_CC preconditioned by the Fourier inverse.  It stops when the Ritz value
-  changes by less than ``tol``.
+  on K_CC preconditioned by the Fourier inverse, to a tenth of ``tol``.  It stops
+  when the Ritz value changes by less than ``tol``.  The top of the pencil is a
+  cluster (a contact ring's modes around its circumference), which no start or
+  block method tried reaches in fewer products (docs/performance.md, "The
+  stability check on a window").
 
 In both the top Ritz value grows monotonically towards lambda_max (a Ritz value
 above one proves instability), and an unsettled positive margin is an upper
@@ -55,7 +58,7 @@ from .pc_registry import PRECONDITIONERS
 class _Compliance:
     """S x on full (ny_loc, nx) arrays vanishing outside N."""
 
-    def __init__(self, problem, contact: np.ndarray):
+    def __init__(self, problem, contact: np.ndarray, rtol: float):
         self.op, self.grid = problem.op, problem.grid
         grid = self.grid
         self.n_contact = grid.mpi_comm.allreduce(int(contact.sum()))
@@ -74,7 +77,7 @@ class _Compliance:
             ksp = self.ksp = PETSc.KSP().create(comm=grid.comm)
             ksp.setOptionsPrefix(problem.prefix + "stability_")
             ksp.setType("cg")
-            ksp.setTolerances(rtol=1e-8, max_it=500)
+            ksp.setTolerances(rtol=rtol, max_it=500)
             ksp.getPC().setType("python")
             ksp.getPC().setPythonType(PRECONDITIONERS["spectral"])
             ksp.setOperators(self.A, self.A)
@@ -100,6 +103,9 @@ class _Compliance:
             for obj in (self.ksp, self.A, self.iset, self.b, self.y, self.J):
                 obj.destroy()
 
+
+#: the CG on K_CC inside S (Lanczos on a window) stops at this times Lanczos' tolerance
+INNER_RTOL = 0.1
 
 #: LOBPCG stops when the K-norm of the top Ritz pair's residual, A x - theta (K^-1)_NN x with
 #: x of unit (K^-1)_NN-norm, is below this (times max(1, theta)).  The Ritz value's error is
@@ -237,7 +243,9 @@ def _start(grid, d: np.ndarray, out: np.ndarray) -> np.ndarray:
 
 def _lanczos(problem, comm, d, contact, v, steps, tol):
     """(lambda_max estimate, settled) of A S by Lanczos in the S inner product from ``v``."""
-    S = _Compliance(problem, contact)
+    # S's relative error moves the Ritz value by about as much: a tenth of the stopping test's
+    # tolerance keeps it below what Lanczos itself leaves
+    S = _Compliance(problem, contact, rtol=INNER_RTOL * tol)
     dot = lambda u, w: comm.allreduce(float(np.vdot(u, w)))  # noqa: E731
     sv = S(v, np.empty_like(v))
     nrm = np.sqrt(dot(v, sv))
