@@ -67,6 +67,10 @@ class InteractionLaw:
     #: no wall, p > 0 exactly where g < 0 and p(g) invertible there (the cubic solution f of
     #: eq. 8): the paper's relaxation applies, with target gap f(p) at positive-pressure nodes
     repulsive_branch = False
+    #: the pressure continuous in the gap off the wall: a state's force then follows smooth
+    #: branches between folds (a step law's moves in a sawtooth at the grid's scale, which its
+    #: zero derivative does not see)
+    smooth = True
 
     def pressure(self, gap):
         raise NotImplementedError
@@ -276,6 +280,7 @@ class Dugdale(InteractionLaw):
     name = "dugdale"
     parameters = (WORK_OF_ADHESION, Parameter("sigma0", "Pa", "Dugdale stress"))
     summary = "Maugis-Dugdale: hard wall and constant attraction (for comparison)"
+    smooth = False
 
     def __init__(self, work_of_adhesion: float, sigma0: float):
         check_parameters(self, work_of_adhesion=work_of_adhesion, sigma0=sigma0)

@@ -42,6 +42,7 @@ from ..physics.traction import AdhesiveTraction
 from .adhesive_jacobian import AdhesiveJacobian, minloc
 from .adhesive_levels import CoarseLevels
 from .adhesive_residual import AdhesiveCallbacks
+from .branch_check import BranchCheck
 from .base import AdhesiveSolveError, VIProblem, check_tolerance, reason_name, with_options
 from .continuation import Continuation
 from .descent_step import descend_step
@@ -125,6 +126,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self.newton = None              # VI Newton (``VINewton``), made with the solvers
         self.check_time = 0.0          # stability check and tangent time of the current solve
         self.predictor = None           # the tangent predictor (``TangentPredictor``), made with the solvers
+        self.branch_check = None        # the branch check (``BranchCheck``), made with the solvers
         self.stability_check = None     # the stability check (``StabilityCheck``), made with the solvers
         self.history = SolveHistory()
         self._x = None
@@ -242,6 +244,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         if not self.time_budget >= 0.0:
             raise ValueError(f"-{self.prefix}time_budget must be >= 0 s (0: no budget), got {self.time_budget!r}")
         self.predictor = TangentPredictor(self)
+        self.branch_check = BranchCheck(self)
         # off by default: at hard-wall, high-Tabor jump-ins the relaxation fallback can need
         # thousands of cycles from rest; sweeps that start from separation get the same state
         self.load_from_rest = opts.getBool("load_from_rest", code_default("adhesion", "load_from_rest"))
@@ -392,6 +395,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
             # here, not at the end of the solve: Newton and the check come first
             PETSc.garbage_cleanup(self.grid.comm)
         x_start = self.saved_start()
+        self.branch_check.start(approach)
         coarse_predicted = (not descend and approach is not None
                             and self.coarse_levels.predict(float(approach), self._prev_approach))
         if not (coarse_predicted or descend) and approach is not None:
@@ -415,6 +419,11 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
                 reason = f"UNSTABLE (stability margin {margin:.3e})"
             converged, reason, newton, linear, margin, solver = self.fallback.follow(
                 approach, x_start, check, newton, linear, solver, reason, skip=("descent",) if descend else ())
+        elif converged and fallback and approach is not None and self.branch_check.missed(approach):
+            taken, n2, l2, m2, increments = self.branch_check.follow(approach, x_start, check)
+            newton, linear, reason = newton + n2, linear + l2, reason + self.branch_check.note
+            if taken:
+                margin, descend, solver = m2, True, f"{solver}+branch-descent"
         if not converged:
             # the state reported: the iterate of smallest error (never what a failed SNES
             # left in its solution); the next solve starts from the last converged state

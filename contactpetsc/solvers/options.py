@@ -95,6 +95,10 @@ ADHESION = (
     Option(("strategy",), "descent (periodic grids with the nodal rule) or newton",
            "newton (from the predicted state) or descent (the energy descent from the last state, then Newton; "
            "the nodal rule on a periodic grid or an isolated window split along y)"),
+    Option(("branch_check",), (True,),
+           "newton strategy where the descent applies (smooth laws): a converged state whose force misses the "
+           "trapezoid of its and the last state's tangent stiffnesses (a jump) is descended from the last state "
+           "instead, and that state kept where it is stable"),
     Option(("fallback",), "descent first with the nodal rule (periodic grids, isolated windows split along y), "
            "then relaxation,ptc (hard wall) or ptc",
            "where Newton fails or ends unstable: these in turn"),
@@ -125,7 +129,7 @@ ADHESION = (
     Option(("relax_tol", "relax_contact_tol"), (1e-4, 1e-4), "the paper's solver (z0)"),
     Option(("relax_max_cycles", "relax_max_inner", "relax_omega_max"), (20000, 200, 1.0), "its limits"),
     Option(("tangent_ksp_*", "-stability_ksp_*"),
-           "bcgs 1e-2; cg 1e-3 (full LJ, periodic, nodal rule); cg 1e-8",
+           "bcgs 1e-2; cg 1e-3 (full LJ, periodic, nodal rule); cg 1e-5 (windows: a tenth of Lanczos' tolerance)",
            "the tangent (Jacobian, or the energy's Hessian; coarse levels of the nested iteration "
            "compute none) and stability solves"),
 )

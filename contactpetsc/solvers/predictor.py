@@ -42,18 +42,34 @@ class TangentPredictor:
         #: last converged state
         self.value = None
         self._due = None     # approach of the present state when its tangent is not solved yet
+        self._present = False   # ``present`` solved the present unknowns' tangent, for their state
+        self._kept = False      # ``due`` kept that tangent for ``stiffness``
 
     def drop(self) -> None:
         """Forget the tangent (the state changed)."""
         if self.value is not None and self.value[1] is not None:
             self.value[1].destroy()
         self.value = self._due = None
+        self._present = self._kept = False
 
     def due(self) -> None:
-        """The present converged state's tangent is wanted, solved when first needed."""
+        """The present converged state's tangent is wanted, solved when first needed (kept where
+        ``present`` solved it for this state)."""
+        if self._present:
+            self._present, self._kept = False, True
+            return
         self.drop()
         if self.wanted:
             self._due = self.problem._approach
+
+    def present(self) -> float:
+        """dF/d delta [N/m] of the present converged unknowns, their tangent solved now and kept
+        for the state made next (its ``due``); NaN where no tangent is wanted or it failed.  The
+        caller drops it (``drop``) if it changes the unknowns before."""
+        self.due()
+        self.ensure()
+        self._present = self.value is not None
+        return self.value[2] if self._present else float("nan")
 
     def ensure(self) -> None:
         """Solve the present state's tangent if it is due."""
@@ -74,13 +90,14 @@ class TangentPredictor:
     def stiffness_due(self) -> bool:
         """Whether ``stiffness()`` solves the present state's tangent (not where it gives NaN: the
         stiffness off, or a coarse level that wants no tangent)."""
-        return self._due is not None and self.stiffness_each_state
+        return (self._due is not None or self._kept) and self.stiffness_each_state
 
     def stiffness(self) -> float:
         """dF/d delta [N/m] of the present state where it is wanted for every state, else NaN."""
         if not self.stiffness_due:
             return float("nan")
         self.ensure()
+        self._kept = False
         return self.value[2]
 
     def predict(self, approach: float) -> None:

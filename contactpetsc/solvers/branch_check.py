@@ -1,0 +1,98 @@
+"""The branch check of ``AdhesiveProblem`` under the Newton strategy: a strategy that keeps a
+displacement-controlled path on the branch a quasi-static path follows (``-<prefix>branch_check``;
+docs/formulation.md, "Adhesive contact: unknowns and Newton").
+
+A predicted Newton step converges to whichever equilibrium its start leads to.  Near the end of
+a branch (a fold) that can be a stable state of another branch although the last state's branch
+still goes on: the adhesive sphere's attached branch left a step before it ends on unloading.
+A quasi-static path leaves a branch only where it ends, and the energy descent from the last
+state follows it there (docs/performance.md, "The adhesive sphere's states").  On a smooth
+branch the force over a step h is the trapezoid of the two states' tangent stiffnesses k0 and k1
+to O(h^3); so where the force of Newton's converged, stable state misses it,
+
+    |F1 - F0 - (k0 + k1) h / 2| > PREDICTION_TOL max(|k0 h|, |k1 h|),
+
+(a jump: its force change is of the order of the force itself, which neither end's stiffness
+sees; a failed tangent too), the step is descended from the last state as the descent strategy does
+(``descent_step.descend_step``), polished by Newton and checked, and that state is taken; where
+the descent fails or ends unstable, Newton's state is kept.  Only where the descent applies
+(``descent_options.descent_applies``), not under the descent strategy, which always descends,
+and not for a step law (``InteractionLaw.smooth`` false: Maugis-Dugdale's), whose branches are a
+sawtooth at the grid's scale that the tangent does not see.
+"""
+from __future__ import annotations
+
+import numpy as np
+from petsc4py import PETSc
+
+from ..fold_watch import PREDICTION_TOL
+from .descent_options import descent_applies
+from .descent_step import descend_step
+from .options import code_default
+
+
+class BranchCheck:
+    """The branch check of ``problem`` (an ``AdhesiveProblem``); reads ``-<prefix>branch_check``
+    when made (inside the problem's ``inserted_options``)."""
+
+    def __init__(self, problem):
+        self.problem = problem
+        on = PETSc.Options(problem.prefix).getBool("branch_check", code_default("adhesion", "branch_check"))
+        self.applies = on and problem.strategy == "newton" and problem.law.smooth and descent_applies(problem)
+        self._last = None   # (approach [m], net force [N], dF/d delta [N/m]) of the last state
+        self.note = ""      # what the last ``follow`` did, for the state's reason
+
+    def start(self, approach: float | None) -> None:
+        """Before a solve at ``approach`` [m] (None: another control), while the unknowns are
+        still the last converged state's: its force and tangent stiffness (solved here where it is
+        due, as the predictor would: a restarted path's first step decides as the uninterrupted
+        run's did)."""
+        pb = self.problem
+        self._last = None
+        if not self.applies or approach is None or pb._start_approach is None:
+            return
+        pb.predictor.ensure()
+        value = pb.predictor.value
+        if value is None or value[0] != pb._start_approach or not np.isfinite(value[2]):
+            return      # no tangent (a level that wants none), another state's, or a failed one
+        self._last = (value[0], pb.net_force(), value[2])
+
+    def missed(self, approach: float) -> str | None:
+        """Why Newton's converged state at ``approach`` [m] may be on another branch, or None.
+        Solves the state's tangent (``TangentPredictor.present``: the state keeps it)."""
+        if self._last is None:
+            return None
+        pb = self.problem
+        delta0, force0, k0 = self._last
+        k1 = pb.predictor.present()
+        step = approach - delta0
+        miss = abs(pb.net_force() - force0 - 0.5 * (k0 + k1) * step)
+        allowed = PREDICTION_TOL * max(abs(k0 * step), abs(k1 * step))
+        if miss <= max(allowed, np.finfo(float).tiny):    # False for a NaN k1
+            return None
+        self.note = (f" (branch check: the force misses the stiffnesses' trapezoid by {miss:.3e} N, a smooth "
+                     f"branch's {allowed:.3e} N")
+        return self.note
+
+    def follow(self, approach: float, x_start: PETSc.Vec, check: bool):
+        """The descent from the last state ``x_start`` to ``approach`` [m], polished and checked
+        (``check``); (taken, newton, linear, margin, increments): ``taken`` False where it failed
+        or ended unstable, and the problem's unknowns are then Newton's state again."""
+        pb = self.problem
+        pb.predictor.drop()     # Newton's state's tangent
+        newton_state = pb._x.copy()
+        x_start.copy(pb._x)
+        ok, _, newton, linear, increments = descend_step(pb, approach, pb._x)
+        PETSc.garbage_cleanup(pb.grid.comm)   # the descent's arrays, before the polish
+        margin = float("nan")
+        if ok:
+            ok, _, n2, l2 = pb.newton.run()
+            newton, linear = newton + n2, linear + l2
+            margin = pb.stability_check.margin() if (ok and check) else float("nan")
+        taken = ok and not margin <= 0
+        self.note += ("; the descent from the last state taken)" if taken else
+                      "; the descent from the last state failed or ended unstable: Newton's state kept)")
+        if not taken:
+            newton_state.copy(pb._x)
+        newton_state.destroy()
+        return taken, newton, linear, margin, increments
