@@ -16,7 +16,8 @@ Hertz state) of the same heights at the path's largest approach, cold, to the sa
 its solve's CPU alone.
 
 One JSON line per state (approach, FFT pairs, CPU s, Newton and Krylov counts, contact
-fraction, force, converged, stable, solver, the pairs and CPU over the unit), then per Tabor
+fraction, force, tangent stiffness, converged, stable, solver, the pairs and CPU over the unit;
+the reason where it failed or the branch check ran), then per Tabor
 parameter a summary: the states converged, and over those the largest and median ratios, the
 largest over the median; the failed states apart (their cost is the fallbacks' before they gave
 up).  One rank.
@@ -119,10 +120,10 @@ def main():
             cpu = time.process_time() - t
             row = dict(tabor=mu, state=k, approach=float(d), fft_pairs=st.fft_pairs, cpu=cpu,
                        newton=st.newton_iterations, krylov=st.linear_iterations,
-                       contact_fraction=st.contact_fraction, force=st.force, converged=st.converged,
-                       stable=st.stable, solver=st.solver, pairs_ratio=st.fft_pairs / unit_pairs,
-                       cpu_ratio=cpu / unit_cpu)
-            if not st.converged:
+                       contact_fraction=st.contact_fraction, force=st.force, stiffness=st.stiffness,
+                       converged=st.converged, stable=st.stable, solver=st.solver,
+                       pairs_ratio=st.fft_pairs / unit_pairs, cpu_ratio=cpu / unit_cpu)
+            if not st.converged or "branch check" in st.reason:
                 row["reason"] = st.reason
             rows.append(row)
             emit(**row)
