@@ -7,7 +7,7 @@ from petsc4py import PETSc
 
 from contactpetsc.grid import SurfaceGrid
 from contactpetsc.physics.interactions import make_law
-from contactpetsc.solvers.adhesive import AdhesiveProblem
+from contactpetsc.solvers.adhesive import AdhesiveProblem, AdhesiveSolveError
 from contactpetsc.solvers.problem import ContactProblem
 from contactpetsc.geometry.surfaces import sphere
 
@@ -53,6 +53,19 @@ def test_stall_progress_outside_its_range_is_refused(coll, progress):
     problem = AdhesiveProblem(grid, sphere(grid, 100.0), 1.0, LJ, prefix="stall_progress_",
                               petsc_options={"stall_progress": progress})
     coll.raises(ValueError, ["-stall_progress_stall_progress", "(0, 1]"], problem.solve, approach=0.5)
+
+
+def test_a_hard_wall_cell_pressed_past_its_mean_height_has_no_state(coll):
+    """On a periodic cell K has no mean mode, so the mean gap is mean(h) - delta whatever the
+    pressures: past mean(h) a hard wall cannot keep g >= 0, and the solve says so by name (the
+    mean gap) without iterating, and raises unless told not to."""
+    grid = SurfaceGrid(16, 16, 1.0, periodic=True)
+    problem = AdhesiveProblem(grid, grid.create_vec(0.25), 1.0, make_law("hardwall-lj", work_of_adhesion=0.01, z0=1.0),
+                              prefix="no_equilibrium_")
+    st = problem.solve(approach=1.25, raise_on_failure=False)
+    assert coll.all(not st.converged and "NO_EQUILIBRIUM" in st.reason and "-1.0000e+00 m" in st.reason)
+    assert coll.all(st.newton_iterations == 0)
+    coll.raises(AdhesiveSolveError, ["NO_EQUILIBRIUM", "mean gap"], problem.solve, approach=1.5)
 
 
 def test_subnormal_load_is_refused(coll):

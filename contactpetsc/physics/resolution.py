@@ -88,6 +88,19 @@ def check_resolution(law: InteractionLaw, e_star: float, dx: float, *, radius: f
     return nodes
 
 
+def resolution_note(snap: float, nodes: float) -> str:
+    """What a failed solve's reason adds where the adhesion is under-resolved: the snap number
+    ``snap`` (K_ii max da/dg) above 1, or ``nodes`` (nodes per adhesive zone) below
+    ``RESOLUTION_NODES``; empty where it is resolved."""
+    if snap > 1.0:
+        return (f" [under-resolved adhesion: K_ii max da/dg = {snap:.2f} > 1, every node can snap on "
+                f"its own; refine the grid until this is below 1]")
+    if nodes < RESOLUTION_NODES:
+        return (f" [under-resolved adhesion: the adhesive zone spans {nodes:.2g} grid spacings, the "
+                f"criterion is {RESOLUTION_NODES:g}]")
+    return ""
+
+
 #: the sawtooth of a sphere's force along its unloading path against the nodes per adhesive zone:
 #: (nodes, lowest, highest deviation from the smooth curve, relative to the pull-off), measured by
 #: run_scripts/checks/sawtooth_amplitude.py (docs/validation.md, "The sawtooth of an under-resolved pull-off"; the LJ laws)

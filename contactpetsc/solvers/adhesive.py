@@ -37,7 +37,7 @@ from petsc4py import PETSc
 from ..grid import SurfaceGrid
 from ..operators.elastic import HalfSpaceOperator
 from ..physics.interactions import InteractionLaw
-from ..physics.resolution import RESOLUTION_NODES, check_resolution, snap_number
+from ..physics.resolution import check_resolution, resolution_note, snap_number
 from ..physics.traction import AdhesiveTraction
 from .adhesive_jacobian import AdhesiveJacobian, minloc
 from .adhesive_levels import CoarseLevels
@@ -354,19 +354,12 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
                     self.grid.rows(self.heights, readonly=True)) - float(central_gap)
             return self.make_state(False, self.budget_reason + " (state: the last converged state's pressures)",
                                0, 0, pairs0, t0, float("nan"), self.solver_name)
-        if approach is not None and self.hard_wall and self.grid.periodic:
-            # K has no mean mode on a periodic cell: the mean gap is mean(h) - delta
-            grid = self.grid
-            mean_gap = grid.mpi_comm.allreduce(float(grid.rows(self.heights, readonly=True).sum())) / (
-                grid.nx * grid.ny) - float(approach)
-            if mean_gap < 0:
-                reason = (f"NO_EQUILIBRIUM (periodic cell: the mean gap mean(h) - delta = {mean_gap:.4e} m "
-                          f"is negative, a hard wall cannot keep g >= 0; state: the last converged state's "
-                          f"pressures)")
-                if raise_on_failure:
-                    raise AdhesiveSolveError(f"adhesive solve at approach {approach:.4e} m: {reason}")
-                self._approach = float(approach)
-                return self.make_state(False, reason, 0, 0, pairs0, t0, float("nan"), self.solver_name)
+        reason = self.no_equilibrium(approach) if approach is not None else None
+        if reason:
+            if raise_on_failure:
+                raise AdhesiveSolveError(f"adhesive solve at approach {approach:.4e} m: {reason}")
+            self._approach = float(approach)
+            return self.make_state(False, reason, 0, 0, pairs0, t0, float("nan"), self.solver_name)
         if not self._started:
             if approach is not None and self.load_from_rest:
                 return self._load_from_rest(approach, raise_on_failure, check_stability)
@@ -434,12 +427,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
             else:
                 x_start.copy(self._x)
                 reason += " (state: the last converged state's pressures; no iterate was measured)"
-            if self.snap_number > 1.0:
-                reason += (f" [under-resolved adhesion: K_ii max da/dg = {self.snap_number:.2f} > 1, every "
-                           f"node can snap on its own; refine the grid until this is below 1]")
-            elif self.zone_nodes < RESOLUTION_NODES:
-                reason += (f" [under-resolved adhesion: the adhesive zone spans {self.zone_nodes:.2g} grid "
-                           f"spacings, the criterion is {RESOLUTION_NODES:g}]")
+            reason += resolution_note(self.snap_number, self.zone_nodes)
         # neither the best iterate nor (once converged) the start is wanted any more: freed
         # before the state's tangent, whose Krylov solve is a path's peak of memory
         self._drop_solve_best()

@@ -23,6 +23,20 @@ class AdhesiveCallbacks:
         """The gap [m] (``VIProblem.gap``) of the unknowns ``blocks``; K p stays in ``_v``."""
         return self.gap(total_pressure(blocks), out, displacement=self._v)
 
+    def no_equilibrium(self, approach: float) -> str | None:
+        """Why no state exists at ``approach`` delta [m], or None: a hard wall on a periodic cell,
+        where K has no mean mode and the mean gap is mean(h) - delta, cannot keep g >= 0 where
+        that is negative.  Collective."""
+        if not (self.hard_wall and self.grid.periodic):
+            return None
+        grid = self.grid
+        mean_gap = grid.mpi_comm.allreduce(float(grid.rows(self.heights, readonly=True).sum())) / (
+            grid.nx * grid.ny) - float(approach)
+        if mean_gap >= 0:
+            return None
+        return (f"NO_EQUILIBRIUM (periodic cell: the mean gap mean(h) - delta = {mean_gap:.4e} m is negative, "
+                f"a hard wall cannot keep g >= 0; state: the last converged state's pressures)")
+
     def control_approach(self, h_plus_v: np.ndarray) -> float:
         """delta [m]; under central-gap control the one that gives the control node its gap."""
         if self.centre_owner is not None:
