@@ -383,7 +383,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         if descend:
             # from the unknowns themselves: the descent saves them as it writes its state
             # (``saved_start``), so that its peak does not hold a copy
-            ok, d_reason, d_newton, d_linear, increments = descend_step(self, float(approach), self._x, increments)
+            ok, d_reason, d_newton, d_linear, increments, _ = descend_step(self, float(approach), self._x, increments)
             # the descent's PETSc objects (and through their contexts its arrays) are freed
             # here, not at the end of the solve: Newton and the check come first
             PETSc.garbage_cleanup(self.grid.comm)

@@ -14,10 +14,10 @@ to O(h^3); so where the force of Newton's converged, stable state misses it,
 
 (a jump: its force change is of the order of the force itself, which neither end's stiffness
 sees; a failed tangent too), the step is descended from the last state as the descent strategy does
-(``descent_step.descend_step``), first to ``-<prefix>descent_step_tol`` only: where that lands
-in Newton's state (a jump the quasi-static path takes as well) Newton's state is kept; else the
-descent goes on to the tolerance, Newton polishes and the check checks, and that state is taken
-(where the descent fails or ends unstable, Newton's state is kept).  Only where the descent applies
+(``descent_step.descend_step``) until its gaps come within ``SAME_STATE`` z0 of Newton's
+state (a jump the quasi-static path takes as well: Newton's state is kept), or else to the
+tolerance: Newton polishes, the check checks, and that state is taken (where the descent fails
+or ends unstable, Newton's state is kept).  Only where the descent applies
 (``descent_options.descent_applies``), not under the descent strategy, which always descends,
 and not for a step law (``InteractionLaw.smooth`` false: Maugis-Dugdale's), whose branches are a
 sawtooth at the grid's scale that the tangent does not see.
@@ -25,17 +25,15 @@ sawtooth at the grid's scale that the tangent does not see.
 from __future__ import annotations
 
 import numpy as np
-from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..fold_watch import PREDICTION_TOL
-from .descent import EnergyDescent
-from .descent_options import descent_applies, descent_options
+from .descent_options import descent_applies
 from .descent_step import descend_step
 from .options import code_default
 
-#: a descent to ``-<prefix>descent_step_tol`` whose gaps are this close (z0) to Newton's state is
-#: in its basin: a jump, the branch's neighbour is a snap of z0 or more somewhere
+#: a descent whose gaps come this close (z0) to Newton's state is in its basin: another
+#: branch's state is a snap of z0 or more away somewhere
 SAME_STATE = 0.1
 
 
@@ -83,38 +81,29 @@ class BranchCheck:
         return self.note
 
     def follow(self, approach: float, x_start: PETSc.Vec, check: bool):
-        """The descent from the last state ``x_start`` to ``approach`` [m], first only to
-        ``-<prefix>descent_step_tol``: where its gaps are within ``SAME_STATE`` z0 of Newton's
-        state it is Newton's (a jump the quasi-static path takes too: Newton's state kept, with
-        its tangent and margin); else descended to the tolerance, polished and checked
-        (``check``).  (taken, newton, linear, margin, increments): ``taken`` False where Newton's
-        state is kept (the problem's unknowns are then Newton's state again)."""
+        """The descent from the last state ``x_start`` to ``approach`` [m], stopped where its gaps
+        come within ``SAME_STATE`` z0 of Newton's state (a jump the quasi-static path takes too:
+        Newton's state kept, with its tangent and margin); else to the tolerance, polished and
+        checked (``check``).  (taken, newton, linear, margin, increments): ``taken`` False where
+        Newton's state is kept (the problem's unknowns are then Newton's state again)."""
         pb = self.problem
-        comm = pb.grid.mpi_comm
         newton_state = pb._x.copy()
         newton_gap = pb._gap(pb.blocks(newton_state, readonly=True), np.empty(pb.grid.local_shape))
         x_start.copy(pb._x)
-        ok, _, newton, linear, increments = descend_step(pb, approach, pb._x,
-                                                         last_tol=descent_options(pb.prefix).step_tol)
-        PETSc.garbage_cleanup(pb.grid.comm)   # the descent's arrays, before what follows
+        ok, _, newton, linear, increments, reached = descend_step(pb, approach, pb._x,
+                                                                  target=(newton_gap, SAME_STATE * pb.z0))
+        del newton_gap
+        PETSc.garbage_cleanup(pb.grid.comm)   # the descent's arrays, before the polish
         margin, taken = float("nan"), False
-        if ok:
-            moved = np.abs(pb._gap(pb.blocks(pb._x, readonly=True), np.empty_like(newton_gap)) - newton_gap)
-            moved = comm.allreduce(float(moved.max(initial=0.0)), op=MPI.MAX) / pb.z0
-            del newton_gap
-            if moved <= SAME_STATE:
-                self.note += f"; the descent from the last state reaches it, to {moved:.1e} z0: kept)"
-            else:
-                ok, _, n2, l2 = EnergyDescent(pb).descend(approach, pb._x)
-                PETSc.garbage_cleanup(pb.grid.comm)
-                newton, linear = newton + n2, linear + l2
-                if ok:
-                    ok, _, n2, l2 = pb.newton.run()
-                    newton, linear = newton + n2, linear + l2
-                    margin = pb.stability_check.margin() if (ok and check) else float("nan")
-                taken = ok and not margin <= 0
-                self.note += (f"; the descent from the last state ends {moved:.2f} z0 away: taken)" if taken else
-                              "; the descent from the last state failed or ended unstable: Newton's state kept)")
+        if reached:
+            self.note += "; the descent from the last state reaches it: kept)"
+        elif ok:
+            ok, _, n2, l2 = pb.newton.run()
+            newton, linear = newton + n2, linear + l2
+            margin = pb.stability_check.margin() if (ok and check) else float("nan")
+            taken = ok and not margin <= 0
+            self.note += ("; the descent from the last state ends elsewhere: taken)" if taken else
+                          "; the descent from the last state ended unstable: Newton's state kept)")
         else:
             self.note += "; the descent from the last state failed: Newton's state kept)"
         if taken:

@@ -137,6 +137,9 @@ class EnergyDescent:
         self._rows, self._mean_u, self._p0, self._valid = None, 0.0, 0.0, False
         self.pc_applies = 0
         self.floor = None            # the full LJ curve's gap floor (``descent_floor.GapFloor``)
+        #: (gap rows [m], distance [m]) of a state to recognise: the descent stops, ``reached``,
+        #: once every gap is within the distance of it (``branch_check``: is it the state?)
+        self.target, self.reached = None, False
 
     @property
     def max_rounds(self) -> int:
@@ -315,6 +318,11 @@ class EnergyDescent:
         self.last_error = err
         if tao.getConvergedReason() < 0:
             return       # TAO's own failure (line search, ...)
+        if self.target is not None and max_error(self.comm, float(np.abs(g - self.target[0]).max(
+                initial=0.0))) <= self.target[1]:
+            self.reached = True
+            tao.setConvergedReason(TAO_REASON.CONVERGED_USER)
+            return
         if err <= (self.mean.target(mean_u, self.tol) if self.mean is not None else self.tol):
             tao.setConvergedReason(TAO_REASON.CONVERGED_USER)
         elif self.floor is not None and self.floor.active and self.floor.holds(tao, k_inv_u, p0, a):
@@ -421,7 +429,7 @@ class EnergyDescent:
                 # pressure 8x, the third time removed), the descent goes on from there
                 self.floor.lower(grid.rows(bounds[0]), grid.rows(x, readonly=True))
                 continue
-            if mean is None:
+            if mean is None or self.reached:
                 return code, iterations, rounds
             mean_u = self.fields(x)[2]
             if code < 0 and mean.visible < np.inf and self.last_error <= self.tol:

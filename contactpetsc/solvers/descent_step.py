@@ -10,14 +10,16 @@ from .descent_options import descent_options
 
 
 def descend_step(problem, approach: float, start: PETSc.Vec, increments: int | None = None,
-                 last_tol: float | None = None) -> tuple[bool, str, int, int, int]:
+                 target: tuple | None = None) -> tuple[bool, str, int, int, int, bool]:
     """The descent strategy's step of ``problem`` from ``start`` (its last state) to ``approach``
     [m]: in increments of at most ``-<prefix>descent_max_step`` z0 (or in ``increments`` equal
     ones, a path's check of its step: ``path_steps.agreed_increments``), each but the last descended
     only to ``-<prefix>descent_step_tol`` (a continuation in the approach: the asperities snap
     one increment at a time, in the order a quasi-static path meets them), the last to the
-    descent's tolerance (or ``last_tol``).  (converged, reason, iterations, Krylov iterations, increments taken)
-    of them all; the state reached is in the problem's unknowns.  Collective."""
+    descent's tolerance, or until its gaps are near ``target`` (``EnergyDescent.target``).
+    (converged, reason, iterations, Krylov iterations, increments taken) of them all, and
+    whether the target was reached; the state reached is in the problem's unknowns.
+    Collective."""
     prev = problem._start_approach    # the start's own (after a failed solve: the last converged)
     options = descent_options(problem.prefix)
     if prev is None:
@@ -40,5 +42,7 @@ def descend_step(problem, approach: float, start: PETSc.Vec, increments: int | N
             break
         start = problem._x      # the increment's state: the next one's start
         taken += 1
-    ok, reason, it, lin = EnergyDescent(problem, tol=last_tol).descend(approach, start)
-    return ok, reason, iterations + it, linear + lin, taken
+    last = EnergyDescent(problem)
+    last.target = target
+    ok, reason, it, lin = last.descend(approach, start)
+    return ok, reason, iterations + it, linear + lin, taken, last.reached
