@@ -140,6 +140,7 @@ class EnergyDescent:
         #: (gap rows [m], distance [m]) of a state to recognise: the descent stops, ``reached``,
         #: once every gap is within the distance of it (``branch_check``: is it the state?)
         self.target, self.reached = None, False
+        self._target = None          # its gap rows on the descent's rows (a window's split its own)
 
     @property
     def max_rounds(self) -> int:
@@ -318,7 +319,7 @@ class EnergyDescent:
         self.last_error = err
         if tao.getConvergedReason() < 0:
             return       # TAO's own failure (line search, ...)
-        if self.target is not None and max_error(self.comm, float(np.abs(g - self.target[0]).max(
+        if self._target is not None and max_error(self.comm, float(np.abs(g - self._target).max(
                 initial=0.0))) <= self.target[1]:
             self.reached = True
             tao.setConvergedReason(TAO_REASON.CONVERGED_USER)
@@ -348,6 +349,8 @@ class EnergyDescent:
     def _descend(self, approach, start):
         p, grid = self.p, self.grid
         self.delta = approach
+        if self.target is not None:
+            self._target = self.space.from_problem(self.target[0])
         self._valid = False
         pressure0 = total_pressure(p.blocks(start, readonly=True))
         # the start's displacement: u = K p (zero mean on a cell), the bound projected
