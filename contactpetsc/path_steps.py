@@ -103,8 +103,8 @@ def agreed_pieces(problem, snap, prev, d, path, jump_tol, refine, agreement):
 
 def _probe(problem, snap, d, increments=None):
     """A probe of the step from the state in ``snap`` to ``d`` [m] (in ``increments`` under the
-    descent, if given): solved without the stability check or the tangent, only its gaps are
-    wanted; the problem is back at ``snap`` after it.  Returns (its gap Vec, None where it
+    descent, if given): solved without the stability check or the tangent (but where the Newton
+    strategy's branch check needs it), only its gaps are wanted; the problem is back at ``snap`` after it.  Returns (its gap Vec, None where it
     failed; its cost; the increments its descent took, at least 1: the ladder's foot)."""
     more = {} if increments is None else {"increments": increments}
     probe = problem.solve(approach=d, raise_on_failure=False, check_stability=False, tangent=False, **more)

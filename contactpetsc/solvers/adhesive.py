@@ -412,8 +412,11 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
                 reason = f"UNSTABLE (stability margin {margin:.3e})"
             converged, reason, newton, linear, margin, solver = self.fallback.follow(
                 approach, x_start, check, newton, linear, solver, reason, skip=("descent",) if descend else ())
-        elif converged and fallback and approach is not None and self.branch_check.missed(approach):
-            taken, n2, l2, m2, increments = self.branch_check.follow(approach, x_start, check)
+        elif (converged and fallback and approach is not None and not margin <= 0 and not self.out_of_time()
+              and self.branch_check.missed(approach)):
+            # a state the check replaces is checked, whatever a sweep's watch decided for Newton's
+            taken, n2, l2, m2, increments = self.branch_check.follow(approach, x_start,
+                                                                     check or callable(check_stability))
             newton, linear, reason = newton + n2, linear + l2, reason + self.branch_check.note
             if taken:
                 margin, descend, solver = m2, True, f"{solver}+branch-descent"

@@ -35,6 +35,9 @@ from .options import code_default
 #: a descent whose gaps come this close (z0) to Newton's state is in its basin: another
 #: branch's state is a snap of z0 or more away somewhere
 SAME_STATE = 0.1
+#: the force noise a converged state may carry, in units of the tolerance times the peak
+#: attraction over the grid's area
+FORCE_NOISE = 10.0
 
 
 class BranchCheck:
@@ -73,8 +76,11 @@ class BranchCheck:
         k1 = pb.predictor.present()
         step = approach - delta0
         miss = abs(pb.net_force() - force0 - 0.5 * (k0 + k1) * step)
-        allowed = PREDICTION_TOL * max(abs(k0 * step), abs(k1 * step))
-        if miss <= max(allowed, np.finfo(float).tiny):    # False for a NaN k1
+        # at least what the solves' tolerance leaves in a net force (each node's pressure to tol
+        # of the peak attraction): a tiny step's prediction is below that noise
+        floor = FORCE_NOISE * pb.tol * pb.pressure_scale * pb.grid.lengths[0] * pb.grid.lengths[1]
+        allowed = max(PREDICTION_TOL * max(abs(k0 * step), abs(k1 * step)), floor)
+        if miss <= allowed:    # False for a NaN k1
             return None
         self.note = (f" (branch check: the force misses the stiffnesses' trapezoid by {miss:.3e} N, a smooth "
                      f"branch's {allowed:.3e} N")
@@ -85,30 +91,36 @@ class BranchCheck:
         come within ``SAME_STATE`` z0 of Newton's state (a jump the quasi-static path takes too:
         Newton's state kept, with its tangent and margin); else to the tolerance, polished and
         checked (``check``).  (taken, newton, linear, margin, increments): ``taken`` False where
-        Newton's state is kept (the problem's unknowns are then Newton's state again)."""
+        Newton's state is kept (the problem's unknowns, and the check's ``settled``, are then
+        Newton's state's again, also where the descent raises)."""
         pb = self.problem
         newton_state = pb._x.copy()
-        newton_gap = pb._gap(pb.blocks(newton_state, readonly=True), np.empty(pb.grid.local_shape))
-        x_start.copy(pb._x)
-        ok, _, newton, linear, increments, reached = descend_step(pb, approach, pb._x,
-                                                                  target=(newton_gap, SAME_STATE * pb.z0))
-        del newton_gap
-        PETSc.garbage_cleanup(pb.grid.comm)   # the descent's arrays, before the polish
-        margin, taken = float("nan"), False
-        if reached:
-            self.note += "; the descent from the last state reaches it: kept)"
-        elif ok:
-            ok, _, n2, l2 = pb.newton.run()
-            newton, linear = newton + n2, linear + l2
-            margin = pb.stability_check.margin() if (ok and check) else float("nan")
-            taken = ok and not margin <= 0
-            self.note += ("; the descent from the last state ends elsewhere: taken)" if taken else
-                          "; the descent from the last state ended unstable: Newton's state kept)")
-        else:
-            self.note += "; the descent from the last state failed: Newton's state kept)"
-        if taken:
-            pb.predictor.drop()     # Newton's state's tangent
-        else:
-            newton_state.copy(pb._x)
-        newton_state.destroy()
+        settled = pb.stability_check.settled
+        taken = False
+        try:
+            newton_gap = pb._gap(pb.blocks(newton_state, readonly=True), np.empty(pb.grid.local_shape))
+            x_start.copy(pb._x)
+            ok, _, newton, linear, increments, reached = descend_step(pb, approach, pb._x,
+                                                                      target=(newton_gap, SAME_STATE * pb.z0))
+            del newton_gap
+            PETSc.garbage_cleanup(pb.grid.comm)   # the descent's arrays, before the polish
+            margin = float("nan")
+            if reached:
+                self.note += "; the descent from the last state reaches it: kept)"
+            elif ok:
+                ok, _, n2, l2 = pb.newton.run()
+                newton, linear = newton + n2, linear + l2
+                margin = pb.stability_check.margin() if (ok and check) else float("nan")
+                taken = ok and not margin <= 0
+                self.note += ("; the descent from the last state ends elsewhere: taken)" if taken else
+                              "; the descent from the last state ended unstable: Newton's state kept)")
+            else:
+                self.note += "; the descent from the last state failed: Newton's state kept)"
+        finally:
+            if taken:
+                pb.predictor.drop()     # Newton's state's tangent
+            else:
+                newton_state.copy(pb._x)
+                pb.stability_check.settled = settled
+            newton_state.destroy()
         return taken, newton, linear, margin, increments

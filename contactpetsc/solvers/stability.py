@@ -38,8 +38,8 @@ Two ways to lambda_max:
   stability check on a window").
 
 In both the top Ritz value grows monotonically towards lambda_max (a Ritz value
-above one proves instability), and an unsettled positive margin is an upper
-bound.  The nodal law derivative is used also with element integration (its
+above one proves instability, to the inner CG's tolerance where S is one), and an
+unsettled positive margin is an upper bound.  The nodal law derivative is used also with element integration (its
 linearisation is not symmetric).
 """
 from __future__ import annotations
@@ -272,7 +272,8 @@ def _lanczos(problem, comm, d, contact, v, steps, tol):
         beta2 = dot(w, sw)
         T = np.diag(alphas) + np.diag(betas, 1) + np.diag(betas, -1)
         new = float(np.linalg.eigvalsh(T)[-1])
-        # Ritz values grow towards lambda_max: one above 1 already proves instability
+        # Ritz values grow towards lambda_max: one above 1 already proves instability (to the
+        # inner CG's tolerance)
         done = (beta2 <= 1e-28 * max(1.0, abs(new)) or new > 1.0
                 or abs(new - lam) <= tol * max(1.0, abs(new)))
         lam = new
