@@ -15,7 +15,8 @@ to O(h^3); so where the force of Newton's converged, stable state misses it,
 (a jump: its force change is of the order of the force itself, which neither end's stiffness
 sees; a failed tangent too), the step is descended from the last state as the descent strategy does
 (``descent_step.descend_step``) until its gaps come within ``SAME_STATE`` z0 of Newton's
-state (a jump the quasi-static path takes as well: Newton's state is kept), or else to the
+state, or ``SAME_FRACTION`` of the jump (a jump the quasi-static path takes as well: Newton's
+state is kept), or else to the
 tolerance: Newton polishes, the check checks, and that state is taken (where the descent fails
 or ends unstable, Newton's state is kept).  Only where the descent applies
 (``descent_options.descent_applies``), not under the descent strategy, which always descends,
@@ -25,6 +26,7 @@ sawtooth at the grid's scale that the tangent does not see.
 from __future__ import annotations
 
 import numpy as np
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..fold_watch import PREDICTION_TOL
@@ -32,9 +34,12 @@ from .descent_options import descent_applies
 from .descent_step import descend_step
 from .options import code_default
 
-#: a descent whose gaps come this close (z0) to Newton's state is in its basin: another
-#: branch's state is a snap of z0 or more away somewhere
-SAME_STATE = 0.1
+#: a descent whose gaps come this close to Newton's state is in its basin: within SAME_STATE z0,
+#: or SAME_FRACTION of the jump (the gaps' largest change over Newton's step), since another
+#: branch's state is a snap of z0 or more away somewhere, and the hop the check looks for
+#: differs from Newton's state by about the jump itself (a pull-off's descent at Tabor 5 failed
+#: short of 0.1 z0 of a jump of many z0)
+SAME_STATE, SAME_FRACTION = 0.1, 0.1
 #: the force noise a converged state may carry, in units of the tolerance times the peak
 #: attraction over the grid's area
 FORCE_NOISE = 10.0
@@ -88,7 +93,7 @@ class BranchCheck:
 
     def follow(self, approach: float, x_start: PETSc.Vec, check: bool):
         """The descent from the last state ``x_start`` to ``approach`` [m], stopped where its gaps
-        come within ``SAME_STATE`` z0 of Newton's state (a jump the quasi-static path takes too:
+        come as near Newton's state as ``SAME_STATE`` and ``SAME_FRACTION`` say (a jump the quasi-static path takes too:
         Newton's state kept, with its tangent and margin); else to the tolerance, polished and
         checked (``check``).  (taken, newton, linear, margin, increments): ``taken`` False where
         Newton's state is kept (the problem's unknowns, and the check's ``settled``, are then
@@ -99,9 +104,12 @@ class BranchCheck:
         taken = False
         try:
             newton_gap = pb._gap(pb.blocks(newton_state, readonly=True), np.empty(pb.grid.local_shape))
+            # the gaps' largest change over Newton's step: a jump's size
+            jump = np.abs(pb._gap(pb.blocks(x_start, readonly=True), np.empty_like(newton_gap)) - newton_gap)
+            jump = pb.grid.mpi_comm.allreduce(float(jump.max(initial=0.0)), op=MPI.MAX)
             x_start.copy(pb._x)
-            ok, _, newton, linear, increments, reached = descend_step(pb, approach, pb._x,
-                                                                      target=(newton_gap, SAME_STATE * pb.z0))
+            near = max(SAME_STATE * pb.z0, SAME_FRACTION * jump)
+            ok, _, newton, linear, increments, reached = descend_step(pb, approach, pb._x, target=(newton_gap, near))
             del newton_gap
             PETSc.garbage_cleanup(pb.grid.comm)   # the descent's arrays, before the polish
             margin = float("nan")
