@@ -13,12 +13,11 @@ to O(h^3); so where the force of Newton's converged, stable state misses it,
     |F1 - F0 - (k0 + k1) h / 2| > PREDICTION_TOL max(|k0 h|, |k1 h|),
 
 (a jump: its force change is of the order of the force itself, which neither end's stiffness
-sees; a failed tangent too), the step is descended from the last state as the descent strategy does
-(``descent_step.descend_step``) until its gaps come within ``SAME_STATE`` z0 of Newton's
+sees; a failed tangent too), the step is descended from the last state as the descent strategy
+does (``descent_step.descend_step``) until its gaps come within ``SAME_STATE`` z0 of Newton's
 state, or ``SAME_FRACTION`` of the jump (a jump the quasi-static path takes as well: Newton's
-state is kept), or else to the
-tolerance: Newton polishes, the check checks, and that state is taken (where the descent fails
-or ends unstable, Newton's state is kept).  Only where the descent applies
+state is kept), or else to the tolerance: Newton polishes, the check checks, and that state is
+taken (where the descent fails or ends unstable, Newton's state is kept).  Only where the descent applies
 (``descent_options.descent_applies``), not under the descent strategy, which always descends,
 and not for a step law (``InteractionLaw.smooth`` false: Maugis-Dugdale's), whose branches are a
 sawtooth at the grid's scale that the tangent does not see.
@@ -93,9 +92,9 @@ class BranchCheck:
 
     def follow(self, approach: float, x_start: PETSc.Vec, check: bool):
         """The descent from the last state ``x_start`` to ``approach`` [m], stopped where its gaps
-        come as near Newton's state as ``SAME_STATE`` and ``SAME_FRACTION`` say (a jump the quasi-static path takes too:
-        Newton's state kept, with its tangent and margin); else to the tolerance, polished and
-        checked (``check``).  (taken, newton, linear, margin, increments): ``taken`` False where
+        come as near Newton's state as ``SAME_STATE`` and ``SAME_FRACTION`` say (a jump the
+        quasi-static path takes too: Newton's state kept, with its tangent and margin); else to
+        the tolerance, polished and checked (``check``).  (taken, newton, linear, margin, increments): ``taken`` False where
         Newton's state is kept (the problem's unknowns, and the check's ``settled``, are then
         Newton's state's again, also where the descent raises)."""
         pb = self.problem

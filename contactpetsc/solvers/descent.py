@@ -137,10 +137,9 @@ class EnergyDescent:
         self._rows, self._mean_u, self._p0, self._valid = None, 0.0, 0.0, False
         self.pc_applies = 0
         self.floor = None            # the full LJ curve's gap floor (``descent_floor.GapFloor``)
-        #: (gap rows [m], distance [m]) of a state to recognise: the descent stops, ``reached``,
-        #: once every gap is within the distance of it (``branch_check``: is it the state?)
-        self.target, self.reached = None, False
-        self._target = None          # its gap rows on the descent's rows (a window's split its own)
+        # ``descend``'s target on the descent's rows (a window's split its own) and its distance
+        # [m], and whether it was reached
+        self._target, self.reached = None, False
 
     @property
     def max_rounds(self) -> int:
@@ -319,8 +318,8 @@ class EnergyDescent:
         self.last_error = err
         if tao.getConvergedReason() < 0:
             return       # TAO's own failure (line search, ...)
-        if self._target is not None and max_error(self.comm, float(np.abs(g - self._target).max(
-                initial=0.0))) <= self.target[1]:
+        if self._target is not None and max_error(self.comm, float(np.abs(g - self._target[0]).max(
+                initial=0.0))) <= self._target[1]:
             self.reached = True
             tao.setConvergedReason(TAO_REASON.CONVERGED_USER)
             return
@@ -335,22 +334,25 @@ class EnergyDescent:
             tao.setConvergedReason(TAO_REASON.CONTINUE_ITERATING)
 
     # -- the strategy ------------------------------------------------------------------------
-    def descend(self, approach: float, start: PETSc.Vec) -> tuple[bool, str, int, int]:
+    def descend(self, approach: float, start: PETSc.Vec, target: tuple | None = None) -> tuple[bool, str, int, int]:
         """From the unknowns ``start`` ([q,] a of a state, usually the last converged one),
         descend the energy at approach delta [m]; the state reached is written to the problem's
-        unknowns (hard wall: at approach delta - m, |m| <= offset_tol z0, for Newton to close)."""
+        unknowns (hard wall: at approach delta - m, |m| <= offset_tol z0, for Newton to close).
+        ``target``: (gap rows [m] on the problem's rows, distance [m]) of a state to recognise:
+        the descent stops, ``reached``, once every gap is within the distance of it
+        (``branch_check``: is it that state?)."""
         ev = log_event("CPEnergyDescent")
         ev.begin()
         try:
-            return self._descend(float(approach), start)
+            return self._descend(float(approach), start, target)
         finally:
             ev.end()
 
-    def _descend(self, approach, start):
+    def _descend(self, approach, start, target):
         p, grid = self.p, self.grid
         self.delta = approach
-        if self.target is not None:
-            self._target = self.space.from_problem(self.target[0])
+        if target is not None:
+            self._target = (self.space.from_problem(target[0]), target[1])
         self._valid = False
         pressure0 = total_pressure(p.blocks(start, readonly=True))
         # the start's displacement: u = K p (zero mean on a cell), the bound projected

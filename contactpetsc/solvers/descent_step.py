@@ -16,7 +16,7 @@ def descend_step(problem, approach: float, start: PETSc.Vec, increments: int | N
     ones, a path's check of its step: ``path_steps.agreed_increments``), each but the last descended
     only to ``-<prefix>descent_step_tol`` (a continuation in the approach: the asperities snap
     one increment at a time, in the order a quasi-static path meets them), the last to the
-    descent's tolerance, or until its gaps are near ``target`` (``EnergyDescent.target``).
+    descent's tolerance, or until its gaps are near ``target`` (``EnergyDescent.descend``).
     (converged, reason, iterations, Krylov iterations, increments taken) of them all, and
     whether the target was reached; the state reached is in the problem's unknowns.
     Collective."""
@@ -43,6 +43,5 @@ def descend_step(problem, approach: float, start: PETSc.Vec, increments: int | N
         start = problem._x      # the increment's state: the next one's start
         taken += 1
     last = EnergyDescent(problem)
-    last.target = target
-    ok, reason, it, lin = last.descend(approach, start)
+    ok, reason, it, lin = last.descend(approach, start, target)
     return ok, reason, iterations + it, linear + lin, taken, last.reached

@@ -39,8 +39,8 @@ Two ways to lambda_max:
 
 In both the top Ritz value grows monotonically towards lambda_max (a Ritz value
 above one proves instability, to the inner CG's tolerance where S is one), and an
-unsettled positive margin is an upper bound.  The nodal law derivative is used also with element integration (its
-linearisation is not symmetric).
+unsettled positive margin is an upper bound.  The nodal law derivative is used
+also with element integration (its linearisation is not symmetric).
 """
 from __future__ import annotations
 
