@@ -274,7 +274,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         self._solve_best = (np.inf, "")
         self._J = J
         self.newton = VINewton(self, self.prefix, newton_linesearch(self.hard_wall), self.max_it,
-                               1000 if self.hard_wall else 30, polishes=self.strategy == "descent")
+                               code_default("adhesion", "ksp_max_it"), polishes=self.strategy == "descent")
         self._snes = self.newton.snes
         self.fallback.build()
         return self._snes

@@ -65,7 +65,7 @@ ADHESION = (
     Option(("tol",), (1e-8,), "errors (z0) at convergence"),
     Option(("max_it",), (100,), "Newton steps per solve"),
     Option(("newton_ksp_rtol",), (1e-2,), "Krylov tolerance of the Newton steps"),
-    Option(("ksp_max_it",), "30 (full LJ), 1000", "Krylov iterations per Newton step"),
+    Option(("ksp_max_it",), (30,), "Krylov iterations per Newton step"),
     Option(("repulsive_rows",), ("gap",), "gap-form rows g - G(a) where g < 0 (full LJ, nodal), or pressure"),
     Option(("step_limit",), "0.5 (full LJ), 0", "largest fall of a gap below min(g, 0) per Newton step (z0)"),
     Option(("fmg", "fmg_min_size", "fmg_tol"), (True, 32, 1e-3), "nested iteration on the first solve"),
