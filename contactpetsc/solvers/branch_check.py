@@ -10,14 +10,15 @@ state follows it there (docs/performance.md, "The adhesive sphere's states").  O
 branch the force over a step h is the trapezoid of the two states' tangent stiffnesses k0 and k1
 to O(h^3); so where the force of Newton's converged, stable state misses it,
 
-    |F1 - F0 - (k0 + k1) h / 2| > PREDICTION_TOL max(|k0 h|, |k1 h|),
+    |F1 - F0 - (k0 + k1) h / 2| > BRANCH_TOL max(|k0 h|, |k1 h|),
 
 (a jump: its force change is of the order of the force itself, which neither end's stiffness
 sees; a failed tangent too), the step is descended from the last state as the descent strategy
 does (``descent_step.descend_step``) until its gaps come within ``SAME_STATE`` z0 of Newton's
 state, or ``SAME_FRACTION`` of the jump (a jump the quasi-static path takes as well: Newton's
-state is kept), or else to the tolerance: Newton polishes, the check checks, and that state is
-taken (where the descent fails or ends unstable, Newton's state is kept).  Only where the descent applies
+state is kept), or else to the tolerance (or until it fails): Newton polishes, the check
+checks, and that state is taken (where Newton fails from it or it is unstable, Newton's state
+is kept).  Only where the descent applies
 (``descent_options.descent_applies``), not under the descent strategy, which always descends,
 and not for a step law (``InteractionLaw.smooth`` false: Maugis-Dugdale's), whose branches are a
 sawtooth at the grid's scale that the tangent does not see.
@@ -28,7 +29,6 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..fold_watch import PREDICTION_TOL
 from .descent_options import descent_applies
 from .descent_step import descend_step
 from .options import code_default
@@ -39,6 +39,13 @@ from .options import code_default
 #: differs from Newton's state by about the jump itself (a pull-off's descent at Tabor 5 failed
 #: short of 0.1 z0 of a jump of many z0)
 SAME_STATE, SAME_FRACTION = 0.1, 0.1
+#: the trapezoid's miss, relative to the larger tangent's force change, that makes a state suspect:
+#: on the adhesive sphere's paths a smooth step misses by at most 0.15 of that change, the onset
+#: of repulsive contact (a kink) by 0.5 and a jump by 0.75 or more; a rough surface's small snap
+#: within a step (an asperity or two) by about 0.3, where the descent from the last state is no
+#: nearer the quasi-static path than Newton's step (the path's sub-steps decide there:
+#: ``paths.sweep``'s agreement)
+BRANCH_TOL = 0.5
 #: the force noise a converged state may carry, in units of the tolerance times the peak
 #: attraction over the grid's area
 FORCE_NOISE = 10.0
@@ -83,7 +90,7 @@ class BranchCheck:
         # at least what the solves' tolerance leaves in a net force (each node's pressure to tol
         # of the peak attraction): a tiny step's prediction is below that noise
         floor = FORCE_NOISE * pb.tol * pb.pressure_scale * pb.grid.lengths[0] * pb.grid.lengths[1]
-        allowed = max(PREDICTION_TOL * max(abs(k0 * step), abs(k1 * step)), floor)
+        allowed = max(BRANCH_TOL * max(abs(k0 * step), abs(k1 * step)), floor)
         if miss <= allowed:    # False for a NaN k1
             return None
         self.note = (f" (branch check: the force misses the stiffnesses' trapezoid by {miss:.3e} N, a smooth "
@@ -108,21 +115,25 @@ class BranchCheck:
             jump = pb.grid.mpi_comm.allreduce(float(jump.max(initial=0.0)), op=MPI.MAX)
             x_start.copy(pb._x)
             near = max(SAME_STATE * pb.z0, SAME_FRACTION * jump)
-            ok, _, newton, linear, increments, reached = descend_step(pb, approach, pb._x, target=(newton_gap, near))
+            descended, why, newton, linear, increments, reached = descend_step(pb, approach, pb._x,
+                                                                               target=(newton_gap, near))
             del newton_gap
             PETSc.garbage_cleanup(pb.grid.comm)   # the descent's arrays, before the polish
             margin = float("nan")
             if reached:
                 self.note += "; the descent from the last state reaches it: kept)"
-            elif ok:
+            else:
+                # also after a failed descent: next to a fold its line search stalls in round-off
+                # (the energy's change below its last digits) while its iterate is near the
+                # state, as the descent strategy's Newton polishes after it
                 ok, _, n2, l2 = pb.newton.run()
                 newton, linear = newton + n2, linear + l2
                 margin = pb.stability_check.margin() if (ok and check) else float("nan")
                 taken = ok and not margin <= 0
-                self.note += ("; the descent from the last state ends elsewhere: taken)" if taken else
-                              "; the descent from the last state ended unstable: Newton's state kept)")
-            else:
-                self.note += "; the descent from the last state failed: Newton's state kept)"
+                ends = "ends elsewhere" if descended else f"stopped elsewhere ({why})"
+                self.note += (f"; the descent from the last state {ends}: taken)" if taken else
+                              f"; the descent from the last state {ends}, Newton from there "
+                              f"{'found it unstable' if ok else 'failed'}: Newton's state kept)")
         finally:
             if taken:
                 pb.predictor.drop()     # Newton's state's tangent
