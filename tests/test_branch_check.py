@@ -20,8 +20,11 @@ PATH = -3.861 + 0.25 * np.array([4.0, 5.0, 6.0, 7.0, 6.0, 5.0, 4.0, 3.0, 2.0, 1.
 
 
 def _forces(strategy, comm, tag):
+    # the coarse levels predict each step (a window's default is the tangent): their prediction
+    # lands Newton on the detached branch a step before the attached one ends
     pb = sphere_problem(2.0, law="lj", n=128, dx=0.5, radius=100.0, comm=comm,
-                        prefix=f"branch_{strategy}_{tag}_", petsc_options={"strategy": strategy})
+                        prefix=f"branch_{strategy}_{tag}_",
+                        petsc_options={"strategy": strategy, "fmg_step_levels": 2})
     states = [pb.solve(approach=float(d)) for d in PATH]
     return np.array([st.force for st in states]), [(st.solver, st.reason) for st in states]
 

@@ -25,6 +25,18 @@ from .options import code_default
 from .transfer import can_halve, halved, prolong_bilinear, prolong_constant, restrict
 
 
+#: the levels that predict a path's step by default: on an isolated window with a smooth law,
+#: and elsewhere (a periodic cell, or a step law).  A cell two: on the rough benchmark's Newton
+#: paths they took 25-33 % fewer pairs than the tangent predictor (which reached other states at
+#: 256^2), and a third level (32^2) cost more than it saved.  A window none: on the adhesive
+#: sphere's paths (Tabor 0.1-5, both smooth laws) the tangent predictor reaches the same states
+#: in up to 29 % fewer pairs; the levels' prediction started Newton at a larger error, and at
+#: Tabor 5 the under-resolved levels' Newton failed each step (docs/performance.md, "The adhesive
+#: sphere's states").  A step law's tangent is blind to its zone (its derivative is zero): with
+#: it Maugis-Dugdale's sphere was 0.106 pi w R off, with the levels 0.061
+STEP_LEVELS = {False: 0, True: 2}
+
+
 class CoarseLevels:
     """The coarse levels below ``problem`` (an ``AdhesiveProblem``); read its options when made
     (inside the problem's ``inserted_options``)."""
@@ -36,8 +48,7 @@ class CoarseLevels:
         self.enabled = PETSc.Options(problem.prefix).getBool("fmg", code_default("adhesion", "fmg"))
         self.min_size = opts.getInt("min_size", code_default("adhesion", "fmg_min_size"))
         self.tol = opts.getReal("tol", code_default("adhesion", "fmg_tol"))
-        # two: on the 256^2 rough benchmark a third level (32^2) cost more than it saved (docs/performance.md)
-        self.step_levels = opts.getInt("step_levels", code_default("adhesion", "fmg_step_levels"))
+        self.step_levels = opts.getInt("step_levels", STEP_LEVELS[bool(problem.grid.periodic or not problem.law.smooth)])
         if self.step_levels < 0:
             raise ValueError(f"-{self.prefix}step_levels must be >= 0 (0: the tangent predictor), "
                              f"got {self.step_levels}")

@@ -69,7 +69,7 @@ ADHESION = (
     Option(("repulsive_rows",), ("gap",), "gap-form rows g - G(a) where g < 0 (full LJ, nodal), or pressure"),
     Option(("step_limit",), "0.5 (full LJ), 0", "largest fall of a gap below min(g, 0) per Newton step (z0)"),
     Option(("fmg", "fmg_min_size", "fmg_tol"), (True, 32, 1e-3), "nested iteration on the first solve"),
-    Option(("fmg_step_levels",), (2,), "coarse levels that predict a path's next step (FAS-corrected "
+    Option(("fmg_step_levels",), "0 (window, smooth law), 2", "coarse levels that predict a path's next step (FAS-corrected "
            "coarse steps; 0: the tangent predictor)"),
     Option(("fmg_ksp_max_it",), (100,), "Krylov iterations per Newton step on the coarse levels (at most "
            "-<prefix>ksp_max_it): a level only predicts"),
