@@ -104,9 +104,8 @@ class CoarseLevels:
             # dropped rather than followed by thousands of relaxation cycles or PTC steps.  A
             # hard wall's level on an isolated window is dropped where its Newton fails: its
             # padded descents cost more than the predictions they kept, and the tangent predictor
-            # reaches the same states.  The full LJ curve's keeps them: without the level its
-            # Newton step hopped to the detached branch a z0 before the attached one ended
-            # (docs/performance.md, "The adhesive sphere's states")
+            # reaches the same states.  The full LJ curve's keeps them, for the first state's
+            # nested iteration (a window's steps are the tangent's by default, ``STEP_LEVELS``)
             coarse.fallback.methods = [] if fine.hard_wall and not gc.periodic else ["descent"]
         coarse.predictor.predicts = coarse.predictor.wanted = False   # a level needs no tangent
         coarse.coarse_levels.step_levels = self.step_levels - 1
