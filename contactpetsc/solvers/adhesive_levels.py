@@ -34,7 +34,7 @@ from .transfer import can_halve, halved, prolong_bilinear, prolong_constant, res
 #: Tabor 5 the under-resolved levels' Newton failed each step (docs/performance.md, "The adhesive
 #: sphere's states").  A step law's tangent is blind to its zone (its derivative is zero): with
 #: it Maugis-Dugdale's sphere was 0.106 pi w R off, with the levels 0.061
-STEP_LEVELS = {False: 0, True: 2}
+STEP_LEVELS, WINDOW_STEP_LEVELS = 2, 0
 
 
 class CoarseLevels:
@@ -48,7 +48,8 @@ class CoarseLevels:
         self.enabled = PETSc.Options(problem.prefix).getBool("fmg", code_default("adhesion", "fmg"))
         self.min_size = opts.getInt("min_size", code_default("adhesion", "fmg_min_size"))
         self.tol = opts.getReal("tol", code_default("adhesion", "fmg_tol"))
-        self.step_levels = opts.getInt("step_levels", STEP_LEVELS[bool(problem.grid.periodic or not problem.law.smooth)])
+        levels = STEP_LEVELS if problem.grid.periodic or not problem.law.smooth else WINDOW_STEP_LEVELS
+        self.step_levels = opts.getInt("step_levels", levels)
         if self.step_levels < 0:
             raise ValueError(f"-{self.prefix}step_levels must be >= 0 (0: the tangent predictor), "
                              f"got {self.step_levels}")
@@ -105,7 +106,7 @@ class CoarseLevels:
             # hard wall's level on an isolated window is dropped where its Newton fails: its
             # padded descents cost more than the predictions they kept, and the tangent predictor
             # reaches the same states.  The full LJ curve's keeps them, for the first state's
-            # nested iteration (a window's steps are the tangent's by default, ``STEP_LEVELS``)
+            # nested iteration (a window's steps are the tangent's by default, ``WINDOW_STEP_LEVELS``)
             coarse.fallback.methods = [] if fine.hard_wall and not gc.periodic else ["descent"]
         coarse.predictor.predicts = coarse.predictor.wanted = False   # a level needs no tangent
         coarse.coarse_levels.step_levels = self.step_levels - 1

@@ -101,9 +101,10 @@ class BranchCheck:
         """The descent from the last state ``x_start`` to ``approach`` [m], stopped where its gaps
         come as near Newton's state as ``SAME_STATE`` and ``SAME_FRACTION`` say (a jump the
         quasi-static path takes too: Newton's state kept, with its tangent and margin); else to
-        the tolerance, polished and checked (``check``).  (taken, newton, linear, margin, increments): ``taken`` False where
-        Newton's state is kept (the problem's unknowns, and the check's ``settled``, are then
-        Newton's state's again, also where the descent raises)."""
+        the tolerance or until it fails, then polished and checked (``check``).
+        (taken, newton, linear, margin, increments): ``taken`` False where Newton's state is kept
+        (the problem's unknowns, and the check's ``settled``, are then Newton's state's again,
+        also where the descent raises)."""
         pb = self.problem
         newton_state = pb._x.copy()
         settled = pb.stability_check.settled
