@@ -127,6 +127,27 @@ def test_the_gap_floor_does_not_hold_the_state(coll):
     assert coll.max(np.abs(pressures[0] - pressures[1])) / scale < 1e-9
 
 
+def test_a_spent_time_budget_is_named_by_the_descent(coll):
+    """A descent that stops because ``-<prefix>time_budget`` is spent says so first: the run's
+    message looks for WALL_TIME_BUDGET there, as after Newton (the descent's reason had read
+    DIVERGED_MAXITS); the same descent without a budget converges."""
+    import time
+    law = make_law("lj", work_of_adhesion=0.05, z0=1.0)
+    grid, h = rough(PETSc.COMM_WORLD)
+    d0, d1 = h.min()[1] + 0.5, h.min()[1] + 1.0
+    pb = AdhesiveProblem(grid, h, 1.0, law, prefix="descbudget_")
+    pb.solve(approach=d0)
+    start = pb._x.copy()
+    pb.time_budget, pb._budget_start = 1e-6, time.monotonic()
+    pb.prepare(d0)
+    ok, reason, _, _ = EnergyDescent(pb).descend(d1, start)
+    assert not ok and reason.startswith("WALL_TIME_BUDGET") and "in the descent" in reason, reason
+    pb.time_budget = 0.0
+    pb.prepare(d0)
+    ok, reason, _, _ = EnergyDescent(pb).descend(d1, start)
+    assert ok and reason.startswith("descent CONVERGED"), reason
+
+
 @pytest.mark.serial
 @pytest.mark.parametrize("law_name", ["lj", "hardwall-lj"])
 def test_the_descents_hessian_is_symmetric_and_its_preconditioner_positive(coll, law_name):

@@ -340,6 +340,7 @@ class EnergyDescent(StoppingTest):
             pc.setPythonContext(Compliance(self))
         self._lin0 = p.history[-1].linear_iterations if len(p.history) else 0
         self.last_error = np.inf
+        self.spent = False
         try:
             try:
                 code, iterations, rounds = self._rounds(tao, x, bounds)
@@ -354,7 +355,9 @@ class EnergyDescent(StoppingTest):
             self._write_state(x, at_bound)
         finally:
             x.destroy()
-        reason = f"descent {reason_name(code, TAO_REASON)} ({iterations} TAO iterations"
+        # a spent budget leads the reason, as Newton's does: the run's message names it
+        reason = (f"{p.budget_reason}, in the descent (" if self.spent
+                  else f"descent {reason_name(code, TAO_REASON)} (") + f"{iterations} TAO iterations"
         floors = self.floor.lowered if self.floor is not None else 0
         reason += f", {rounds} rounds)" if p.hard_wall else (f", the gap floor lowered {floors}x)" if floors else ")")
         return code > 0, reason, iterations, self.pc_applies

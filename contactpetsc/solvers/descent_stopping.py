@@ -65,7 +65,10 @@ class StoppingTest:
         elif self.floor is not None and self.floor.active and self.floor.holds(tao, k_inv_u, p0, a):
             self.pinned = True
             tao.setConvergedReason(TAO_REASON.CONVERGED_USER)
-        elif it >= tao.getMaximumIterations() or not np.isfinite(err) or p.out_of_time():
+        elif it >= tao.getMaximumIterations() or not np.isfinite(err):
+            tao.setConvergedReason(TAO_REASON.DIVERGED_MAXITS)
+        elif p.out_of_time():
+            self.spent = True     # the reason names the budget (``EnergyDescent._descend``)
             tao.setConvergedReason(TAO_REASON.DIVERGED_MAXITS)
         else:
             tao.setConvergedReason(TAO_REASON.CONTINUE_ITERATING)
