@@ -9,7 +9,8 @@ truth, and equals it where stable; an unstable estimate may stop at the first Ri
 one, which is an upper bound of the margin.  Covered: LOBPCG (periodic, with and without contact
 nodes) with each preconditioner (the compliance K; the adhesive cycle on the Hessian's pressure
 form, which ``auto`` takes for the exponential law, A >= 0; the displacement-form cycle, which it
-takes for the LJ laws), Lanczos on A S (isolated window with contact, S through a CG on K_CC).
+takes for the LJ laws), on an isolated window LOBPCG on the padded grid (with contact nodes, as
+``auto`` takes it, and without) and Lanczos on A S (S through a CG on K_CC where there is contact).
 """
 import numpy as np
 import pytest
@@ -53,16 +54,18 @@ def _dense_margin(kinv, d, contact, periodic):
     return 1.0 - np.linalg.eigvalsh(li @ a @ li.T)[-1]
 
 
-@pytest.mark.parametrize("periodic,contact,law,preconditioner", [
-    (True, True, "hardwall-lj", "auto"), (True, True, "hardwall-lj", "compliance"), (True, True, "exponential", "auto"),
-    (True, True, "exponential", "multigrid"), (True, False, "lj", "auto"), (False, True, "exponential", "auto")])
-def test_margin_is_the_dense_pencil_s(coll, periodic, contact, law, preconditioner):
+@pytest.mark.parametrize("periodic,contact,law,preconditioner,method", [
+    (True, True, "hardwall-lj", "auto", "auto"), (True, True, "hardwall-lj", "compliance", "auto"),
+    (True, True, "exponential", "auto", "auto"), (True, True, "exponential", "multigrid", "auto"),
+    (True, False, "lj", "auto", "auto"), (False, True, "exponential", "auto", "auto"),
+    (False, True, "hardwall-lj", "auto", "lanczos"), (False, False, "lj", "auto", "padded")])
+def test_margin_is_the_dense_pencil_s(coll, periodic, contact, law, preconditioner, method):
     grid = SurfaceGrid(N, N, 1.0, periodic=periodic)
     h = grid.create_vec(0.0)
     length = {"rho" if law == "exponential" else "z0": 1.0}
     gap_all = _gap_field(grid, contact)
     gap = gap_all[grid.ys:grid.ye].copy()
-    tag = f"stab_{int(periodic)}{int(contact)}{law[:3]}{preconditioner[:3]}_"
+    tag = f"stab_{int(periodic)}{int(contact)}{law[:3]}{preconditioner[:3]}{method[:3]}_"
     truth = {}
     for w in (0.05, None, None):
         if w is None:   # the scales of w putting lambda_max at 0.5 and at 2
@@ -77,7 +80,7 @@ def test_margin_is_the_dense_pencil_s(coll, periodic, contact, law, precondition
         if len(truth) == 1:
             assert truth[w] < 1.0   # the attractive zone has a positive top eigenvalue to scale
             continue
-        margin, settled = stability_margin(pb, gap, q, steps=200, preconditioner=preconditioner)
+        margin, settled = stability_margin(pb, gap, q, steps=200, preconditioner=preconditioner, method=method)
         assert coll.all(settled)
         if truth[w] > 0:
             assert coll.max(abs(margin - truth[w])) < 1e-4

@@ -129,7 +129,7 @@ ADHESION = (
     Option(("relax_tol", "relax_contact_tol"), (1e-4, 1e-4), "the paper's solver (z0)"),
     Option(("relax_max_cycles", "relax_max_inner", "relax_omega_max"), (20000, 200, 1.0), "its limits"),
     Option(("tangent_ksp_*", "-stability_ksp_*"),
-           "bcgs 1e-2; cg 1e-3 (full LJ, periodic, nodal rule); cg 1e-5 (windows: a tenth of Lanczos' tolerance)",
+           "bcgs 1e-2; cg 1e-3 (full LJ, periodic, nodal rule); cg 1e-5 (Lanczos on a window: a tenth of its tolerance)",
            "the tangent (Jacobian, or the energy's Hessian; coarse levels of the nested iteration "
            "compute none) and stability solves"),
 )

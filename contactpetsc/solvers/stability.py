@@ -28,14 +28,20 @@ Two ways to lambda_max:
     N: the exponential law), or a displacement-form V-cycle on H (any sign of A:
     the LJ laws).
   - ``auto`` (the default): ``mlmi`` where A >= 0 on N, else ``multigrid``.
-* Isolated windows (K^-1 not diagonal): Lanczos on A S, S = ((K^-1)_NN)^-1 =
-  K_NN - K_NC K_CC^-1 K_CN the compliance of N with C clamped, self-adjoint in
-  the S inner product.  S is one FFT pair, plus (with contact nodes) a CG solve
-  on K_CC preconditioned by the Fourier inverse, to a tenth of ``tol``.  It stops
-  when the Ritz value changes by less than ``tol``.  The top of the pencil is a
-  cluster (a contact ring's modes around its circumference), which no start or
-  block method tried reaches in fewer products (docs/performance.md, "The
-  stability check on a window").
+* Isolated windows with contact nodes: LOBPCG, preconditioned by the compliance, on the
+  window's padded grid (``descent_space.PaddedWindow``), where the displacement of the
+  whole padded grid is the unknown: its energy 1/2 u . C^-1 u plus the law on the window has
+  the Hessian C^-1 - A on u = 0 at C, whose minimum over the nodes outside the window is the
+  window's (K^-1)_NN - A.  So the padded pencil A x = lambda C^-1 x has the window's
+  lambda_max, and C^-1 (the padded circulant's inverse) is diagonal in Fourier space: two
+  FFT pairs an iteration, no inner solve.  Needs whole rows per rank.
+* Other windows (no contact nodes, or a grid split along x): Lanczos on A S, S =
+  ((K^-1)_NN)^-1 = K_NN - K_NC K_CC^-1 K_CN the compliance of N with C clamped,
+  self-adjoint in the S inner product.  S is one FFT pair, plus (with contact nodes) a CG
+  solve on K_CC preconditioned by the Fourier inverse, to a tenth of ``tol``.  It stops
+  when the Ritz value changes by less than ``tol``.  The top of the pencil is a cluster (a
+  contact ring's modes around its circumference): the settled Ritz value can sit short of
+  lambda_max by more than ``tol`` (docs/performance.md, "The stability check on a window").
 
 In both the top Ritz value grows monotonically towards lambda_max (a Ritz value
 above one proves instability, to the inner CG's tolerance where S is one), and an
@@ -132,7 +138,8 @@ def stability_margin(problem, gap: np.ndarray, q_rows: np.ndarray | None, steps:
     of the problem's state, contact pressures ``q_rows`` [Pa] (hard wall) or None; at most
     ``steps`` iterations; collective.  ``method``: "auto" (as in the module doc), or "lobpcg"
     (periodic grids only; stops at ``residual_tol``) or "lanczos" (stops at ``tol``) to
-    compare them (``run_scripts/bench/bench_stability.py``).  ``preconditioner``: LOBPCG's,
+    compare them (``run_scripts/bench/bench_stability.py``), or "padded" (windows; LOBPCG on the
+    padded grid, ``residual_tol``).  ``preconditioner``: LOBPCG's,
     "auto", "compliance", "mlmi" or "multigrid" (module doc; ``bench_stability.py --methods``).
 
     Returns (margin, settled): settled False when the iteration ran its ``steps`` without
@@ -147,7 +154,13 @@ def stability_margin(problem, gap: np.ndarray, q_rows: np.ndarray | None, steps:
     if comm.allreduce(float(d.max()), op=MPI.MAX) <= 0.0:
         return 1.0, True   # A <= 0: no positive eigenvalue
     if method == "auto":
-        method = "lobpcg" if grid.periodic else "lanczos"
+        # a window's LOBPCG on its padded grid needs whole rows; without contact nodes Lanczos'
+        # S is K itself, one FFT pair a step (the padded iteration's two)
+        padded = grid.px == 1 and comm.allreduce(bool(contact.any()), op=MPI.LOR)
+        method = "lobpcg" if grid.periodic else ("padded" if padded else "lanczos")
+    if method == "padded":
+        lam, settled = _padded_lobpcg(problem, d, contact, steps, residual_tol)
+        return 1.0 - lam, settled
     if method == "lobpcg":
         if not grid.periodic:
             raise ValueError("stability method 'lobpcg' needs a periodic grid (K^-1 diagonal in Fourier space)")
@@ -288,13 +301,50 @@ def _lanczos(problem, comm, d, contact, v, steps, tol):
     return lam, settled
 
 
-def _lobpcg(op, comm, d, contact, steps, residual_tol, precondition=None):
+class _PaddedCirculant:
+    """The window's padded circulant C and its inverse on the padded grid (``descent_space.PaddedWindow``),
+    as ``_lobpcg`` takes an operator: ``grid``, ``apply``, ``apply_inverse``; a pair each."""
+
+    def __init__(self, space):
+        self.space, self.grid = space, space.grid
+        self.kernel, self.inverse = space.op.kernel_pairs, space.op.inverse_pairs
+
+    def apply(self, x, out):
+        return self.space.convolve(self.kernel, x, out)
+
+    def apply_inverse(self, x, out):
+        return self.space.convolve(self.inverse, x, out)
+
+
+def _padded_lobpcg(problem, d, contact, steps, residual_tol):
+    """(lambda_max estimate, settled) of a window's pencil by LOBPCG on its padded grid: the
+    energy over the displacement u of the whole padded grid, 1/2 u . C^-1 u on it and the law on
+    the window only, has on u = 0 at C the Hessian C^-1 - A; its minimum over the nodes outside
+    the window is the window's own (K_w^-1)_NN - A (``descent_space`` module doc), so the pencil
+    A x = lambda C^-1 x on the padded W has the window's lambda_max, and C^-1 is diagonal in
+    Fourier space: no inner solve."""
+    from .descent_space import PaddedWindow
+    space = PaddedWindow(problem)
+    shape = (space.grid.ny_local, space.grid.nx)
+    d_pad, held = np.zeros(shape), np.zeros(shape, bool)
+    d_pad[space.window] = space.from_problem(d)
+    held[space.window] = space.from_problem(contact.astype(float)) > 0.5
+    # A lives on the window's rows: its products there only
+    rows = space.window[0]
+    on_a = slice(rows.start * shape[1], rows.stop * shape[1])
+    return _lobpcg(_PaddedCirculant(space), problem.grid.mpi_comm, d_pad, held, steps, residual_tol,
+                   project_mean=False, on_a=on_a)
+
+
+def _lobpcg(op, comm, d, contact, steps, residual_tol, precondition=None, project_mean=True, on_a=slice(None)):
     """(lambda_max estimate, settled) of the pencil A x = lambda (K^-1)_NN x on W by LOBPCG
     (Knyazev's locally optimal block preconditioned CG, block size one) from ``_start``,
     preconditioned by K on W, or by ``precondition(r, out)`` (full (ny_loc, nx) arrays; the
     result is projected on W).  Each Rayleigh-Ritz step is on span{x, w, p} (iterate,
     preconditioned residual, previous direction), so the top Ritz value never decreases
-    whatever the preconditioner; the stopping test is the K-norm of the residual in both."""
+    whatever the preconditioner; the stopping test is the K-norm of the residual in both.
+    ``on_a``: the slice of the flat rows outside which A vanishes (a padded window's rows);
+    ``project_mean``: whether W excludes the mean (a periodic cell's K^-1 does not see it)."""
     shape = d.shape
     n_free = comm.allreduce(float(d.size - np.count_nonzero(contact)))
     # without contact nodes (the full LJ curve) no mask: two passes a projection less
@@ -302,15 +352,16 @@ def _lobpcg(op, comm, d, contact, steps, residual_tol, precondition=None):
     # the contact nodes by index: zeroed in place, faster than a full mask's product and a few
     # per cent of a grid array instead of one
     held = np.flatnonzero(contact) if masked else None
-    a = d.reshape(-1)
+    a = d.reshape(-1)[on_a]
 
     def on_w(x):
         """x projected on W (orthogonally): zero on C, zero mean; in place, no temporaries"""
         if masked:
             x[held] = 0.0
-        x -= comm.allreduce(float(x.sum())) / n_free
-        if masked:
-            x[held] = 0.0
+        if project_mean:
+            x -= comm.allreduce(float(x.sum())) / n_free
+            if masked:
+                x[held] = 0.0
         return x
 
     def mult(f, x, out):
@@ -320,7 +371,7 @@ def _lobpcg(op, comm, d, contact, steps, residual_tol, precondition=None):
     # rows: the iterate x, the preconditioned residual w, the direction p, and M times each,
     # all three kept M-normalised so that the Gram matrices need only their off-diagonal M
     # products and the A products (A diagonal: made a row at a time in t, not kept)
-    basis, mbasis = np.zeros((3, a.size)), np.zeros((3, a.size))
+    basis, mbasis = np.zeros((3, d.size)), np.zeros((3, d.size))
     x, w, p = basis
     mx, mw, mp = mbasis
     _start(op.grid, d, x)     # in the basis's row: no start array beside it
@@ -332,11 +383,11 @@ def _lobpcg(op, comm, d, contact, steps, residual_tol, precondition=None):
     x /= nrm
     mx /= nrm
     r, t = np.empty_like(x), np.empty_like(x)
-    theta = comm.allreduce(float(x @ np.multiply(a, x, out=t)))
+    theta = comm.allreduce(float(x[on_a] @ np.multiply(a, x[on_a], out=t[on_a])))
     m = 2   # rows of the basis in use (p joins after the first step)
     for _ in range(steps):
         np.multiply(mx, -theta, out=r)
-        r += np.multiply(a, x, out=t)
+        r[on_a] += np.multiply(a, x[on_a], out=t[on_a])
         on_w(r)
         mult(op.apply, r, w)
         res = np.sqrt(max(comm.allreduce(float(r @ w)), 0.0))
@@ -360,8 +411,8 @@ def _lobpcg(op, comm, d, contact, steps, residual_tol, precondition=None):
         a_pairs = [(i, i) for i in range(m)] + ij
         a_dots = {}
         for j in range(m):
-            np.multiply(a, basis[j], out=t)
-            a_dots.update({(i, j): basis[i] @ t for i, jj in a_pairs if jj == j})
+            np.multiply(a, basis[j][on_a], out=t[on_a])
+            a_dots.update({(i, j): basis[i][on_a] @ t[on_a] for i, jj in a_pairs if jj == j})
         # one reduction, of an array (a list would be concatenated)
         g = comm.allreduce(np.array([a_dots[pair] for pair in a_pairs] + [basis[i] @ mbasis[j] for i, j in ij]))
         ga, gm = np.diag(g[:m]), np.eye(m)
