@@ -403,22 +403,23 @@ def _lobpcg(op, comm, d, contact, steps, residual_tol, precondition=None, projec
             mult(op.apply, r, w)
             mult(op.apply_inverse, w, mw)
             nw = np.sqrt(comm.allreduce(float(w @ mw)))
-        w /= nw
-        mw /= nw
         # Gram matrices of the M-normalised basis: A products in full, M products off the
-        # diagonal (ones on it)
+        # diagonal (ones on it); w stays as it is, its norm taken into the matrices (scale)
         ij = [(0, 1), (0, 2), (1, 2)][:1 if m == 2 else 3]
         a_pairs = [(i, i) for i in range(m)] + ij
         a_dots = {}
         for j in range(m):
-            np.multiply(a, basis[j][on_a], out=t[on_a])
+            if j:    # t holds A x already (the residual's)
+                np.multiply(a, basis[j][on_a], out=t[on_a])
             a_dots.update({(i, j): basis[i][on_a] @ t[on_a] for i, jj in a_pairs if jj == j})
         # one reduction, of an array (a list would be concatenated)
         g = comm.allreduce(np.array([a_dots[pair] for pair in a_pairs] + [basis[i] @ mbasis[j] for i, j in ij]))
-        ga, gm = np.diag(g[:m]), np.eye(m)
+        scale = np.ones(m)
+        scale[1] = 1.0 / nw
+        ga, gm = np.diag(g[:m] * scale ** 2), np.eye(m)
         for k, (i, j) in enumerate(ij):
-            ga[i, j] = ga[j, i] = g[m + k]
-            gm[i, j] = gm[j, i] = g[m + len(ij) + k]
+            ga[i, j] = ga[j, i] = g[m + k] * scale[i] * scale[j]
+            gm[i, j] = gm[j, i] = g[m + len(ij) + k] * scale[i] * scale[j]
         # Rayleigh-Ritz in an M-orthonormal basis of the span, dropping directions it has
         # (nearly) lost: p and w become parallel as the iteration converges
         ev, vec = np.linalg.eigh(gm)
@@ -427,15 +428,17 @@ def _lobpcg(op, comm, d, contact, steps, residual_tol, precondition=None, projec
         th, y = np.linalg.eigh(z.T @ ga @ z)
         c = z @ y[:, -1]
         theta = float(th[-1])
-        # the new direction and M times it in r and t (both free until the next step)
-        new_p, new_mp = np.matmul(c[1:m], basis[1:m], out=r), np.matmul(c[1:m], mbasis[1:m], out=t)
+        # the new direction and M times it in r and t (both free until the next step); its
+        # M-norm from the Gram matrix (the basis' M products)
+        nrm = np.sqrt(max(float(c[1:m] @ gm[1:m, 1:m] @ c[1:m]), 0.0))
+        coef = c[1:m] * scale[1:m]
+        new_p, new_mp = np.matmul(coef, basis[1:m], out=r), np.matmul(coef, mbasis[1:m], out=t)
         for row, new in ((x, new_p), (mx, new_mp)):
             row *= c[0]
             row += new
-        nrm = np.sqrt(comm.allreduce(float(x @ mx)))
-        x /= nrm
-        mx /= nrm
-        nrm = np.sqrt(comm.allreduce(float(new_p @ new_mp)))
+        nx = np.sqrt(comm.allreduce(float(x @ mx)))
+        x /= nx
+        mx /= nx
         if nrm > 0.0:
             np.divide(new_p, nrm, out=p)
             np.divide(new_mp, nrm, out=mp)
