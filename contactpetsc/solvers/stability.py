@@ -368,9 +368,10 @@ def _lobpcg(op, comm, d, contact, steps, residual_tol, precondition=None, projec
         f(x.reshape(shape), out.reshape(shape))
         return on_w(out)
 
-    # rows: the iterate x, the preconditioned residual w, the direction p, and M times each,
-    # all three kept M-normalised so that the Gram matrices need only their off-diagonal M
-    # products and the A products (A diagonal: made a row at a time in t, not kept)
+    # rows: the iterate x, the preconditioned residual w, the direction p, and M times each;
+    # x and p kept M-normalised and w's M-norm taken into the Gram matrices, so that they need
+    # only their off-diagonal M products and the A products (A diagonal: made a row at a time
+    # in t, not kept)
     basis, mbasis = np.zeros((3, d.size)), np.zeros((3, d.size))
     x, w, p = basis
     mx, mw, mp = mbasis
