@@ -39,12 +39,13 @@ from ..operators.elastic import HalfSpaceOperator
 from ..physics.interactions import InteractionLaw
 from ..physics.resolution import check_resolution, resolution_note, snap_number
 from ..physics.traction import AdhesiveTraction
-from .adhesive_jacobian import AdhesiveJacobian, minloc
+from .adhesive_jacobian import AdhesiveJacobian
 from .adhesive_levels import CoarseLevels
 from .adhesive_residual import AdhesiveCallbacks
 from .branch_check import BranchCheck
 from .base import AdhesiveSolveError, VIProblem, check_tolerance, reason_name, with_options
 from .continuation import Continuation
+from .control_node import ControlNode
 from .descent_step import descend_step
 from .descent_options import descent_applies, descent_options, require_descent, strategy_option
 from .fallback import FallbackChain
@@ -60,7 +61,7 @@ from .tangent import TangentAndState
 
 __all__ = ["AdhesiveProblem", "AdhesiveSolveError", "AdhesiveState"]
 
-class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProblem):
+class AdhesiveProblem(AdhesiveCallbacks, Continuation, ControlNode, TangentAndState, VIProblem):
     """Adhesive contact of an elastic half-space with a rigid composite surface h.
 
     Parameters
@@ -158,33 +159,6 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
     _v = property(lambda self: self._scratch_rows(1), doc="the displacement K p [m] of the last residual")
 
     # -- layout ------------------------------------------------------------------------
-    def set_control_node(self, node: tuple[int, int] | None = None) -> None:
-        """The node (i, j) whose gap ``solve(central_gap=...)`` prescribes; None: the lowest
-        node of h (the apex of a sphere), the smallest index on ties.  Past the point where
-        the apex touches, the central gap no longer picks one state of the S-curve; the gap
-        of a node further out, which the contact edge has not reached yet, does (the
-        contact radius grows monotonically along the whole curve).  Collective."""
-        grid, comm = self.grid, self.grid.mpi_comm
-        if node is None:
-            h = grid.rows(self.heights, readonly=True)
-            k = int(np.argmin(h))
-            _, index = minloc(comm, h.reshape(-1)[k], k + grid.nx * grid.ys)
-        else:
-            i, j = node
-            if not (0 <= i < grid.nx and 0 <= j < grid.ny):
-                raise ValueError(f"control node {node} outside the {grid.nx} x {grid.ny} grid")
-            index = int(j) * grid.nx + int(i)
-        self.centre_index = index
-        j_c, i_c = divmod(index, grid.nx)
-        self._centre_local = (j_c - grid.ys, i_c) if grid.ys <= j_c < grid.ye else None
-        self._centre_rank = comm.allreduce(comm.Get_rank() if self._centre_local else 0)
-
-    def control_gap(self) -> float:
-        """The present state's gap [m] at the control node (``set_control_node``); collective."""
-        if self._approach is None:
-            raise RuntimeError("control_gap: no state yet (solve first)")
-        return self.centre_value(self._gap(self.blocks(self._x, readonly=True), self._g))
-
     def blocks(self, vec: PETSc.Vec, readonly: bool = False) -> np.ndarray:
         """The rank's part of an unknown Vec as (n_blocks, ny_loc, nx): [q,] a."""
         return vec.getArray(readonly=readonly).reshape(self.n_blocks, self.grid.ny_local, self.grid.nx)
@@ -206,11 +180,6 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, TangentAndState, VIProble
         lower.set(PETSc.NINFINITY)
         self.blocks(lower)[0] = 0.0
         return lower, upper
-
-    def centre_value(self, rows: np.ndarray) -> float:
-        """rows[centre] broadcast from its owner (collective)."""
-        local = float(rows[self._centre_local]) if self._centre_local else 0.0
-        return self.grid.mpi_comm.bcast(local, root=self._centre_rank)
 
     # -- set-up ---------------------------------------------------------------------------
     @with_options
