@@ -355,7 +355,8 @@ def _lobpcg(op, comm, d, contact, steps, residual_tol, precondition=None, projec
     a = d.reshape(-1)[on_a]
 
     def on_w(x):
-        """x projected on W (orthogonally): zero on C, zero mean; in place, no temporaries"""
+        """x projected on W (orthogonally): zero on C and (``project_mean``) of zero mean; in
+        place, no temporaries"""
         if masked:
             x[held] = 0.0
         if project_mean:
@@ -437,9 +438,9 @@ def _lobpcg(op, comm, d, contact, steps, residual_tol, precondition=None, projec
         for row, new in ((x, new_p), (mx, new_mp)):
             row *= c[0]
             row += new
-        nx = np.sqrt(comm.allreduce(float(x @ mx)))
-        x /= nx
-        mx /= nx
+        nrm_x = np.sqrt(comm.allreduce(float(x @ mx)))
+        x /= nrm_x
+        mx /= nrm_x
         if nrm > 0.0:
             np.divide(new_p, nrm, out=p)
             np.divide(new_mp, nrm, out=mp)

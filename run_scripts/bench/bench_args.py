@@ -51,3 +51,16 @@ def reset_peak() -> None:
     """Reset VmHWM to the current resident size (Linux >= 4.0: write 5 to clear_refs)."""
     with open("/proc/self/clear_refs", "w") as f:
         f.write("5")
+
+
+def timed_margin(pb, method: str, **kw):
+    """(margin, settled, FFT pairs, CPU s) of the stability check's ``method`` at the state in the
+    adhesive problem ``pb``'s unknowns (``stability.stability_margin``; imported here, after
+    ``petsc4py.init``)."""
+    import time
+    from contactpetsc.solvers.stability import stability_margin
+    xb = pb.blocks(pb._x, readonly=True)
+    gap = pb._gap(xb, pb._g)
+    p0, t0 = pb.fft_pairs(), time.process_time()
+    m, settled = stability_margin(pb, gap, xb[0] if pb.hard_wall else None, method=method, **kw)
+    return m, settled, pb.fft_pairs() - p0, time.process_time() - t0

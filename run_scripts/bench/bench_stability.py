@@ -36,11 +36,10 @@ One rank.
 """
 import os
 import sys
-import time
 
 import petsc4py
 
-from bench_args import emit, rough_parser
+from bench_args import emit, rough_parser, timed_margin
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ap = rough_parser(__doc__)
@@ -58,7 +57,6 @@ from petsc4py import PETSc  # noqa: E402
 
 from contactpetsc.solvers.adhesive import AdhesiveProblem  # noqa: E402
 from contactpetsc.solvers.options import code_default  # noqa: E402
-from contactpetsc.solvers.stability import stability_margin  # noqa: E402
 
 sys.path.insert(0, HERE)
 from rough_surface import adhesive_law, load_unload_path, non_adhesive_unit, rough_surface  # noqa: E402
@@ -67,13 +65,9 @@ assert PETSc.COMM_WORLD.getSize() == 1, "one rank"
 
 
 def margin(pb, method, **kw):
-    xb = pb.blocks(pb._x, readonly=True)
-    gap = pb._gap(xb, pb._g)
-    p0, t0 = pb.fft_pairs(), time.process_time()
     if method.startswith("lobpcg"):
         method, kw = "lobpcg", dict({"preconditioner": method.partition("-")[2] or "compliance"}, **kw)
-    m, settled = stability_margin(pb, gap, xb[0] if pb.hard_wall else None, method=method, **kw)
-    return m, settled, pb.fft_pairs() - p0, time.process_time() - t0
+    return timed_margin(pb, method, **kw)
 
 
 def main():

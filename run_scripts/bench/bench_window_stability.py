@@ -20,11 +20,10 @@ it settled and its margin's difference to the reference.  One JSON line per stat
 """
 import argparse
 import sys
-import time
 
 import petsc4py
 
-from bench_args import emit
+from bench_args import emit, timed_margin
 
 ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
 ap.add_argument("--tabor", type=float, default=2.0)
@@ -44,18 +43,8 @@ from contactpetsc.grid import SurfaceGrid  # noqa: E402
 from contactpetsc.physics.interactions import make_law  # noqa: E402
 from contactpetsc.solvers.adhesive import AdhesiveProblem  # noqa: E402
 from contactpetsc.solvers.options import code_default  # noqa: E402
-from contactpetsc.solvers.stability import stability_margin  # noqa: E402
 
 assert PETSc.COMM_WORLD.getSize() == 1, "one rank"
-
-
-def margin(pb, method, **kw):
-    """(margin, settled, FFT pairs, CPU s) of ``method`` at the problem's state."""
-    xb = pb.blocks(pb._x, readonly=True)
-    gap = pb._gap(xb, pb._g)
-    p0, t0 = pb.fft_pairs(), time.process_time()
-    m, settled = stability_margin(pb, gap, xb[0] if pb.hard_wall else None, method=method, **kw)
-    return m, settled, pb.fft_pairs() - p0, time.process_time() - t0
 
 
 def main():
@@ -68,11 +57,11 @@ def main():
     steps = code_default("adhesion", "stability_steps")
     for d in args.approaches:
         st = pb.solve(approach=float(d), raise_on_failure=False)
-        ref = margin(pb, "padded", steps=3000, residual_tol=1e-7)
+        ref = timed_margin(pb, "padded", steps=3000, residual_tol=1e-7)
         row = dict(tabor=args.tabor, law=args.law, n=n, approach=d, converged=st.converged,
                    contact_fraction=st.contact_fraction, reference=ref[0], reference_settled=ref[1])
         for method in ("lanczos", "padded"):
-            m, settled, pairs, cpu = margin(pb, method, steps=steps)
+            m, settled, pairs, cpu = timed_margin(pb, method, steps=steps)
             row[method] = dict(margin=m, settled=settled, fft_pairs=pairs, cpu_s=cpu, error=m - ref[0])
         emit(**row)
         st.release_fields()
