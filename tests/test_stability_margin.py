@@ -10,7 +10,9 @@ one, which is an upper bound of the margin.  Covered: LOBPCG (periodic, with and
 nodes) with each preconditioner (the compliance K; the adhesive cycle on the Hessian's pressure
 form, which ``auto`` takes for the exponential law, A >= 0; the displacement-form cycle, which it
 takes for the LJ laws), on an isolated window LOBPCG on the padded grid (with contact nodes, as
-``auto`` takes it, and without) and Lanczos on A S (S through a CG on K_CC where there is contact).
+``auto`` takes it, and without; preconditioned by the compliance, by the displacement cycle on
+the padded grids from the first iteration, and as ``auto`` does) and Lanczos on A S (S through a
+CG on K_CC where there is contact).
 """
 import numpy as np
 import pytest
@@ -58,7 +60,8 @@ def _dense_margin(kinv, d, contact, periodic):
     (True, True, "hardwall-lj", "auto", "auto"), (True, True, "hardwall-lj", "compliance", "auto"),
     (True, True, "exponential", "auto", "auto"), (True, True, "exponential", "multigrid", "auto"),
     (True, False, "lj", "auto", "auto"), (False, True, "exponential", "auto", "auto"),
-    (False, True, "hardwall-lj", "auto", "lanczos"), (False, False, "lj", "auto", "padded")])
+    (False, True, "hardwall-lj", "auto", "lanczos"), (False, False, "lj", "auto", "padded"),
+    (False, True, "hardwall-lj", "multigrid", "auto"), (False, True, "exponential", "compliance", "auto")])
 def test_margin_is_the_dense_pencil_s(coll, periodic, contact, law, preconditioner, method):
     grid = SurfaceGrid(N, N, 1.0, periodic=periodic)
     h = grid.create_vec(0.0)
@@ -86,3 +89,68 @@ def test_margin_is_the_dense_pencil_s(coll, periodic, contact, law, precondition
             assert coll.max(abs(margin - truth[w])) < 1e-4
         else:
             assert coll.all(truth[w] <= margin < 0.0)
+
+
+def test_a_windows_check_refuses_the_pressure_form_cycle():
+    """The adhesive cycle on the Hessian's pressure form needs a periodic cell: on a window the
+    option is refused before the first solve builds anything, naming it and its accepted values,
+    and the check itself refuses it instead of running something else; a cell's solve takes it."""
+    law = make_law("exponential", work_of_adhesion=0.05, rho=1.0)
+    window = SurfaceGrid(N, N, 1.0, periodic=False)
+    heights = lambda grid: grid.vec_from_array(_gap_field(grid, False)[grid.ys:grid.ye])
+    pb = AdhesiveProblem(window, heights(window), 1.0, law, prefix="stab_mlmi_w_",
+                         petsc_options={"stability_preconditioner": "mlmi"})
+    with pytest.raises(ValueError, match="-stab_mlmi_w_stability_preconditioner mlmi.*auto, compliance, multigrid"):
+        pb.solve(approach=0.0)
+    cell = SurfaceGrid(N, N, 1.0, periodic=True)
+    state = AdhesiveProblem(cell, heights(cell), 1.0, law, prefix="stab_mlmi_c_",
+                            petsc_options={"stability_preconditioner": "mlmi"}).solve(approach=0.0)
+    assert state.converged and np.isfinite(state.stability_margin)
+    pb = AdhesiveProblem(window, window.create_vec(0.0), 1.0, law, prefix="stab_mlmi_check_", stability_check=False)
+    gap = _gap_field(window, True)[window.ys:window.ye].copy()
+    with pytest.raises(ValueError, match="auto, compliance or multigrid"):
+        stability_margin(pb, gap, np.where(gap == 0.0, 1.0, 0.0), preconditioner="mlmi")
+
+
+def test_the_padded_displacement_cycle_contracts_on_the_hessian():
+    """A window's ``multigrid`` preconditioner T (a V-cycle on the padded grids' H = C^-1 - A on
+    W, C^-1 each MLMI level's padded circulant) is a convergent iteration for H at a stable state:
+    the error of one cycle on H x, in H's energy norm, is at most a fifth of x's, for x of the
+    padded grid's longest wavelength (which the smoother alone reduces by a few per cent a
+    sweep: the coarse grids must do it; with the coarsest grid left out it is 0.23, with the two
+    coarsest 0.42) plus white noise, on 1, 2 and 3 ranks; four grids."""
+    from contactpetsc.solvers.descent_space import PaddedWindow
+    from contactpetsc.solvers.stability_pc import DisplacementCycle, padded_levels
+    n = 4 * N
+    grid = SurfaceGrid(n, n, 1.0, periodic=False)
+    pb = AdhesiveProblem(grid, grid.create_vec(0.0), 1.0, make_law("hardwall-lj", work_of_adhesion=0.02, z0=1.0),
+                         prefix="stab_cycle_", stability_check=False)
+    gap = _gap_field(grid, True)
+    d = np.where(gap == 0.0, 0.0, pb.traction.nodal_derivative(gap))
+    comm = grid.mpi_comm
+    space = PaddedWindow(pb)
+    shape = (space.grid.ny_local, space.grid.nx)
+    d_w, held = np.zeros(shape), np.zeros(shape, bool)
+    d_w[space.window] = space.from_problem(d[grid.ys:grid.ye])
+    held[space.window] = space.from_problem((gap == 0.0)[grid.ys:grid.ye].astype(float)) > 0.5
+    levels = padded_levels(pb, space)
+    assert len(levels) == 4
+    free = (~held).astype(float)
+
+    def hessian(x):
+        y = space.inverse(x, np.empty_like(x))
+        y -= d_w * x
+        return y * free
+
+    rows = np.arange(space.grid.ys, space.grid.ye)
+    X, Y = np.meshgrid(np.arange(shape[1]), rows)
+    L = shape[1]
+    noise = np.random.default_rng(7).standard_normal((space.grid.ny, L))[rows]
+    x = free * (np.cos(2 * np.pi * X / L) + np.sin(2 * np.pi * Y / L) + 0.1 * noise)
+    hx = hessian(x)
+    cycle = DisplacementCycle(levels, d_w, held)
+    err = x - free * cycle(hx, np.empty_like(x))
+    cycle.release()
+    norm = lambda v: np.sqrt(comm.allreduce(float(v.ravel() @ hessian(v).ravel())))
+    ratio = norm(err) / norm(x)
+    assert ratio <= 0.2

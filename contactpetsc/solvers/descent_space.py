@@ -71,16 +71,23 @@ class CellSpace:
 class PaddedWindow:
     """An isolated window's padded grid (module doc): a periodic 2nx x 2ny grid split along y
     over the problem's ranks, its FFT (threads and planner as the operator's) and the window's
-    block of its rows."""
+    block of its rows.  ``problem``: anything with the window's ``grid`` and operator ``op``;
+    ``grid``: the padded grid's split over the ranks where it is given (a finer padded grid
+    halved, ``stability_pc.padded_levels``)."""
 
     projects_mean = False      #: C^-1 is positive on the mean
 
-    def __init__(self, problem):
+    def __init__(self, problem, grid: SurfaceGrid | None = None):
         window, self.op = problem.grid, problem.op
         window.require_slabs("the energy descent on an isolated window")
         self.nx, self.ny = window.nx, window.ny
-        self.grid = SurfaceGrid(2 * window.nx, 2 * window.ny, window.dx, window.dy, periodic=True,
-                                comm=window.comm, px=1)
+        if grid is None:
+            grid = SurfaceGrid(2 * window.nx, 2 * window.ny, window.dx, window.dy, periodic=True,
+                               comm=window.comm, px=1)
+        elif (grid.nx, grid.ny, grid.px) != (2 * window.nx, 2 * window.ny, 1):
+            raise AssertionError(f"a {grid.nx} x {grid.ny} grid is not the padded grid of a {window.nx} x "
+                                 f"{window.ny} window split along y")
+        self.grid = grid
         self.fft = grid_rfft(self.grid, threads=self.op.threads, planner=self.op.planner)
         # the operator's padded kernels, laid out for this FFT: the same transform size and the
         # same split of the Fourier columns over the ranks
@@ -106,6 +113,10 @@ class PaddedWindow:
         convolve(self.fft, kernel_pairs, rows_in, rows_out)
         self.op.fft.fft_pairs += 1
         return rows_out
+
+    def inverse(self, rows_in, rows_out):
+        """C^-1 of rows on the padded grid (one pair)."""
+        return self.convolve(self.op.inverse_pairs, rows_in, rows_out)
 
     def displacement(self, pressure_rows, out_rows):
         """u = C E p [m] on the whole padded grid of a window pressure p [Pa] on the problem's rows."""

@@ -81,9 +81,10 @@ ADHESION = (
            "stability check (LOBPCG or Lanczos, at most this many steps): true, false or auto (left out of a sweep's states away from folds; "
            "the default of scenes' sweeps)"),
     Option(("stability_preconditioner",), ("auto",),
-           "the LOBPCG check's preconditioner (periodic grids): compliance (K on W), mlmi (the adhesive "
-           "multilevel cycle on the Hessian's pressure form), multigrid (a V-cycle on the Hessian) or auto "
-           "(mlmi where the law's da/dg >= 0 off contact, the exponential law; else multigrid)"),
+           "the LOBPCG check's preconditioner: compliance (K on W), mlmi (periodic grids: the adhesive "
+           "multilevel cycle on the Hessian's pressure form), multigrid (a V-cycle on the Hessian; on a window "
+           "on its padded grids) or auto (periodic: mlmi where the law's da/dg >= 0 off contact, the "
+           "exponential law, else multigrid; a window: the compliance for its first iterations, then multigrid)"),
     Option(("predictor",), (True,), "tangent predictor under displacement control"),
     Option(("stiffness",), (True,),
            "every displacement-controlled state's tangent stiffness (false: NaN, the tangent only for the predictor)"),

@@ -28,13 +28,17 @@ Two ways to lambda_max:
     N: the exponential law), or a displacement-form V-cycle on H (any sign of A:
     the LJ laws).
   - ``auto`` (the default): ``mlmi`` where A >= 0 on N, else ``multigrid``.
-* Isolated windows with contact nodes: LOBPCG, preconditioned by the compliance, on the
-  window's padded grid (``descent_space.PaddedWindow``), where the displacement of the
-  whole padded grid is the unknown: its energy 1/2 u . C^-1 u plus the law on the window has
-  the Hessian C^-1 - A on u = 0 at C, whose minimum over the nodes outside the window is the
-  window's (K^-1)_NN - A.  So the padded pencil A x = lambda C^-1 x has the window's
-  lambda_max, and C^-1 (the padded circulant's inverse) is diagonal in Fourier space: two
-  FFT pairs an iteration, no inner solve.  Needs whole rows per rank.
+* Isolated windows with contact nodes: LOBPCG on the window's padded grid
+  (``descent_space.PaddedWindow``), where the displacement of the whole padded grid is the
+  unknown: its energy 1/2 u . C^-1 u plus the law on the window has the Hessian C^-1 - A on
+  u = 0 at C, whose minimum over the nodes outside the window is the window's (K^-1)_NN - A.
+  So the padded pencil A x = lambda C^-1 x has the window's lambda_max, and C^-1 (the padded
+  circulant's inverse) is diagonal in Fourier space: no inner solve.  Preconditioned by the
+  compliance C (two FFT pairs an iteration) for its first ``COMPLIANCE_FIRST`` iterations,
+  where a coarse or weakly adhesive window settles, then by the displacement cycle on the
+  padded H (``stability_pc.padded_levels``, about four and a half pairs an iteration), whose
+  iterations do not grow as dx / z0 falls where the compliance's do: ``auto``; ``compliance``
+  or ``multigrid`` throughout on request.  Needs whole rows per rank.
 * Other windows (no contact nodes, or a grid split along x): Lanczos on A S, S =
   ((K^-1)_NN)^-1 = K_NN - K_NC K_CC^-1 K_CN the compliance of N with C clamped,
   self-adjoint in the S inner product.  S is one FFT pair, plus (with contact nodes) a CG
@@ -119,6 +123,10 @@ INNER_RTOL = 0.1
 #: check: LOBPCG on the pencil"), where a settled Ritz value (the Lanczos test) can sit on a
 #: plateau short of lambda_max
 RESIDUAL_TOL = 1e-3
+#: iterations a window's LOBPCG (``auto``) takes with the compliance before the cycle: on the
+#: hard-wall sphere's paths the compliance settles within them at Tabor 0.1-0.5 (dx = z0), and
+#: an iteration of the cycle costs about two of the compliance's (docs/performance.md)
+COMPLIANCE_FIRST = 8
 
 #: LOBPCG's preconditioners (``-<prefix>stability_preconditioner``; module doc)
 PRECONDITIONER_CHOICES = ("auto", "compliance", "mlmi", "multigrid")
@@ -140,7 +148,8 @@ def stability_margin(problem, gap: np.ndarray, q_rows: np.ndarray | None, steps:
     (periodic grids only; stops at ``residual_tol``) or "lanczos" (stops at ``tol``) to
     compare them (``run_scripts/bench/bench_stability.py``), or "padded" (windows; LOBPCG on the
     padded grid, ``residual_tol``).  ``preconditioner``: LOBPCG's,
-    "auto", "compliance", "mlmi" or "multigrid" (module doc; ``bench_stability.py --methods``).
+    "auto", "compliance", "mlmi" (periodic grids) or "multigrid" (module doc;
+    ``bench_stability.py --methods``, ``bench_window_stability.py``).
 
     Returns (margin, settled): settled False when the iteration ran its ``steps`` without
     settling.  The Ritz value only grows towards lambda_max, so an unsettled positive margin
@@ -159,7 +168,7 @@ def stability_margin(problem, gap: np.ndarray, q_rows: np.ndarray | None, steps:
         padded = grid.px == 1 and comm.allreduce(bool(contact.any()), op=MPI.LOR)
         method = "lobpcg" if grid.periodic else ("padded" if padded else "lanczos")
     if method == "padded":
-        lam, settled = _padded_lobpcg(problem, d, contact, steps, residual_tol)
+        lam, settled = _padded_lobpcg(problem, d, contact, steps, residual_tol, preconditioner)
         return 1.0 - lam, settled
     if method == "lobpcg":
         if not grid.periodic:
@@ -170,9 +179,9 @@ def stability_margin(problem, gap: np.ndarray, q_rows: np.ndarray | None, steps:
             preconditioner = "mlmi" if attractive else "multigrid"
         hessian = None
         if preconditioner != "compliance":
-            from .stability_pc import AdhesiveCyclePreconditioner, DisplacementCycle
-            cls = AdhesiveCyclePreconditioner if preconditioner == "mlmi" else DisplacementCycle
-            hessian = cls(problem, d, contact)
+            from .stability_pc import AdhesiveCyclePreconditioner, DisplacementCycle, cell_levels
+            hessian = (AdhesiveCyclePreconditioner(problem, d, contact) if preconditioner == "mlmi"
+                       else DisplacementCycle(cell_levels(problem), d, contact))
         try:
             lam, settled = _lobpcg(problem.op, comm, d, contact, steps, residual_tol, precondition=hessian)
         finally:
@@ -212,6 +221,9 @@ class StabilityCheck:
         self.steps = opts.getInt("stability_steps", code_default("adhesion", "stability_steps"))
         name = opts.getString("stability_preconditioner", code_default("adhesion", "stability_preconditioner"))
         self.preconditioner = preconditioner_choice(name.strip().lower(), f"-{problem.prefix}stability_preconditioner")
+        if self.preconditioner == "mlmi" and not problem.grid.periodic:
+            raise ValueError(f"-{problem.prefix}stability_preconditioner mlmi needs a periodic grid; on an isolated "
+                             f"window the accepted values are auto, compliance, multigrid")
         self.settled = None   #: whether the last margin's estimate settled
 
     def margin(self) -> float:
@@ -307,23 +319,29 @@ class _PaddedCirculant:
 
     def __init__(self, space):
         self.space, self.grid = space, space.grid
-        self.kernel, self.inverse = space.op.kernel_pairs, space.op.inverse_pairs
+        self.kernel = space.op.kernel_pairs
 
     def apply(self, x, out):
         return self.space.convolve(self.kernel, x, out)
 
     def apply_inverse(self, x, out):
-        return self.space.convolve(self.inverse, x, out)
+        return self.space.inverse(x, out)
 
 
-def _padded_lobpcg(problem, d, contact, steps, residual_tol):
+def _padded_lobpcg(problem, d, contact, steps, residual_tol, preconditioner="auto"):
     """(lambda_max estimate, settled) of a window's pencil by LOBPCG on its padded grid: the
     energy over the displacement u of the whole padded grid, 1/2 u . C^-1 u on it and the law on
     the window only, has on u = 0 at C the Hessian C^-1 - A; its minimum over the nodes outside
     the window is the window's own (K_w^-1)_NN - A (``descent_space`` module doc), so the pencil
     A x = lambda C^-1 x on the padded W has the window's lambda_max, and C^-1 is diagonal in
-    Fourier space: no inner solve."""
+    Fourier space: no inner solve.  Preconditioned (``preconditioner``) by the compliance C, or
+    by the displacement cycle on the padded H = C^-1 - A (``multigrid``, what ``auto`` takes)."""
     from .descent_space import PaddedWindow
+    from .stability_pc import DisplacementCycle, padded_levels
+    preconditioner = preconditioner_choice(preconditioner, "stability preconditioner")
+    if preconditioner == "mlmi":
+        raise ValueError("stability preconditioner 'mlmi' needs a periodic grid; a window's check takes "
+                         "auto, compliance or multigrid")
     space = PaddedWindow(problem)
     shape = (space.grid.ny_local, space.grid.nx)
     d_pad, held = np.zeros(shape), np.zeros(shape, bool)
@@ -332,8 +350,38 @@ def _padded_lobpcg(problem, d, contact, steps, residual_tol):
     # A lives on the window's rows: its products there only
     rows = space.window[0]
     on_a = slice(rows.start * shape[1], rows.stop * shape[1])
-    return _lobpcg(_PaddedCirculant(space), problem.grid.mpi_comm, d_pad, held, steps, residual_tol,
-                   project_mean=False, on_a=on_a)
+    cycle = None
+    if preconditioner != "compliance":
+        after = COMPLIANCE_FIRST if preconditioner == "auto" else 0
+        cycle = _CycleAfter(lambda: DisplacementCycle(padded_levels(problem, space), d_pad, held), after)
+    try:
+        return _lobpcg(_PaddedCirculant(space), problem.grid.mpi_comm, d_pad, held, steps, residual_tol,
+                       precondition=cycle, project_mean=False, on_a=on_a)
+    finally:
+        if cycle is not None:
+            cycle.release()
+
+
+class _CycleAfter:
+    """LOBPCG's preconditioner: the compliance (which ``_lobpcg`` has applied to the residual
+    already) for the first ``after`` iterations, then the cycle ``make()`` builds.  LOBPCG
+    takes a new preconditioner at any iteration: each Rayleigh-Ritz step only adds a direction."""
+
+    def __init__(self, make, after: int):
+        self.make, self.after, self.cycle = make, after, None
+
+    def __call__(self, r, out):
+        if self.after > 0:
+            self.after -= 1
+            return out
+        if self.cycle is None:
+            self.cycle = self.make()
+        return self.cycle(r, out)
+
+    def release(self):
+        if self.cycle is not None:
+            self.cycle.release()
+            self.cycle = None
 
 
 def _lobpcg(op, comm, d, contact, steps, residual_tol, precondition=None, project_mean=True, on_a=slice(None)):

@@ -19,15 +19,20 @@ caller) with ``release()``:
   pair a residual), A and residuals restricted by 2 x 2 means, corrections copied to the
   children; a coarse node is clamped (u = 0) unless its four children are free; 20 sweeps on
   the coarsest grid.  Any sign of A.  On a periodic cell the mean of u is H's only mode that
-  K^-1 does not see; W excludes it, and the cycle leaves it to the projection.
+  K^-1 does not see; W excludes it, and the cycle leaves it to the projection.  On an isolated
+  window the check's pencil lives on the padded grid (``stability.py``), whose H = C^-1 - A
+  has the circulant C^-1 of each MLMI level's window operator on that level's padded grid
+  (``padded_levels``): the same cycle, the padded grids halved with the window's.
 """
 from __future__ import annotations
+
+from typing import Callable, NamedTuple
 
 import numpy as np
 
 from ..log_events import log_event
 from .mlmi import shared_levels
-from .transfer import add_prolonged, block_all, restrict
+from .transfer import add_prolonged, block_all, can_halve, halved, restrict
 
 #: Jacobi damping, sweeps before and after the coarse correction, sweeps on the coarsest grid
 DAMPING, SWEEPS, COARSE_SWEEPS = 0.8, 1, 20
@@ -63,27 +68,61 @@ class AdhesiveCyclePreconditioner:
         self.inv_beta = None
 
 
-class DisplacementCycle:
-    """``multigrid`` (module doc); its arrays live as long as the object (one check)."""
+class CycleLevel(NamedTuple):
+    """One grid of ``DisplacementCycle``: the compliance's inverse there (``apply_inverse(x,
+    out)``, one FFT pair) and its diagonal [Pa/m]."""
+    apply_inverse: Callable
+    inverse_diagonal: float
 
-    def __init__(self, problem, d: np.ndarray, contact: np.ndarray):
-        self.levels = shared_levels(problem.jacobian_context.pc_data, problem.op, problem.prefix)
+
+def _inverse_diagonal(op) -> float:
+    """(K^-1)_ii [Pa/m] of ``op``: on a window's operator the padded circulant's C^-1."""
+    return op.spectral_sum(op.inverse_kernel * (op.fft.Nx * op.fft.Ny))
+
+
+def cell_levels(problem) -> list[CycleLevel]:
+    """The cycle's grids on a periodic cell: the problem's MLMI hierarchy."""
+    levels = shared_levels(problem.jacobian_context.pc_data, problem.op, problem.prefix)
+    return [CycleLevel(lev.op.apply_inverse, _inverse_diagonal(lev.op)) for lev in levels]
+
+
+def padded_levels(problem, space) -> list[CycleLevel]:
+    """The cycle's grids for a window's check on the padded grid of ``space``
+    (``descent_space.PaddedWindow``): each MLMI level's window operator's circulant inverse on
+    the padded grid halved as often, as long as the padded grid halves with rank-local transfers."""
+    from .descent_space import PaddedWindow
+    levels = shared_levels(problem.jacobian_context.pc_data, problem.op, problem.prefix)
+    out = []
+    for l, lev in enumerate(levels):
+        if l:
+            if not can_halve(space.grid):
+                break
+            space = PaddedWindow(lev, grid=halved(space.grid))
+        out.append(CycleLevel(space.inverse, _inverse_diagonal(lev.op)))
+    return out
+
+
+class DisplacementCycle:
+    """``multigrid`` (module doc) on the grids ``levels`` (``CycleLevel``; ``cell_levels`` or
+    ``padded_levels``); its arrays live as long as the object (one check)."""
+
+    def __init__(self, levels: list[CycleLevel], d: np.ndarray, contact: np.ndarray):
+        self.levels = levels
         self.a, self.free, self.dinv = [], [], []
         a, free = d, ~contact
-        for l, lev in enumerate(self.levels):
+        for l, lev in enumerate(levels):
             if l:
                 a, free = restrict(a), block_all(free)
-            op = lev.op
-            kinv_ii = op.spectral_sum(op.inverse_kernel * (op.fft.Nx * op.fft.Ny))
+            kinv_ii = lev.inverse_diagonal
             self.a.append(a)
             self.free.append(free.astype(float))
             self.dinv.append(DAMPING * free / np.maximum(kinv_ii - a, DIAGONAL_FLOOR * kinv_ii))
-        self.r = [np.zeros(lev.grid.local_shape) for lev in self.levels]
-        self.x = [np.zeros(lev.grid.local_shape) for lev in self.levels]
+        self.r = [np.zeros(a.shape) for a in self.a]
+        self.x = [np.zeros(a.shape) for a in self.a]
 
     def _residual(self, l: int, b: np.ndarray, x: np.ndarray) -> np.ndarray:
         """b - H x on level l, in the level's residual array."""
-        out = self.levels[l].op.apply_inverse(x, self.r[l])
+        out = self.levels[l].apply_inverse(x, self.r[l])
         out -= self.a[l] * x
         out *= self.free[l]
         return np.subtract(b, out, out=out)
@@ -123,4 +162,4 @@ class DisplacementCycle:
         return out
 
     def release(self) -> None:
-        self.a = self.free = self.dinv = self.r = self.x = None
+        self.levels = self.a = self.free = self.dinv = self.r = self.x = None

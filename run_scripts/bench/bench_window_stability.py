@@ -8,9 +8,12 @@ each state the margin 1 - lambda_max of the stability pencil (``solvers/stabilit
 
 * ``lanczos``: Lanczos on A S, S the clamped compliance (a CG on K_CC per step), to the Ritz
   value's change ``tol``;
-* ``padded``: LOBPCG on the window's padded grid, preconditioned by the compliance, to its
-  residual tolerance (what ``auto`` takes with contact nodes and whole rows per rank);
-* ``reference``: ``padded`` to a residual of 1e-7 (at most 3000 iterations);
+* ``padded``: LOBPCG on the window's padded grid to its residual tolerance (what ``auto`` takes
+  with contact nodes and whole rows per rank), preconditioned as ``auto`` does (the compliance
+  for its first iterations, then the displacement cycle on the padded grids);
+* ``padded-compliance`` and ``padded-multigrid``: the same with the compliance throughout, or
+  the cycle from the first iteration (``-<prefix>stability_preconditioner``);
+* ``reference``: ``padded-compliance`` to a residual of 1e-7 (at most 3000 iterations);
 
 each at the code's default steps, with its FFT pairs (exact), CPU s (``process_time``), whether
 it settled and its margin's difference to the reference.  One JSON line per state.  One rank.
@@ -57,12 +60,13 @@ def main():
     steps = code_default("adhesion", "stability_steps")
     for d in args.approaches:
         st = pb.solve(approach=float(d), raise_on_failure=False)
-        ref = timed_margin(pb, "padded", steps=3000, residual_tol=1e-7)
+        ref = timed_margin(pb, "padded", steps=3000, residual_tol=1e-7, preconditioner="compliance")
         row = dict(tabor=args.tabor, law=args.law, n=n, approach=d, converged=st.converged,
                    contact_fraction=st.contact_fraction, reference=ref[0], reference_settled=ref[1])
-        for method in ("lanczos", "padded"):
-            m, settled, pairs, cpu = timed_margin(pb, method, steps=steps)
-            row[method] = dict(margin=m, settled=settled, fft_pairs=pairs, cpu_s=cpu, error=m - ref[0])
+        for name in ("lanczos", "padded", "padded-compliance", "padded-multigrid"):
+            method, _, preconditioner = name.partition("-")
+            m, settled, pairs, cpu = timed_margin(pb, method, steps=steps, preconditioner=preconditioner or "auto")
+            row[name] = dict(margin=m, settled=settled, fft_pairs=pairs, cpu_s=cpu, error=m - ref[0])
         emit(**row)
         st.release_fields()
 
