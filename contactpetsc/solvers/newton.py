@@ -20,6 +20,7 @@ from __future__ import annotations
 from petsc4py import PETSc
 
 from ..collective import collective_guard
+from ..physics.resolution import steepest_slope
 from .base import reason_name
 from .options import LINESEARCH_MAX_STEP, code_default
 from .pc_registry import ADHESIVE_PRECONDITIONERS
@@ -60,14 +61,21 @@ class VINewton:
         self.problem = pb = problem
         self.prefix = prefix
         opts = PETSc.Options(pb.prefix)
-        self.stall_steps = opts.getInt("stall_steps", code_default("adhesion", "stall_steps"))
         # 0.5 (an error that does not halve is no progress) where a hard-wall law's fallback
         # chain starts with the descent: a Newton creeping on damped steps hands over to it
         # sooner, for the same state; else 1 (any smaller error): the full LJ curve's slow
         # Newton runs converge where its descent is dear, and PTC after an early stall is
-        # dearer than the slow Newton (docs/performance.md, "Energy descent as the fallback")
+        # dearer than the slow Newton (docs/performance.md, "Energy descent as the fallback").
+        # There, with a law that has a slope, in 4 steps instead of 8: across the sphere's jumps
+        # Newton's eight futile steps had cost twice the descent's pairs.  A step law (Dugdale's)
+        # keeps 8: its zone's edge has an equilibrium on either side of the step, and the descent
+        # handed a slow Newton sooner settles on the other one (docs/performance.md, "The
+        # adhesive sphere's states")
         descent_next = pb.fallback is not None and pb.fallback.methods[:1] == ["descent"]
-        self.stall_progress = opts.getReal("stall_progress", 0.5 if pb.hard_wall and descent_next else 1.0)
+        hands_over = pb.hard_wall and descent_next
+        quick = hands_over and steepest_slope(pb.law) > 0.0
+        self.stall_steps = opts.getInt("stall_steps", 4 if quick else 8)
+        self.stall_progress = opts.getReal("stall_progress", 0.5 if hands_over else 1.0)
         if not 0.0 < self.stall_progress <= 1.0:
             raise ValueError(f"-{pb.prefix}stall_progress must be in (0, 1], got {self.stall_progress!r}")
         self.watch_stalls = False       # set per solve: only where a fallback goes on from a stall

@@ -120,9 +120,9 @@ ADHESION = (
     Option(("fallback_tol", "fallback_max_cycles"), (1e-3, 5000), "relaxation fallback"),
     Option(("ptc_shift", "ptc_max_it"), (1.0, 300), "pseudo-transient continuation: first shift, steps"),
     Option(("ptc_snes_*",), "vinewtonrsls, line search basic", "the SNES of pseudo-transient continuation"),
-    Option(("stall_steps",), (8,),
-           "Newton without a smaller error in this many steps has stalled (`STALLED`): PTC goes on from its "
-           "best iterate, where PTC is a fallback (0: never)"),
+    Option(("stall_steps",), "4 (hard-wall laws with a slope whose fallback starts with the descent) or 8",
+           "Newton without a smaller error in this many steps has stalled (`STALLED`): the fallback chain goes "
+           "on (PTC from its best iterate) (0: never)"),
     Option(("stall_progress",), "0.5 (hard-wall laws whose fallback starts with the descent) or 1",
            "the stall watch counts an error as smaller only below this fraction of the smallest so far"),
     Option(("time_budget",), (0.0,),
