@@ -325,6 +325,26 @@ def test_a_snap_in_is_a_descent_to_a_stable_state(coll):
     assert coll.max(np.abs(gaps[0] - gaps[1])) < 1e-7
 
 
+def test_a_descent_stalled_at_the_state_is_polished_not_followed(coll):
+    """The snap-in above, the fallback's descent held to an error it cannot reach (1e-16: its
+    line search stalls in round-off with its iterate at the state, as next to a fold) and cut
+    at 60 iterations: it fails, and Newton polishes its iterate to the state the converging
+    descent reaches (gaps to 1e-7), where the chain had started PTC again from the last state;
+    the solver names the descent last, and the state is stable."""
+    law = make_law("lj", work_of_adhesion=0.3, z0=1.0)
+    grid, h = rough(PETSc.COMM_WORLD)
+    hmin = h.min()[1]
+    gaps = []
+    for tag, tol, its in (("stalldesc_", 1e-16, 60), ("convdesc_", 1e-9, 500)):
+        pb = AdhesiveProblem(grid, h, 1.0, law, prefix=tag,
+                             petsc_options=dict(max_it=3, strategy="newton", descent_tol=tol, descent_tao_max_it=its))
+        pb.solve(approach=hmin - 0.5)
+        after = pb.solve(approach=hmin)
+        assert after.converged and after.stable and after.solver.endswith("+descent"), after.solver
+        gaps.append(grid.gather(after.gap, root=None))
+    assert coll.max(np.abs(gaps[0] - gaps[1])) < 1e-7
+
+
 # one rank: on more, the descent on a split grid is test_descent_reaches_newtons_state_on_any_rank_count's
 # and test_a_snap_in_is_a_descent_to_a_stable_state's
 @pytest.mark.serial

@@ -130,8 +130,10 @@ def test_failed_adhesive_solve_returns_its_best_iterate(coll):
 def test_failed_fallback_reports_its_last_state_where_it_is_the_best(coll):
     """Newton fails (steps backwards) and the energy descent, the fallback, runs out of
     iterations on its way down: the state reported is the descent's last state, whose error is
-    below that of every Newton iterate -- not Newton's best, a worse iterate.  Truth: the errors
-    of the Newton iterates in the history, and the reported state's own (recomputed) fields."""
+    below that of every Newton iterate before the descent -- not Newton's best, a worse iterate
+    (Newton's polish of the failed descent, stepping backwards too, starts from that state and
+    fails: its iterates are the descent's state and worse ones).  Truth: the errors of the
+    Newton iterates in the history, and the reported state's own (recomputed) fields."""
     grid = SurfaceGrid(64, 64, 1.0, periodic=True, comm=coll.comm)
     h = self_affine(grid, hurst=0.8, rms_height=1.0, seed=7)
     law = make_law("lj", work_of_adhesion=0.05, z0=1.0)
@@ -149,8 +151,11 @@ def test_failed_fallback_reports_its_last_state_where_it_is_the_best(coll):
     st = problem.solve(approach=d0 + 0.5, raise_on_failure=False, check_stability=False)
     assert not st.converged and "descent DIVERGED_MAXITS" in st.reason, st.reason
     assert "iterate of smallest error" in st.reason and "at descent iteration" in st.reason, st.reason
-    newton = [max(r.adhesive_error, r.pressure_error) for r in problem.history[n0:] if r.solver.startswith("newton")]
+    rows = list(problem.history)[n0:]
+    first_descent = next(i for i, r in enumerate(rows) if r.solver.startswith("descent"))
+    newton = [max(r.adhesive_error, r.pressure_error) for r in rows[:first_descent] if r.solver.startswith("newton")]
     assert newton
+    assert "Newton from its iterate" in st.reason, st.reason
     assert max(st.adhesive_error, st.pressure_error) < min(newton)
     p = grid.rows(st.pressure, readonly=True)
     assert_consistent(coll, problem, st, h)

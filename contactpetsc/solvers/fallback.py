@@ -97,14 +97,22 @@ class FallbackChain:
                 pb.shift, pb._ptc_prev = self.ptc_shift, 0.0
                 ok, reason, n2, l2 = self.ptc.run()
                 pb.shift = 0.0
+            polish = ok and method != "ptc"
             if not ok and method == "descent":
                 # the descent writes its last state, which no SNES measured (PTC's iterates
                 # are measured by its SNES; a failed relaxation leaves the start in place)
                 pb.offer_iterate(f"descent iteration {n2}")
-            if ok and method != "ptc":
+                # and is polished as a converged one is: next to a fold its line search stalls
+                # in round-off (the energy's change below its last digits) with its iterate at
+                # the state, where Newton converges in a step or two and the methods after it
+                # would start again from the last state (the branch check does the same)
+                polish = not pb.out_of_time()
+            if polish:
                 # the polish: VI Newton at the approach itself (a hard wall's descent ends
                 # within offset_tol z0 of it; the relaxation stops at fallback_tol)
-                ok, reason, n3, l3 = pb.newton.run()
+                failed = not ok
+                ok, why, n3, l3 = pb.newton.run()
+                reason = f"{reason}; Newton from its iterate: {why}" if failed and not ok else why
                 n2, l2 = n2 + n3, l2 + l3
             solver += "+" + method
             newton, linear = newton + n2, linear + l2
