@@ -138,7 +138,7 @@ def test_the_padded_displacement_cycle_contracts_on_the_hessian():
     free = (~held).astype(float)
 
     def hessian(x):
-        y = space.inverse(x, np.empty_like(x))
+        y = space.apply_inverse(x, np.empty_like(x))
         y -= d_w * x
         return y * free
 

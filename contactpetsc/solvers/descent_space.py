@@ -114,7 +114,12 @@ class PaddedWindow:
         self.op.fft.fft_pairs += 1
         return rows_out
 
-    def inverse(self, rows_in, rows_out):
+    def apply(self, rows_in, rows_out):
+        """C of rows on the padded grid (one pair); with ``apply_inverse`` and ``grid`` the padded
+        circulant as an operator (the window's stability check, ``stability_window.py``)."""
+        return self.convolve(self.op.kernel_pairs, rows_in, rows_out)
+
+    def apply_inverse(self, rows_in, rows_out):
         """C^-1 of rows on the padded grid (one pair)."""
         return self.convolve(self.op.inverse_pairs, rows_in, rows_out)
 
@@ -122,7 +127,7 @@ class PaddedWindow:
         """u = C E p [m] on the whole padded grid of a window pressure p [Pa] on the problem's rows."""
         out_rows[...] = 0.0
         out_rows[self.window] = self.from_problem(pressure_rows)
-        return self.convolve(self.op.kernel_pairs, out_rows, out_rows)
+        return self.apply(out_rows, out_rows)
 
     def _move(self, rows, src, dst):
         """Window rows split as ``src`` (start, stop) per rank, split as ``dst`` (collective)."""
@@ -153,7 +158,7 @@ class PaddedWindow:
         out = self._outside
         np.copyto(out, pressure_rows)
         out[self.window] = 0.0
-        self.convolve(self.op.kernel_pairs, out, out)
+        self.apply(out, out)
         return float(np.abs(out[self.window]).max(initial=0.0))
 
     def create_vec(self):

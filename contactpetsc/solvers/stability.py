@@ -36,9 +36,10 @@ Two ways to lambda_max:
   circulant's inverse) is diagonal in Fourier space: no inner solve.  Preconditioned by the
   compliance C (two FFT pairs an iteration) for its first
   ``stability_window.COMPLIANCE_FIRST`` iterations, where a coarse or weakly adhesive window
-  settles, then by the displacement cycle on the padded H (``stability_pc.padded_levels``, about four and a half pairs an iteration), whose
-  iterations do not grow as dx / z0 falls where the compliance's do: ``auto``; ``compliance``
-  or ``multigrid`` throughout on request.  Needs whole rows per rank.
+  settles, then by the displacement cycle on the padded H (``stability_pc.padded_levels``,
+  about four and a half pairs an iteration), whose iterations do not grow as dx / z0 falls
+  where the compliance's do: ``auto``; ``compliance`` or ``multigrid`` throughout on request.
+  Needs whole rows per rank.
 * Other windows (no contact nodes, or a grid split along x): Lanczos on A S, S =
   ((K^-1)_NN)^-1 = K_NN - K_NC K_CC^-1 K_CN the compliance of N with C clamped,
   self-adjoint in the S inner product.  S is one FFT pair, plus (with contact nodes) a CG

@@ -31,6 +31,7 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from ..log_events import log_event
+from .descent_space import PaddedWindow
 from .mlmi import shared_levels
 from .transfer import add_prolonged, block_all, can_halve, halved, restrict
 
@@ -90,7 +91,6 @@ def padded_levels(problem, space) -> list[CycleLevel]:
     """The cycle's grids for a window's check on the padded grid of ``space``
     (``descent_space.PaddedWindow``): each MLMI level's window operator's circulant inverse on
     the padded grid halved as often, as long as the padded grid halves with rank-local transfers."""
-    from .descent_space import PaddedWindow
     levels = shared_levels(problem.jacobian_context.pc_data, problem.op, problem.prefix)
     out = []
     for l, lev in enumerate(levels):
@@ -98,7 +98,7 @@ def padded_levels(problem, space) -> list[CycleLevel]:
             if not can_halve(space.grid):
                 break
             space = PaddedWindow(lev, grid=halved(space.grid))
-        out.append(CycleLevel(space.inverse, _inverse_diagonal(lev.op)))
+        out.append(CycleLevel(space.apply_inverse, _inverse_diagonal(lev.op)))
     return out
 
 

@@ -7,8 +7,10 @@ import numpy as np
 from petsc4py import PETSc
 
 from ..lifetime import destroy_at_exit
+from .descent_space import PaddedWindow
 from .pc_registry import PRECONDITIONERS
 from .stability import _lobpcg, preconditioner_choice
+from .stability_pc import DisplacementCycle, padded_levels
 
 #: iterations a window's LOBPCG (``auto``) takes with the compliance before the cycle: on the
 #: hard-wall sphere's paths the compliance settles within them at Tabor 0.1-0.5 (dx = z0), and
@@ -115,31 +117,15 @@ def lanczos(problem, comm, d, contact, v, steps, tol):
     return lam, settled
 
 
-class _PaddedCirculant:
-    """The window's padded circulant C and its inverse on the padded grid (``descent_space.PaddedWindow``),
-    as ``_lobpcg`` takes an operator: ``grid``, ``apply``, ``apply_inverse``; a pair each."""
-
-    def __init__(self, space):
-        self.space, self.grid = space, space.grid
-        self.kernel = space.op.kernel_pairs
-
-    def apply(self, x, out):
-        return self.space.convolve(self.kernel, x, out)
-
-    def apply_inverse(self, x, out):
-        return self.space.inverse(x, out)
-
-
 def padded_lobpcg(problem, d, contact, steps, residual_tol, preconditioner="auto"):
     """(lambda_max estimate, settled) of a window's pencil by LOBPCG on its padded grid: the
     energy over the displacement u of the whole padded grid, 1/2 u . C^-1 u on it and the law on
     the window only, has on u = 0 at C the Hessian C^-1 - A; its minimum over the nodes outside
     the window is the window's own (K_w^-1)_NN - A (``descent_space`` module doc), so the pencil
     A x = lambda C^-1 x on the padded W has the window's lambda_max, and C^-1 is diagonal in
-    Fourier space: no inner solve.  Preconditioned (``preconditioner``) by the compliance C, or
-    by the displacement cycle on the padded H = C^-1 - A (``multigrid``, what ``auto`` takes)."""
-    from .descent_space import PaddedWindow
-    from .stability_pc import DisplacementCycle, padded_levels
+    Fourier space: no inner solve.  Preconditioned (``preconditioner``) by the compliance C, by
+    the displacement cycle on the padded H = C^-1 - A (``multigrid``), or (``auto``) by C for
+    ``COMPLIANCE_FIRST`` iterations and the cycle after them."""
     preconditioner = preconditioner_choice(preconditioner, "stability preconditioner")
     if preconditioner == "mlmi":
         raise ValueError("stability preconditioner 'mlmi' needs a periodic grid; a window's check takes "
@@ -157,7 +143,7 @@ def padded_lobpcg(problem, d, contact, steps, residual_tol, preconditioner="auto
         after = COMPLIANCE_FIRST if preconditioner == "auto" else 0
         cycle = _CycleAfter(lambda: DisplacementCycle(padded_levels(problem, space), d_pad, held), after)
     try:
-        return _lobpcg(_PaddedCirculant(space), problem.grid.mpi_comm, d_pad, held, steps, residual_tol,
+        return _lobpcg(space, problem.grid.mpi_comm, d_pad, held, steps, residual_tol,
                        precondition=cycle, project_mean=False, on_a=on_a)
     finally:
         if cycle is not None:
