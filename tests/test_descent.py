@@ -345,6 +345,32 @@ def test_a_descent_stalled_at_the_state_is_polished_not_followed(coll):
     assert coll.max(np.abs(gaps[0] - gaps[1])) < 1e-7
 
 
+def test_a_descent_in_round_off_stops_where_it_would_have_stayed(coll):
+    """``-<prefix>descent_stall_its``: a descent held to an error it cannot reach (1e-16) stops,
+    stalled and named so, once its energy has not fallen for ten iterations, far below its
+    iteration cap; its state is where the same descent without the stall test is at its cap
+    of 150 iterations (gaps to 1e-9 z0): the iterations it saved made no progress."""
+    law = make_law("lj", work_of_adhesion=0.05, z0=1.0)
+    grid, h = rough(PETSc.COMM_WORLD)
+    d0, d1 = h.min()[1] + 0.5, h.min()[1] + 1.0
+    gaps, iterations = [], []
+    for tag, stall_its in (("stall10_", 10), ("stall0_", 0)):
+        pb = AdhesiveProblem(grid, h, 1.0, law, prefix=tag, petsc_options=dict(
+            strategy="newton", descent_stall_its=stall_its, descent_tao_max_it=150))
+        pb.solve(approach=d0)
+        start = pb._x.copy()
+        pb.prepare(d0)
+        with pb.inserted_options():      # the descent reads its options as the solve does
+            ok, reason, its, _ = EnergyDescent(pb, tol=1e-16).descend(d1, start)
+        assert not ok
+        assert ("stalled" in reason) == bool(stall_its), reason
+        iterations.append(its)
+        g = pb.blocks(pb._x, readonly=True).sum(axis=0)     # the state's pressures
+        gaps.append(grid.gather(_as_vec(grid, g)))
+    assert iterations[1] == 150 and iterations[0] < 100, iterations
+    assert coll.max(np.abs(gaps[0] - gaps[1])) / float(law.peak_attraction) < 1e-9
+
+
 # one rank: on more, the descent on a split grid is test_descent_reaches_newtons_state_on_any_rank_count's
 # and test_a_snap_in_is_a_descent_to_a_stable_state's
 @pytest.mark.serial

@@ -42,7 +42,11 @@ in Fourier space, or on an isolated window split along y: there u lives on the w
 grid, whose circulant's inverse is diagonal, with the law on the window's nodes and no mean to
 hold (``descent_space.py``).
 
-Options (prefix ``<problem prefix>descent_``): ``tol`` (error measure, z0), ``max_rounds``
+A descent whose energy has fallen by at most 1e-12 of itself in ``stall_its`` iterations
+(default 10; 0: never) has stalled in round-off: it stops, failed, and Newton polishes its
+iterate (a hard wall's Tabor 5 sphere next to its pull-off ran to TAO's cap in zero steps).
+
+Options (prefix ``<problem prefix>descent_``): ``tol`` (error measure, z0), ``max_rounds``, ``stall_its``
 and ``offset_tol`` (a hard wall's rounds, ``descent_mean.py``), ``pc_contact_factor`` (f above,
 default 10; 0: the compliance alone), ``floor_factor`` (F above,
 default 4; 0: no floor), ``max_step`` and ``step_tol`` (``descent_step.py``), and every ``tao_*``
@@ -63,7 +67,7 @@ from .descent_floor import GapFloor
 from .descent_mean import MeanMultiplier
 from .descent_options import TAO_DEFAULTS, descent_options, natural_norm, require_descent
 from .descent_space import descent_space
-from .descent_stopping import TAO_REASON, StoppingTest
+from .descent_stopping import STALL_DECREASE, TAO_REASON, StoppingTest
 
 class EnergyDescent(StoppingTest):
     """Descend the total energy of ``problem`` (an ``AdhesiveProblem``) at one approach.
@@ -98,6 +102,7 @@ class EnergyDescent(StoppingTest):
         self.tol = tol if tol is not None else opts.getReal("tol", (0.5 if cell_wall else 1.0) * problem.tol)
         options = descent_options(problem.prefix)
         self.pc_contact_factor, self.floor_factor = options.pc_contact_factor, options.floor_factor
+        self.stall_its, self.stalled, self._energies = options.stall_its, False, []
         for key, value in TAO_DEFAULTS.items():
             problem.set_default(key, value, self.prefix)
         op = problem.op
@@ -340,7 +345,7 @@ class EnergyDescent(StoppingTest):
             pc.setPythonContext(Compliance(self))
         self._lin0 = p.history[-1].linear_iterations if len(p.history) else 0
         self.last_error = np.inf
-        self.spent = False
+        self.spent = self.stalled = False
         try:
             try:
                 code, iterations, rounds = self._rounds(tao, x, bounds)
@@ -356,8 +361,14 @@ class EnergyDescent(StoppingTest):
         finally:
             x.destroy()
         # a spent budget leads the reason, as Newton's does: the run's message names it
-        reason = (f"{p.budget_reason}, in the descent (" if self.spent
-                  else f"descent {reason_name(code, TAO_REASON)} (") + f"{iterations} TAO iterations"
+        if self.spent:
+            reason = f"{p.budget_reason}, in the descent ("
+        elif self.stalled:
+            reason = (f"descent stalled (its energy down by at most {STALL_DECREASE:.0e} of itself in "
+                      f"{self.stall_its} iterations, error {self.last_error:.3e}; ")
+        else:
+            reason = f"descent {reason_name(code, TAO_REASON)} ("
+        reason += f"{iterations} TAO iterations"
         floors = self.floor.lowered if self.floor is not None else 0
         reason += f", {rounds} rounds)" if p.hard_wall else (f", the gap floor lowered {floors}x)" if floors else ")")
         return code > 0, reason, iterations, self.pc_applies

@@ -49,6 +49,7 @@ class DescentOptions(NamedTuple):
     floor_factor: float        #: F of the full LJ curve's gap floor
     max_step: float            #: the largest increment of a step's approach [z0] (0: the whole step)
     step_tol: float            #: the error the increments but the last are descended to
+    stall_its: int             #: iterations without an energy decrease above round-off (0: no stall test)
 
 
 def descent_options(prefix: str) -> DescentOptions:
@@ -63,6 +64,9 @@ def descent_options(prefix: str) -> DescentOptions:
         value = values[name] = opts.getReal(key, code_default("adhesion", key))
         if not (np.isfinite(value) and (value > 0 if positive else value >= 0)):
             raise ValueError(f"-{prefix}{key} must be finite and {'> 0' if positive else '>= 0'}, got {value}")
+    values["stall_its"] = opts.getInt("descent_stall_its", code_default("adhesion", "descent_stall_its"))
+    if values["stall_its"] < 0:
+        raise ValueError(f"-{prefix}descent_stall_its must be >= 0, got {values['stall_its']}")
     # BNK's embedded CG steps call the convergence test without its Python context (petsc4py
     # then fails inside TAOSolve with a TypeError): refused here, by name
     if opts.getInt("descent_tao_bnk_max_cg_its", 0) != 0:

@@ -31,11 +31,14 @@ def descend_step(problem, approach: float, start: PETSc.Vec, increments: int | N
     for k in range(1, increments):
         if problem.out_of_time():
             break
-        ok, _, it, lin = EnergyDescent(problem, tol=options.step_tol).descend(
-            prev + (approach - prev) * k / increments, start)
+        increment = EnergyDescent(problem, tol=options.step_tol)
+        ok, _, it, lin = increment.descend(prev + (approach - prev) * k / increments, start)
+        stalled = increment.stalled
+        del increment
         PETSc.garbage_cleanup(problem.grid.comm)   # its TAO's contexts hold its arrays
         iterations, linear = iterations + it, linear + lin
-        if not ok:
+        # a stalled increment is at its state to the energy's round-off: the next goes on from it
+        if not (ok or stalled):
             # (a NaN, a failed line search): the whole step from the start instead (the
             # problem's copy of its unknowns, made as the first increment wrote its state)
             start, taken = problem.saved_start(), 1

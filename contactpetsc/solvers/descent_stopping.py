@@ -14,9 +14,14 @@ from ..physics.traction import node_blocks
 TAO_REASON = getattr(PETSc.TAO, "ConvergedReason", None) or PETSc.TAO.Reason
 
 
+#: the energy's decrease, relative to itself, below which a descent's progress is round-off: a
+#: line search at a state whose energy no longer resolves its error takes zero steps
+STALL_DECREASE = 1e-12
+
+
 class StoppingTest:
     """When an ``EnergyDescent`` stops (its ``error`` and TAO's convergence test ``_converged``);
-    uses the descent's fields, tolerance, target, floor and mean multiplier."""
+    uses the descent's fields, tolerance, target, floor, mean multiplier and ``stall_its``."""
 
     def error(self, g, k_inv_u, p0, a) -> float:
         """The problem's error measures (``AdhesiveProblem._measures``) on (g, p = K^-1 u + p0, a),
@@ -65,6 +70,11 @@ class StoppingTest:
         elif self.floor is not None and self.floor.active and self.floor.holds(tao, k_inv_u, p0, a):
             self.pinned = True
             tao.setConvergedReason(TAO_REASON.CONVERGED_USER)
+        elif self._stalls(tao, it):
+            # at the state to the energy's last digits (next to a fold: the hard-wall Tabor 5
+            # sphere's last attached states ran 476 zero steps to the cap): Newton polishes it
+            self.stalled = True
+            tao.setConvergedReason(TAO_REASON.DIVERGED_USER)
         elif it >= tao.getMaximumIterations() or not np.isfinite(err):
             tao.setConvergedReason(TAO_REASON.DIVERGED_MAXITS)
         elif p.out_of_time():
@@ -72,3 +82,18 @@ class StoppingTest:
             tao.setConvergedReason(TAO_REASON.DIVERGED_MAXITS)
         else:
             tao.setConvergedReason(TAO_REASON.CONTINUE_ITERATING)
+
+    def _stalls(self, tao, it: int) -> bool:
+        """Whether the energy has fallen by at most ``STALL_DECREASE`` of itself in the last
+        ``stall_its`` iterations of this TAO solve (a round's penalty changes the energy: each
+        round starts its own record).  The energy is global: every rank decides alike."""
+        if not self.stall_its:
+            return False
+        if it == 0:
+            self._energies = []
+        energies = self._energies
+        energies.append(tao.getObjectiveValue())
+        if len(energies) <= self.stall_its:
+            return False
+        del energies[:-self.stall_its - 1]
+        return energies[0] - energies[-1] <= STALL_DECREASE * abs(energies[-1])

@@ -104,6 +104,9 @@ ADHESION = (
            "then relaxation,ptc (hard wall) or ptc",
            "where Newton fails or ends unstable: these in turn"),
     Option(("descent_max_rounds",), (40,), "energy descent: a hard wall's mean-pressure rounds"),
+    Option(("descent_stall_its",), (10,),
+           "energy descent: stalled (Newton polishes its iterate) once its energy has not fallen by more than "
+           "1e-12 of itself in this many iterations (0: never)"),
     Option(("descent_pc_contact_factor",), (10.0,),
            "energy descent: its compliance preconditioner's scaling on nodes in repulsive contact (0: none)"),
     Option(("descent_floor_factor",), (4.0,),
