@@ -24,17 +24,17 @@ def rough(comm, n=64):
 
 
 @pytest.mark.parametrize("law_name", ["lj", "hardwall-lj"])
-@pytest.mark.parametrize("pc_factor", [0.0, 10.0])
-def test_descent_reaches_newtons_state_on_any_rank_count(coll, law_name, pc_factor):
+@pytest.mark.parametrize("pc_factor, preconditioner", [(0.0, "compliance"), (10.0, "compliance"), (10.0, "multigrid")])
+def test_descent_reaches_newtons_state_on_any_rank_count(coll, law_name, pc_factor, preconditioner):
     """From the converged state at one approach, the descent alone (to 1e-9) reaches the state
     Newton reaches at the next approach, and the same on one rank as on all; with the
-    compliance alone as its preconditioner and with it scaled on the repulsive nodes (a
-    preconditioner changes the way to the minimum, not the minimum)."""
+    compliance alone as its preconditioner, with it scaled on the repulsive nodes, and with the
+    V-cycle on the Hessian (a preconditioner changes the way to the minimum, not the minimum)."""
     law = make_law(law_name, work_of_adhesion=0.05, z0=1.0)
     key = law_name.replace("-", "")
     opts = PETSc.Options(f"desc{key}_")
     for name, value in dict(descent_tol=1e-9, descent_offset_tol=1e-11, descent_max_rounds=30,
-                            descent_pc_contact_factor=pc_factor).items():
+                            descent_pc_contact_factor=pc_factor, descent_preconditioner=preconditioner).items():
         opts.setValue(name, value)
     pressures = []
     try:
@@ -56,7 +56,8 @@ def test_descent_reaches_newtons_state_on_any_rank_count(coll, law_name, pc_fact
             assert diff < 1e-6, diff
             pressures.append(grid.gather(_as_vec(grid, p)))
     finally:
-        for name in ("descent_tol", "descent_offset_tol", "descent_max_rounds", "descent_pc_contact_factor"):
+        for name in ("descent_tol", "descent_offset_tol", "descent_max_rounds", "descent_pc_contact_factor",
+                     "descent_preconditioner"):
             opts.delValue(name)
     assert coll.max(np.abs(pressures[0] - pressures[1])) / float(law.peak_attraction) < 1e-9
 
@@ -181,6 +182,40 @@ def test_the_descents_hessian_is_symmetric_and_its_preconditioner_positive(coll,
     assert descent.pc_scale.min() < 1.0 or pb.hard_wall
 
 
+@pytest.mark.serial
+@pytest.mark.parametrize("law_name", ["lj", "hardwall-lj"])
+def test_the_descents_cycle_is_symmetric_positive_on_the_inactive_set(coll, law_name):
+    """``-<prefix>descent_preconditioner multigrid``: CG needs the V-cycle on the Hessian
+    symmetric positive definite on TAO's inactive set (a hard wall's contact nodes clamped; the
+    mean of the full LJ curve's v as the compliance sends it).  Dense on a 16^2 state in
+    contact."""
+    from contactpetsc.solvers.reduced import InactiveSet
+    law = make_law(law_name, work_of_adhesion=0.05, z0=1.0)
+    grid, h = rough(PETSc.COMM_SELF, n=16)
+    key = law_name.replace("-", "")
+    pb = AdhesiveProblem(grid, h, 1.0, law, prefix=f"desccyc{key}_",
+                         petsc_options={"descent_preconditioner": "multigrid"})
+    state = pb.solve(approach=float(h.min()[1]) + 1.0)
+    assert 0.01 < state.contact_fraction < 0.5
+    with pb.inserted_options():
+        descent = EnergyDescent(pb)
+    assert descent.cycle is not None
+    g = descent.at_state()
+    free = np.flatnonzero(g.reshape(-1) > 1e-12) if pb.hard_wall else np.arange(descent.n)
+    assert free.size < descent.n or not pb.hard_wall
+    inactive = InactiveSet(PETSc.IS().createGeneral(free.astype(PETSc.IntType), comm=PETSc.COMM_SELF), 0, descent.n)
+    x = PETSc.Vec().createSeq(free.size)
+    y = x.duplicate()
+    T = np.empty((free.size, free.size))
+    for j in range(free.size):
+        x.set(0.0)
+        x.setValue(j, 1.0)
+        descent.cycle.apply(inactive, x, y)
+        T[:, j] = y.getArray()
+    assert np.abs(T - T.T).max() <= 1e-12 * np.abs(T).max()
+    assert np.linalg.eigvalsh(0.5 * (T + T.T)).min() > 0
+
+
 @pytest.mark.parametrize("option, value, message", [
     ("descent_pc_contact_factor", "-1", "descent_pc_contact_factor must be finite and >= 0"),
     ("descent_pc_contact_factor", "nan", "descent_pc_contact_factor must be finite and >= 0"),
@@ -188,7 +223,9 @@ def test_the_descents_hessian_is_symmetric_and_its_preconditioner_positive(coll,
     ("descent_floor_factor", "inf", "descent_floor_factor must be finite and >= 0"),
     ("descent_tao_bnk_max_cg_its", "5", "descent_tao_bnk_max_cg_its must be 0"),
     ("descent_max_step", "-0.1", "descent_max_step must be finite and >= 0"),
-    ("descent_step_tol", "0", "descent_step_tol must be finite and > 0")])
+    ("descent_step_tol", "0", "descent_step_tol must be finite and > 0"),
+    ("descent_stall_its", "-1", "descent_stall_its must be >= 0"),
+    ("descent_preconditioner", "mlmi", "descent_preconditioner must be auto, compliance, multigrid")])
 def test_bad_descent_options_are_refused_by_name(coll, option, value, message):
     grid, h = rough(PETSc.COMM_WORLD, n=16)
     pb = AdhesiveProblem(grid, h, 1.0, make_law("lj", work_of_adhesion=0.05, z0=1.0), prefix="descbad_",

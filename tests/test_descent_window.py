@@ -60,13 +60,15 @@ def test_the_padded_displacement_is_the_windows_with_no_pressure_outside(coll):
         assert grid.mpi_comm.allreduce(held == 0, op=MPI.LOR)     # a rank without window rows
 
 
+@pytest.mark.parametrize("preconditioner", ["multigrid", "compliance"])
 @pytest.mark.parametrize("law_name", ["lj", "hardwall-lj"])
-def test_a_windows_descent_reaches_newtons_state_on_any_rank_count(coll, law_name):
+def test_a_windows_descent_reaches_newtons_state_on_any_rank_count(coll, law_name, preconditioner):
     """From the converged state of the adhesive sphere (Tabor 1) on its loading path after its
     jump on, the descent alone (to 1e-9) reaches the state Newton reaches a step of z0 further,
     with the sphere pressed into contact (a hard wall's contact pressure and adhesive traction
-    each), and the same on one rank as on all (on three, one holds no window rows)."""
-    key = law_name.replace("-", "")
+    each), and the same on one rank as on all (on three, one holds no window rows); with the
+    V-cycle on the padded grids (a window's default) and with the compliance."""
+    key = law_name.replace("-", "") + preconditioner[0]
     pressures = []
     for comm in (PETSc.COMM_WORLD, PETSc.COMM_SELF):
         kw = dict(law=law_name, n=40, dx=1.0, radius=100.0, comm=comm)
@@ -75,7 +77,8 @@ def test_a_windows_descent_reaches_newtons_state_on_any_rank_count(coll, law_nam
             newton.solve(approach=approach)
         start = newton._x.copy()
         reference = newton.solve(approach=0.0)
-        pb = sphere_problem(1.0, prefix=f"wdesc{key}_", petsc_options={"descent_tol": 1e-9}, **kw)
+        pb = sphere_problem(1.0, prefix=f"wdesc{key}_", petsc_options={
+            "descent_tol": 1e-9, "descent_preconditioner": preconditioner}, **kw)
         pb.prepare(-1.0)
         ok, reason, iterations, _ = EnergyDescent(pb).descend(0.0, start)
         assert ok and iterations > 0, reason
@@ -115,3 +118,22 @@ def test_a_spheres_jump_on_is_a_descent_to_a_stable_state(coll):
         assert after.energy < energy_moved(before, pb.law, pb.grid, 0.25)
         gaps.append(pb.grid.gather(after.gap))
     assert coll.max(np.abs(gaps[0] - gaps[1])) < 1e-7
+
+
+def test_auto_takes_the_cycle_where_the_compliance_is_slow(coll):
+    """``-<prefix>descent_preconditioner auto`` on a large contact resolved finely (the hard-wall
+    sphere at Tabor 4, dx = z0 / 8, its contact 20 % of a 256^2 window), where CG with the
+    compliance takes 9-16 iterations a Newton step and the V-cycle a few: the descent strategy's
+    states are the compliance's (forces and gaps), for at most half its Krylov iterations."""
+    states = {}
+    for pc in ("compliance", "auto"):
+        pb = sphere_problem(4.0, law="hardwall-lj", n=256, dx=0.125, radius=50.0, comm=PETSc.COMM_WORLD,
+                            prefix=f"wauto{pc[0]}_", petsc_options={"strategy": "descent", "descent_preconditioner": pc})
+        pb.solve(approach=-3.5)
+        states[pc] = pb.solve(approach=-3.25)
+    slow, fast = states["compliance"], states["auto"]
+    assert slow.converged and fast.converged and slow.contact_fraction > 0.1
+    assert abs(fast.force - slow.force) < 1e-6 * abs(slow.force)
+    grid = pb.grid
+    assert coll.max(np.abs(grid.rows(fast.gap, readonly=True) - grid.rows(slow.gap, readonly=True))) < 1e-7
+    assert fast.linear_iterations <= 0.5 * slow.linear_iterations, (fast.linear_iterations, slow.linear_iterations)

@@ -141,6 +141,9 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, ControlNode, TangentAndSt
         self._pressure_residual = np.nan  # local max |a - a(g)| / (P + |a(g)|) there
         self.coarse_levels = None       # the nested iteration (``CoarseLevels``), made with the solvers
         self.fallback = None            # the fallback chain (``FallbackChain``), made with the solvers
+        # the compliance's CG iterations that the last descent's V-cycle beat to its end (``auto``:
+        # the next descent starts with the cycle, held to them; 0: it starts with the compliance)
+        self.descent_cycle_won = 0
         self._start_approach = None     # approach [m] of the state in the unknowns (its last solve's if converged)
         self._released_pairs = 0.0      # weighted FFT pairs of the preconditioner levels ``release`` freed
         self._prev_approach = None

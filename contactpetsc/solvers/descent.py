@@ -10,7 +10,8 @@ bound-constrained Newton line search (``bnls``: Hessian K^-1 + diag Phi''(g), tr
 negative curvature handled by the line search's shift) preconditioned by the compliance K,
 diagonal in Fourier space (one FFT pair), scaled down on the nodes in repulsive contact:
 P = S K S, S_ii = (1 + f min(1, K_ii Phi''(g_i)))^-1/2 where Phi'' > 0, the Hessian's diagonal
-term that K alone ignores (why f and the min: docs/formulation.md, "Energy descent").  Every accepted step lowers
+term that K alone ignores (why f and the min: docs/formulation.md, "Energy descent"), or by
+the V-cycle on the Hessian where K's CG is slow (``descent_cycle.py``).  Every accepted step lowers
 the energy, so the state reached is a minimum next to the start: across a snap the path
 does not climb, and no pseudo-time is spent on it.  The gradient is p - a(g) per node [Pa],
 p = K^-1 u (+ the mean pressure): zero where the state is an equilibrium.  TAO itself sees the dimensionless
@@ -46,7 +47,8 @@ A descent whose energy has fallen by at most 1e-12 of itself in ``stall_its`` it
 (default 10; 0: never) has stalled in round-off: it stops, failed, and Newton polishes its
 iterate (a hard wall's Tabor 5 sphere next to its pull-off ran to TAO's cap in zero steps).
 
-Options (prefix ``<problem prefix>descent_``): ``tol`` (error measure, z0), ``max_rounds``, ``stall_its``
+Options (prefix ``<problem prefix>descent_``): ``tol`` (error measure, z0), ``max_rounds``, ``stall_its``,
+``preconditioner`` (``descent_cycle.py``)
 and ``offset_tol`` (a hard wall's rounds, ``descent_mean.py``), ``pc_contact_factor`` (f above,
 default 10; 0: the compliance alone), ``floor_factor`` (F above,
 default 4; 0: no floor), ``max_step`` and ``step_tol`` (``descent_step.py``), and every ``tao_*``
@@ -63,6 +65,7 @@ from ..log_events import log_event
 from .adhesive_residual import total_pressure
 from .base import reason_name
 from .descent_contexts import Compliance, Hessian
+from .descent_cycle import DescentCycle
 from .descent_floor import GapFloor
 from .descent_mean import MeanMultiplier
 from .descent_options import TAO_DEFAULTS, descent_options, natural_norm, require_descent
@@ -103,6 +106,12 @@ class EnergyDescent(StoppingTest):
         options = descent_options(problem.prefix)
         self.pc_contact_factor, self.floor_factor = options.pc_contact_factor, options.floor_factor
         self.stall_its, self.stalled, self._energies = options.stall_its, False, []
+        # the V-cycle on the Hessian where the compliance ignores what matters (descent_cycle.py)
+        # (``auto`` on an isolated window only: on a periodic cell it gained a per cent of the rough
+        # benchmark's pairs, and its set-ups' arrays raised the resident size's high-water mark)
+        pc = options.preconditioner
+        multigrid = pc == "multigrid" or (pc == "auto" and not space.projects_mean)
+        self.cycle = DescentCycle(self, auto=pc == "auto") if multigrid else None
         for key, value in TAO_DEFAULTS.items():
             problem.set_default(key, value, self.prefix)
         op = problem.op
@@ -116,6 +125,7 @@ class EnergyDescent(StoppingTest):
         # the mean mode (no stiffness of its own): a hard wall's penalty c, else 1 / K_ii, the
         # Hessian's scale there (a unit would be off by the units' scale in metres and pascals)
         mean_value = 1.0 / self.c if self.c else problem.kappa
+        self.mean_compliance = mean_value        # the preconditioners' on the mean (times 1 / K_ii)
         compliance = np.where(mean_mode, mean_value, 1.0 / np.where(mean_mode, 1.0, stiffness))
         self._k_inv = op.inverse_pairs
         # K / K_ii: the preconditioner's compliance in the dimensionless v
@@ -211,6 +221,8 @@ class EnergyDescent(StoppingTest):
         return energy * self.kappa / self.length ** 2
 
     def hessian(self, tao, x, H, P):
+        if self.cycle is not None:
+            self.cycle.choose(tao.getKSP())
         self.set_curvature(self.fields(x)[0])
         H.getPythonContext().shift_value = 0.0
 
@@ -228,6 +240,8 @@ class EnergyDescent(StoppingTest):
         the preconditioner's scaling S from it."""
         d = self.p.traction.nodal_derivative(g, out=self._law_rows(self.curvature))
         np.negative(d, out=self.curvature[self.win])
+        if self.cycle is not None:
+            self.cycle.stale = True
         if self.pc_contact_factor:
             s = np.clip(self.kappa * self.curvature, 0.0, 1.0, out=self.pc_scale)
             s *= self.pc_contact_factor
@@ -357,6 +371,8 @@ class EnergyDescent(StoppingTest):
                 # the state is written, not beside TAO's peak
                 for obj in (tao, H, gradient) + bounds:
                     obj.destroy()
+                if self.cycle is not None:
+                    self.cycle.release()
             self._write_state(x, at_bound)
         finally:
             x.destroy()

@@ -45,8 +45,8 @@ class Hessian:
 
 
 class Compliance:
-    """Python-context PC: the compliance K (the inverse of the Hessian's elastic part), on TAO's
-    inactive set by embedding."""
+    """Python-context PC: the compliance K (the inverse of the Hessian's elastic part), or the
+    descent's V-cycle on the Hessian (``descent_cycle.py``), on TAO's inactive set by embedding."""
 
     def __init__(self, descent):
         self.d = descent
@@ -54,7 +54,11 @@ class Compliance:
     def apply(self, pc, x, y):
         d = self.d
         d.pc_applies += 1      # one per Krylov iteration: the descent's linear iterations
-        embedded(d, pc.getOperators()[1].getPythonContext().inactive, d.precondition, x, y)
+        inactive = pc.getOperators()[1].getPythonContext().inactive
+        if d.cycle is not None and d.cycle.on:
+            d.cycle.apply(inactive, x, y)
+        else:
+            embedded(d, inactive, d.precondition, x, y)
 
 
 def embedded(descent, inactive: InactiveSet | None, product, x, y) -> None:

@@ -44,12 +44,19 @@ def natural_norm(ksp: PETSc.KSP, prefix: str) -> None:
         ksp.setNormType(PETSc.KSP.NormType.NATURAL)
 
 
+#: -<prefix>descent_preconditioner: the compliance S K S, the V-cycle on the Hessian
+#: (``descent_cycle.py``), or auto: on a window the compliance, the cycle where it cuts CG's
+#: iterations by 2.5; on a cell the compliance
+DESCENT_PRECONDITIONERS = ("auto", "compliance", "multigrid")
+
+
 class DescentOptions(NamedTuple):
     pc_contact_factor: float   #: f of the preconditioner's scaling (descent.py's module doc)
     floor_factor: float        #: F of the full LJ curve's gap floor
     max_step: float            #: the largest increment of a step's approach [z0] (0: the whole step)
     step_tol: float            #: the error the increments but the last are descended to
     stall_its: int             #: iterations without an energy decrease above round-off (0: no stall test)
+    preconditioner: str        #: compliance, multigrid or auto (``descent_cycle.py``)
 
 
 def descent_options(prefix: str) -> DescentOptions:
@@ -67,6 +74,9 @@ def descent_options(prefix: str) -> DescentOptions:
     values["stall_its"] = opts.getInt("descent_stall_its", code_default("adhesion", "descent_stall_its"))
     if values["stall_its"] < 0:
         raise ValueError(f"-{prefix}descent_stall_its must be >= 0, got {values['stall_its']}")
+    pc = values["preconditioner"] = opts.getString("descent_preconditioner", "auto").lower()
+    if pc not in DESCENT_PRECONDITIONERS:
+        raise ValueError(f"-{prefix}descent_preconditioner must be {', '.join(DESCENT_PRECONDITIONERS)}, got {pc!r}")
     # BNK's embedded CG steps call the convergence test without its Python context (petsc4py
     # then fails inside TAOSolve with a TypeError): refused here, by name
     if opts.getInt("descent_tao_bnk_max_cg_its", 0) != 0:

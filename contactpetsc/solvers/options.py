@@ -107,6 +107,11 @@ ADHESION = (
     Option(("descent_stall_its",), (10,),
            "energy descent: stalled (Newton polishes its iterate) once its energy has not fallen by more than "
            "1e-12 of itself in this many iterations (0: never)"),
+    Option(("descent_preconditioner",), "auto: compliance on a periodic cell; on an isolated window compliance, multigrid tried after "
+           "two Newton steps whose CG took 10 iterations or more, kept while it takes at most 1 / 2.5 of them "
+           "in the mean",
+           "energy descent: its Krylov solves' preconditioner, the compliance scaled on the repulsive nodes or "
+           "the V-cycle on its Hessian (compliance, multigrid)"),
     Option(("descent_pc_contact_factor",), (10.0,),
            "energy descent: its compliance preconditioner's scaling on nodes in repulsive contact (0: none)"),
     Option(("descent_floor_factor",), (4.0,),

@@ -1,0 +1,132 @@
+"""The energy descent's multigrid preconditioner (``-<prefix>descent_preconditioner multigrid``):
+the stability check's displacement V-cycle (``stability_pc.DisplacementCycle``) on the descent's
+Hessian, in place of the compliance S K S (docs/formulation.md, "Energy descent").
+
+The scaled Hessian is H = K_ii (K^-1 - A) on v = u / z0, A = -diag Phi''(g) the law's stiffness
+[Pa/m]; the cycle approximates (K^-1 - A)^-1 on the MLMI grids (a periodic cell's, or an
+isolated window's padded grids, ``stability_pc.padded_levels``), the nodes of TAO's active set
+clamped (a hard wall's contact, the full LJ curve's floor), so T = cycle / K_ii.  On a cell K^-1
+does not see the mean of v: the cycle runs on the zero-mean part and the mean goes as the
+compliance's own preconditioner sends it (the hard wall's penalty, the full LJ curve's 1 / K_ii).
+It costs about 2.7 pairs an application against the compliance's one, so it pays where it
+cuts CG's iterations by more than about two: on a large contact resolved finely (the hard-wall
+sphere at Tabor 5, dx = z0 / 8: 2-6 iterations a Newton step against 11-26), not on the rough
+benchmark at dx = z0 (6-8 against about half as many; the path's pairs 13 % more), nor at a
+snap, where the Hessian is indefinite.  ``auto`` (``choose``) takes the compliance, tries the
+cycle after two steps in a row whose CG converged in ``TRY_ITS`` iterations or more, keeps it
+while its CG converges, in at most a ``KEEP_RATIO``-th of that count in the mean, and otherwise goes back to
+the compliance for the rest of the descent; a descent that ended with the cycle has the next
+one on the same problem start with it.  On a periodic cell ``auto`` is the compliance: the cycle
+took a per cent off the rough benchmark's 256^2 and 512^2 paths, and the arrays of its set-ups,
+one per Newton step, raised the resident size's high-water mark from 25 to 86 doubles per grid
+point on the 512^2 path (docs/performance.md, "The descent's preconditioner").
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from petsc4py import PETSc
+
+from .stability_pc import DisplacementCycle, cell_levels, padded_levels
+
+#: ``auto``: the cycle is tried after two Newton steps whose CG converged in this many iterations
+#: or more, and kept while its own CG converges, in at most a KEEP_RATIO-th of them in the mean
+TRY_ITS, KEEP_RATIO = 10, 2.5
+_KSP = PETSc.KSP.ConvergedReason
+_CONVERGED = {int(_KSP.CONVERGED_RTOL), int(_KSP.CONVERGED_ATOL)}
+
+
+class DescentCycle:
+    """The cycle of an ``EnergyDescent`` ``descent``: its grids made at the first application
+    and kept for the descent's life; the cycle itself made again for each Hessian (``stale``,
+    set by the descent's ``set_curvature``) and each change of TAO's inactive set.  ``on``:
+    whether the descent's Krylov solves take it (always under ``multigrid``; ``auto`` decides
+    at each Hessian, ``choose``)."""
+
+    def __init__(self, descent, auto: bool):
+        self.d = descent
+        # ``auto``: the compliance's CG iterations the cycle is held to; it starts with the cycle
+        # where the problem's last descent ended with it (``AdhesiveProblem.descent_cycle_won``)
+        self.reference = getattr(descent.p, "descent_cycle_won", 0) if auto else 0
+        self.auto, self.on = auto, not auto or self.reference > 0
+        self.tried = None             # ``auto``: False once the cycle has lost
+        self._applies = 0             # the descent's preconditioner applications at the last choice
+        self.taken = []               # ``auto``: the cycle's CG iterations at each of its steps
+        self._slow = 0                # ``auto``: the last step's CG iterations if it was slow
+        self.levels = None
+        self.cycle = None
+        self.inactive = None
+        self.stale = True
+        self._t = None
+
+    def choose(self, ksp: PETSc.KSP | None) -> None:
+        """``auto``: from the last Newton step's Krylov solve ``ksp`` (its iterations and
+        reason, read before the next solve), whether the next one takes the cycle."""
+        if not self.auto or ksp is None or self.tried is False or self.d.pc_applies == self._applies:
+            return        # (no Krylov solve since the last choice: BNK's Hessian again at a step)
+        self._applies = self.d.pc_applies
+        its, converged = ksp.getIterationNumber(), int(ksp.getConvergedReason()) in _CONVERGED
+        if not self.on:
+            # two slow steps in a row: one alone is often a snap's edge, where the cycle loses
+            slow = converged and its >= TRY_ITS
+            if slow and self._slow:
+                self.on, self.reference, self.taken = True, min(its, self._slow), []
+            self._slow = its if slow else 0
+            return
+        self.taken.append(its)
+        # held to the mean of its own counts: one harder step late in a descent is no verdict
+        if not (converged and KEEP_RATIO * sum(self.taken) <= self.reference * len(self.taken)):
+            # slower than it pays for, or an indefinite step: the compliance from here on
+            self.on, self.tried = False, False
+            self.d.p.descent_cycle_won = 0
+
+    def _build(self, inactive, x) -> None:
+        d = self.d
+        if self.levels is None:
+            self.levels = cell_levels(d.p) if d.space.projects_mean else padded_levels(d.p, d.space)
+        if inactive is None:
+            clamped = np.zeros(d.shape, dtype=bool)
+        else:
+            ones = x.duplicate()
+            ones.set(1.0)
+            free = np.zeros(d.shape)
+            inactive.to_full(ones, free)
+            ones.destroy()
+            clamped = free == 0.0
+        if self.cycle is not None:
+            self.cycle.release()
+        self.cycle = DisplacementCycle(self.levels, np.negative(d.curvature), clamped)
+        self.inactive, self.stale = inactive, False
+
+    def apply(self, inactive, x, y) -> None:
+        """y = T x on TAO's inactive set ``inactive`` (``reduced.InactiveSet`` or None), x and y its Vecs."""
+        from .descent_contexts import embedded
+        if self.stale or inactive is not self.inactive:
+            self._build(inactive, x)
+        embedded(self.d, inactive, self.product, x, y)
+
+    def product(self, x: np.ndarray, y: np.ndarray) -> None:
+        """y = T x on full rows of v (``y`` may be ``x``)."""
+        d = self.d
+        if self._t is None:
+            self._t = np.empty(d.shape)
+        t = self._t
+        if d.space.projects_mean:
+            mean = d._sum(float(x.sum())) / d.n
+            np.subtract(x, mean, out=t)
+        else:
+            np.copyto(t, x)
+        out = self.cycle(t, t)
+        if d.space.projects_mean:
+            out -= d._sum(float(out.sum())) / d.n
+            out += mean * d.mean_compliance
+        np.multiply(out, 1.0 / d.kappa, out=y)
+
+    def release(self) -> None:
+        """Free the cycle and its grids; under ``auto`` the problem keeps whether it won."""
+        if self.auto and hasattr(self.d.p, "descent_cycle_won"):
+            self.d.p.descent_cycle_won = self.reference if self.on else 0
+        if self.cycle is not None:
+            self.cycle.release()
+        self.levels = self.cycle = self.inactive = self._t = None
+        self.stale = True
