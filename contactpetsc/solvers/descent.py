@@ -413,6 +413,7 @@ class EnergyDescent(StoppingTest):
                 # a round asked below the tolerance (``MeanMultiplier.target``) that TAO could
                 # not reach: its state is within the tolerance, the rounds go on from it
                 code = TAO_REASON.CONVERGED_USER
+                self.stalled = False
             if code < 0 or rounds >= mean.max_rounds or mean.closed(mean_u):
                 return code, iterations, rounds
             mean.update(mean_u)

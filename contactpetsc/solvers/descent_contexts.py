@@ -35,6 +35,8 @@ class Hessian:
         # curve's gap floor, a hard wall out of contact): this rank's whole block in order, no
         # embedding (TAO's inactive set is sorted and unique, as SNES VI's)
         inactive = InactiveSet(isrow, self.d.offset, self.d.shape[0] * self.d.shape[1])
+        if self.d.cycle is not None:
+            self.d.cycle.stale = True      # its clamped nodes are the new set's (every rank calls this)
         ctx = Hessian(self.d, None if inactive.everything else inactive)
         ctx.shift_value = self.shift_value
         return python_submatrix(ctx, mat)

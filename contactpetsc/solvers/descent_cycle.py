@@ -23,8 +23,9 @@ point on the 512^2 path (docs/performance.md, "The descent's preconditioner").
 """
 from __future__ import annotations
 
-import numpy as np
+import weakref
 
+import numpy as np
 from petsc4py import PETSc
 
 from .stability_pc import DisplacementCycle, cell_levels, padded_levels
@@ -44,7 +45,9 @@ class DescentCycle:
     at each Hessian, ``choose``)."""
 
     def __init__(self, descent, auto: bool):
-        self.d = descent
+        # a proxy: the descent holds this object, and a reference cycle would keep a finished
+        # descent's arrays alive until Python's collector ran (``descent_step``'s ``del``)
+        self.d = weakref.proxy(descent)
         # ``auto``: the compliance's CG iterations the cycle is held to; it starts with the cycle
         # where the problem's last descent ended with it (``AdhesiveProblem.descent_cycle_won``)
         self.reference = getattr(descent.p, "descent_cycle_won", 0) if auto else 0
@@ -55,7 +58,6 @@ class DescentCycle:
         self._slow = 0                # ``auto``: the last step's CG iterations if it was slow
         self.levels = None
         self.cycle = None
-        self.inactive = None
         self.stale = True
         self._t = None
 
@@ -79,30 +81,28 @@ class DescentCycle:
             # slower than it pays for, or an indefinite step: the compliance from here on
             self.on, self.tried = False, False
             self.d.p.descent_cycle_won = 0
+            self._free()
 
-    def _build(self, inactive, x) -> None:
+    def _build(self, inactive) -> None:
         d = self.d
         if self.levels is None:
             self.levels = cell_levels(d.p) if d.space.projects_mean else padded_levels(d.p, d.space)
-        if inactive is None:
-            clamped = np.zeros(d.shape, dtype=bool)
-        else:
-            ones = x.duplicate()
-            ones.set(1.0)
-            free = np.zeros(d.shape)
-            inactive.to_full(ones, free)
-            ones.destroy()
-            clamped = free == 0.0
+        clamped = np.zeros(d.shape, dtype=bool)
+        if inactive is not None:
+            clamped.reshape(-1)[...] = True
+            clamped.reshape(-1)[inactive.idx] = False
         if self.cycle is not None:
             self.cycle.release()
         self.cycle = DisplacementCycle(self.levels, np.negative(d.curvature), clamped)
-        self.inactive, self.stale = inactive, False
+        self.stale = False
 
     def apply(self, inactive, x, y) -> None:
-        """y = T x on TAO's inactive set ``inactive`` (``reduced.InactiveSet`` or None), x and y its Vecs."""
+        """y = T x on TAO's inactive set ``inactive`` (``reduced.InactiveSet`` or None), x and y
+        its Vecs.  Built anew where ``stale``: set on every rank alike, by each Hessian and each
+        inactive set's sub-matrix (``descent_contexts.Hessian``), never by a rank's own test."""
         from .descent_contexts import embedded
-        if self.stale or inactive is not self.inactive:
-            self._build(inactive, x)
+        if self.stale:
+            self._build(inactive)
         embedded(self.d, inactive, self.product, x, y)
 
     def product(self, x: np.ndarray, y: np.ndarray) -> None:
@@ -126,7 +126,10 @@ class DescentCycle:
         """Free the cycle and its grids; under ``auto`` the problem keeps whether it won."""
         if self.auto and hasattr(self.d.p, "descent_cycle_won"):
             self.d.p.descent_cycle_won = self.reference if self.on else 0
+        self._free()
+
+    def _free(self) -> None:
         if self.cycle is not None:
             self.cycle.release()
-        self.levels = self.cycle = self.inactive = self._t = None
+        self.levels = self.cycle = self._t = None
         self.stale = True

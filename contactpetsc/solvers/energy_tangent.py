@@ -54,3 +54,5 @@ def tangent(descent: EnergyDescent) -> tuple[np.ndarray, float] | None:
     finally:
         for obj in (ksp, H, b, t):
             obj.destroy()
+        if descent.cycle is not None:
+            descent.cycle.release()
