@@ -107,8 +107,8 @@ class EnergyDescent(StoppingTest):
         self.pc_contact_factor, self.floor_factor = options.pc_contact_factor, options.floor_factor
         self.stall_its, self.stalled, self._energies = options.stall_its, False, []
         # the V-cycle on the Hessian where the compliance ignores what matters (descent_cycle.py)
-        # (``auto`` on an isolated window only: on a periodic cell it gained a per cent of the rough
-        # benchmark's pairs, and its set-ups' arrays raised the resident size's high-water mark)
+        # (``auto`` on an isolated window only: on a periodic cell it gained little on the rough
+        # benchmark's paths, and its set-ups raised the resident size's high-water mark)
         pc = options.preconditioner
         multigrid = pc == "multigrid" or (pc == "auto" and not space.projects_mean)
         self.cycle = DescentCycle(self, auto=pc == "auto") if multigrid else None

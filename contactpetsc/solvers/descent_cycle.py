@@ -8,18 +8,16 @@ isolated window's padded grids, ``stability_pc.padded_levels``), the nodes of TA
 clamped (a hard wall's contact, the full LJ curve's floor), so T = cycle / K_ii.  On a cell K^-1
 does not see the mean of v: the cycle runs on the zero-mean part and the mean goes as the
 compliance's own preconditioner sends it (the hard wall's penalty, the full LJ curve's 1 / K_ii).
-It costs about 2.7 pairs an application against the compliance's one, so it pays where it
-cuts CG's iterations by more than about two: on a large contact resolved finely (the hard-wall
-sphere at Tabor 5, dx = z0 / 8: 2-6 iterations a Newton step against 11-26), not on the rough
-benchmark at dx = z0 (6-8 against about half as many; the path's pairs 13 % more), nor at a
-snap, where the Hessian is indefinite.  ``auto`` (``choose``) takes the compliance, tries the
-cycle after two steps in a row whose CG converged in ``TRY_ITS`` iterations or more, keeps it
-while its CG converges, in at most a ``KEEP_RATIO``-th of that count in the mean, and otherwise goes back to
-the compliance for the rest of the descent; a descent that ended with the cycle has the next
-one on the same problem start with it.  On a periodic cell ``auto`` is the compliance: the cycle
-took a per cent off the rough benchmark's 256^2 and 512^2 paths, and the arrays of its set-ups,
-one per Newton step, raised the resident size's high-water mark from 25 to 86 doubles per grid
-point on the 512^2 path (docs/performance.md, "The descent's preconditioner").
+An application costs a few FFT pairs against the compliance's one, so it pays where it cuts
+CG's iterations by more than that: on a large contact resolved finely (the sphere's windows at
+high Tabor numbers), not on the rough benchmark at dx = z0, nor at a snap, where the Hessian is
+indefinite.  ``auto`` (``choose``) takes the compliance, tries the cycle after two steps in a row
+whose CG converged in ``TRY_ITS`` iterations or more, keeps it while its CG converges, in at most
+a ``KEEP_RATIO``-th of that count in the mean, and otherwise goes back to the compliance for the
+rest of the descent; a descent that ended with the cycle has the next one on the same problem
+start with it.  On a periodic cell ``auto`` is the compliance: the cycle gained little on the
+rough benchmark's paths, and its set-ups raised their resident size's high-water mark
+(docs/performance.md, "The descent's V-cycle on a window").
 """
 from __future__ import annotations
 

@@ -71,8 +71,8 @@ class StoppingTest:
             self.pinned = True
             tao.setConvergedReason(TAO_REASON.CONVERGED_USER)
         elif self._stalls(tao, it):
-            # at the state to the energy's last digits (next to a fold: the hard-wall Tabor 5
-            # sphere's last attached states ran 476 zero steps to the cap): Newton polishes it
+            # at the state to the energy's last digits (next to a fold the line search takes
+            # zero steps to TAO's cap): Newton polishes it
             self.stalled = True
             tao.setConvergedReason(TAO_REASON.DIVERGED_USER)
         elif it >= tao.getMaximumIterations() or not np.isfinite(err):
