@@ -14,7 +14,8 @@ high Tabor numbers), not on the rough benchmark at dx = z0, nor at a snap, where
 indefinite.  ``auto`` (``choose``) takes the compliance, tries the cycle after two steps in a row
 whose CG converged in ``TRY_ITS`` iterations or more, keeps it while its CG converges, in at most
 a ``KEEP_RATIO``-th of that count in the mean, and otherwise goes back to the compliance for the
-rest of the descent; a descent that ended with the cycle has the next one on the same problem
+rest of the descent; across a step whose CG met negative curvature (a snap) it takes the
+compliance, and may try the cycle again after it; a descent that ended with the cycle has the next one on the same problem
 start with it.  On a periodic cell ``auto`` is the compliance: the cycle gained little on the
 rough benchmark's paths, and its set-ups raised their resident size's high-water mark
 (docs/performance.md, "The descent's V-cycle on a window").
@@ -33,6 +34,7 @@ from .stability_pc import DisplacementCycle, cell_levels, padded_levels
 TRY_ITS, KEEP_RATIO = 10, 2.5
 _KSP = PETSc.KSP.ConvergedReason
 _CONVERGED = {int(_KSP.CONVERGED_RTOL), int(_KSP.CONVERGED_ATOL)}
+_INDEFINITE = {int(_KSP.CONVERGED_CG_NEG_CURVE), int(_KSP.DIVERGED_INDEFINITE_MAT)}
 
 
 class DescentCycle:
@@ -73,10 +75,15 @@ class DescentCycle:
                 self.on, self.reference, self.taken = True, min(its, self._slow), []
             self._slow = its if slow else 0
             return
+        if int(ksp.getConvergedReason()) in _INDEFINITE:
+            # a snap: the compliance across it, the cycle to be tried again after it (no verdict
+            # on the cycle, which meets the same negative curvature)
+            self.on, self._slow = False, 0
+            return
         self.taken.append(its)
         # held to the mean of its own counts: one harder step late in a descent is no verdict
         if not (converged and KEEP_RATIO * sum(self.taken) <= self.reference * len(self.taken)):
-            # slower than it pays for, or an indefinite step: the compliance from here on
+            # slower than it pays for: the compliance from here on
             self.on, self.tried = False, False
             self.d.p.descent_cycle_won = 0
             self._free()

@@ -109,7 +109,7 @@ ADHESION = (
            "1e-12 of itself in this many iterations (0: never)"),
     Option(("descent_preconditioner",), "auto: compliance on a periodic cell; on an isolated window compliance, multigrid tried after "
            "two Newton steps whose CG took 10 iterations or more, kept while it takes at most 1 / 2.5 of them "
-           "in the mean",
+           "in the mean (left at a snap, tried again after it)",
            "energy descent: its Krylov solves' preconditioner, the compliance scaled on the repulsive nodes or "
            "the V-cycle on its Hessian (compliance, multigrid)"),
     Option(("descent_pc_contact_factor",), (10.0,),
