@@ -52,7 +52,7 @@ class DescentCycle:
         # where the problem's last descent ended with it (``AdhesiveProblem.descent_cycle_won``)
         self.reference = getattr(descent.p, "descent_cycle_won", 0) if auto else 0
         self.auto, self.on = auto, not auto or self.reference > 0
-        self.tried = None             # ``auto``: False once the cycle has lost
+        self.lost = False             # ``auto``: the cycle has lost, the compliance to the end
         self._applies = 0             # the descent's preconditioner applications at the last choice
         self.taken = []               # ``auto``: the cycle's CG iterations at each of its steps
         self._slow = 0                # ``auto``: the last step's CG iterations if it was slow
@@ -64,10 +64,11 @@ class DescentCycle:
     def choose(self, ksp: PETSc.KSP | None) -> None:
         """``auto``: from the last Newton step's Krylov solve ``ksp`` (its iterations and
         reason, read before the next solve), whether the next one takes the cycle."""
-        if not self.auto or ksp is None or self.tried is False or self.d.pc_applies == self._applies:
+        if not self.auto or ksp is None or self.lost or self.d.pc_applies == self._applies:
             return        # (no Krylov solve since the last choice: BNK's Hessian again at a step)
         self._applies = self.d.pc_applies
-        its, converged = ksp.getIterationNumber(), int(ksp.getConvergedReason()) in _CONVERGED
+        its, reason = ksp.getIterationNumber(), int(ksp.getConvergedReason())
+        converged = reason in _CONVERGED
         if not self.on:
             # two slow steps in a row: one alone is often a snap's edge, where the cycle loses
             slow = converged and its >= TRY_ITS
@@ -75,7 +76,7 @@ class DescentCycle:
                 self.on, self.reference, self.taken = True, min(its, self._slow), []
             self._slow = its if slow else 0
             return
-        if int(ksp.getConvergedReason()) in _INDEFINITE:
+        if reason in _INDEFINITE:
             # a snap: the compliance across it, the cycle to be tried again after it (no verdict
             # on the cycle, which meets the same negative curvature)
             self.on, self._slow = False, 0
@@ -84,7 +85,7 @@ class DescentCycle:
         # held to the mean of its own counts: one harder step late in a descent is no verdict
         if not (converged and KEEP_RATIO * sum(self.taken) <= self.reference * len(self.taken)):
             # slower than it pays for: the compliance from here on
-            self.on, self.tried = False, False
+            self.on, self.lost = False, True
             self.d.p.descent_cycle_won = 0
             self._free()
 
