@@ -164,3 +164,34 @@ def test_ptc_alone_reaches_newtons_state_on_any_rank_count(coll):
             opts.delValue("ptconly_" + key)
     assert coll.max(np.abs(gaps[1] - gaps[0])) < 1e-6
     assert coll.max(np.abs(gaps[2] - gaps[1])) < 1e-7
+
+
+def test_a_states_fields_are_the_gap_and_displacement_of_its_pressure(coll):
+    """A state's gap and displacement fields are h + K p - delta and K p of its own pressure,
+    made afresh here, and its pressure is q + a, whatever came between Newton's last residual
+    and the fields (the stability check, the tangent, a descent and its Newton polish): the
+    fields reuse the residual's gap rows where they are the state's.  The sphere's window under
+    the Newton strategy (both laws) and a rough periodic cell under the descent strategy."""
+    grid = SurfaceGrid(64, 64, 1.0, periodic=True)
+    rough = AdhesiveProblem(grid, self_affine(grid, hurst=0.8, rms_height=1.0, seed=7), 1.0,
+                            make_law("hardwall-lj", work_of_adhesion=0.05, z0=1.0), prefix="fields_rough_")
+    h_min = rough.grid.gather(rough.heights).min()
+    cases = [(rough, (h_min + 0.5, h_min + 1.0, h_min + 0.7))]
+    for law in ("hardwall-lj", "lj"):
+        cases.append((sphere_problem(2.0, law=law, n=96, dx=0.5, radius=100.0, prefix=f"fields_{law}_"),
+                      (-1.0, -0.5, 0.0, -0.75)))
+    for pb, approaches in cases:
+        g = pb.grid
+        for delta in approaches:
+            st = pb.solve(approach=delta)
+            assert st.converged and st.stable is not None
+            p = g.rows(st.pressure, readonly=True)
+            kp = pb.op.apply(p.copy(), np.empty_like(p))
+            gap = g.rows(pb.heights, readonly=True) + kp - delta
+            scale = coll.max(np.abs(kp)) + 1.0
+            assert coll.max(np.abs(g.rows(st.displacement, readonly=True) - kp)) <= 1e-12 * scale
+            assert coll.max(np.abs(g.rows(st.gap, readonly=True) - gap)) <= 1e-12 * scale
+            q, a = g.rows(st.contact_pressure, readonly=True), g.rows(st.adhesive_pressure, readonly=True)
+            assert coll.max(np.abs(p - (q + a if pb.hard_wall else a))) == 0.0
+            st.release_fields()
+        pb.destroy()

@@ -264,7 +264,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, ControlNode, TangentAndSt
         if self.fallback.ptc is not None:
             self.fallback.ptc.release()
         self._released_pairs += self._jac.release()
-        self._scratch = None
+        self._scratch = self._gap_mark = None
         self._drop_solve_best()
         self._drop_start()
         if self.strategy == "descent":

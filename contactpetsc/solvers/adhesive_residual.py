@@ -19,9 +19,37 @@ def total_pressure(blocks: np.ndarray) -> np.ndarray:
 class AdhesiveCallbacks:
     """Mixin of ``AdhesiveProblem``: what the SNES calls back."""
 
+    #: every how many unknowns one goes into the scratch gap's fingerprint (``_current_gap``)
+    MARK_STRIDE = 61
+    #: (approach, sum, sample) of the unknowns whose gap and K p the scratch rows hold, or None
+    _gap_mark = None
+
     def _gap(self, blocks: np.ndarray, out: np.ndarray) -> np.ndarray:
         """The gap [m] (``VIProblem.gap``) of the unknowns ``blocks``; K p stays in ``_v``."""
-        return self.gap(total_pressure(blocks), out, displacement=self._v)
+        g = self.gap(total_pressure(blocks), out, displacement=self._v)
+        self._gap_mark = self._mark(blocks) if out is self._g else None
+        return g
+
+    def _mark(self, blocks: np.ndarray) -> tuple:
+        flat = blocks.reshape(-1)
+        return self._approach, float(flat.sum()), flat[::self.MARK_STRIDE].copy()
+
+    def _current_gap(self, blocks: np.ndarray) -> np.ndarray:
+        """The scratch rows ``_g`` (and ``_v``) at the unknowns ``blocks``: made (one FFT pair)
+        unless they hold them already.  SNES asks for the Jacobian at the point whose residual its
+        line search has just evaluated, and the check, the tangent and the state's fields come
+        at the converged point of Newton's last residual.  The rows are recognised by a
+        fingerprint of the unknowns (the approach, their sum and every ``MARK_STRIDE``-th one), not
+        a copy: a point taken for another would only linearise the law at a nearby gap, which
+        the next residual, always exact, corrects.  Collective: every rank makes them or none."""
+        mark = self._gap_mark
+        same = False
+        if mark is not None:
+            here = self._mark(blocks)
+            same = here[:2] == mark[:2] and np.array_equal(here[2], mark[2])
+        if not self.grid.mpi_comm.allreduce(same, op=MPI.LAND):
+            self._gap(blocks, self._g)
+        return self._g
 
     def no_equilibrium(self, approach: float) -> str | None:
         """Why no state exists at ``approach`` delta [m], or None: a hard wall on a periodic cell,
@@ -46,7 +74,7 @@ class AdhesiveCallbacks:
     @collective_guard
     def _residual(self, snes, x, f):
         xb, fb = self.blocks(x, readonly=True), self.blocks(f)
-        g = self._gap(xb, self._g)
+        g = self._current_gap(xb)
         if self.hard_wall:
             fb[0] = g
         fa, a = fb[-1], xb[-1]
@@ -92,7 +120,7 @@ class AdhesiveCallbacks:
     @collective_guard
     def _jacobian(self, snes, x, J, P):
         xb = self.blocks(x, readonly=True)
-        self._gap(xb, self._g)
+        self._current_gap(xb)
         self.traction.linearise(self._g)
         if self.gap_form:
             rows = self._repulsive_rows(xb[-1], self._g)

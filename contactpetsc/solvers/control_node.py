@@ -36,7 +36,7 @@ class ControlNode:
         """The present state's gap [m] at the control node (``set_control_node``); collective."""
         if self._approach is None:
             raise RuntimeError("control_gap: no state yet (solve first)")
-        return self.centre_value(self._gap(self.blocks(self._x, readonly=True), self._g))
+        return self.centre_value(self._current_gap(self.blocks(self._x, readonly=True)))
 
     def centre_value(self, rows: np.ndarray) -> float:
         """rows[centre] broadcast from its owner (collective)."""

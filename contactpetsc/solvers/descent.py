@@ -255,7 +255,7 @@ class EnergyDescent(StoppingTest):
         """The Hessian's diagonal term and the preconditioner's scaling at the problem's present
         state, from its own gaps (``AdhesiveCallbacks._gap``, one FFT pair); returns those [m]."""
         p = self.p
-        g = self.space.from_problem(p._gap(p.blocks(p._x, readonly=True), p._g))
+        g = self.space.from_problem(p._current_gap(p.blocks(p._x, readonly=True)))
         self.set_curvature(g)
         return g
 

@@ -179,7 +179,7 @@ class StabilityCheck:
         pb = self.problem
         t0 = pb.history.elapsed()
         xb = pb.blocks(pb._x, readonly=True)
-        gap = pb._gap(xb, pb._g)
+        gap = pb._current_gap(xb)
         ev = log_event("CPStabilityCheck")
         ev.begin()
         try:

@@ -73,9 +73,8 @@ class TangentAndState:
         grid = self.grid
         comm = grid.mpi_comm
         xb = self.blocks(self._x, readonly=True)
-        rows = (grid.ny_local, grid.nx)
-        gap_rows = self._gap(xb, np.empty(rows))
-        beyond = comm.allreduce(self.traction.beyond_safe_range(gap_rows), op=MPI.LOR)
+        # the scratch gap: Newton's last residual's, no FFT pair where it was at these unknowns
+        beyond = comm.allreduce(self.traction.beyond_safe_range(self._current_gap(xb)), op=MPI.LOR)
         if beyond and converged:
             converged, reason = False, "LJ_BEYOND_SAFE_RANGE (z < 0.5 z0: pressure beyond the law's sane range)"
         # the tangent before the state's five fields: its solve's memory and theirs do not add up
@@ -84,11 +83,7 @@ class TangentAndState:
             self.predictor.due()
             t_check = self.history.elapsed()
             if self.predictor.stiffness_due:
-                # nor the gap's: its solve reuses the scratch rows, so the gap and K p are made
-                # again after it (one FFT pair)
-                del gap_rows
                 stiffness = self.predictor.stiffness()
-                gap_rows = self._gap(xb, np.empty(rows))
             self.check_time += self.history.elapsed() - t_check
         else:
             self.predictor.drop()
@@ -103,10 +98,11 @@ class TangentAndState:
             # fields of the state, a grid-sized double per node less on the caller's side
             grid.rows(p)[...] = xb[-1]
             a = p
-        grid.rows(gap)[...] = gap_rows
-        grid.rows(v)[...] = self._v      # K p of the last gap (``_gap``), before the residual below overwrites it
         f = self.create_unknown()
-        self._residual(None, self._x, f)
+        self._residual(None, self._x, f)    # its gap and K p the scratch rows (the tangent's too)
+        gap_rows = grid.rows(gap)
+        gap_rows[...] = self._g
+        grid.rows(v)[...] = self._v
         err_c, err_a, err_p, mean_p, frac = self._measures(self._x, f)
         f.destroy()
         total = self.total_error(a_rows=xb[-1], gap_rows=gap_rows)
