@@ -37,7 +37,7 @@ from petsc4py import PETSc
 from ..grid import SurfaceGrid
 from ..operators.elastic import HalfSpaceOperator
 from ..physics.interactions import InteractionLaw
-from ..physics.resolution import check_resolution, resolution_note, snap_number
+from ..physics.resolution import check_resolution, resolution_note, snap_number, steepest_slope
 from ..physics.traction import AdhesiveTraction
 from .adhesive_jacobian import AdhesiveJacobian
 from .adhesive_levels import CoarseLevels
@@ -217,6 +217,17 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, ControlNode, TangentAndSt
             raise ValueError(f"-{self.prefix}time_budget must be >= 0 s (0: no budget), got {self.time_budget!r}")
         self.predictor = TangentPredictor(self)
         self.branch_check = BranchCheck(self)
+        # under the Newton strategy: after a loading step whose Newton failed, descend the loading
+        # steps that follow.  With a hard wall the nodes at an advancing contact edge snap onto it
+        # one after another, which the tangent's prediction cannot see; the receding neck of an
+        # unloading step it predicts.  By default on an isolated window with a hard-wall law that
+        # has a slope: the full LJ curve's Newton converges on those steps for fewer pairs, and
+        # a step law's zone edge has an equilibrium on either side of the step, of which the
+        # descent may take the other (docs/performance.md, "The adhesive sphere's states")
+        by_default = self.hard_wall and not self.grid.periodic and steepest_slope(self.law) > 0.0
+        self.loading_descent = (opts.getBool("loading_descent", by_default)
+                                and self.strategy == "newton" and descent_applies(self))
+        self._descending_loading = False     # a loading step's Newton failed; not yet reversed
         # off by default: at hard-wall, high-Tabor jump-ins the relaxation fallback can need
         # thousands of cycles from rest; sweeps that start from separation get the same state
         self.load_from_rest = opts.getBool("load_from_rest", code_default("adhesion", "load_from_rest"))
@@ -351,7 +362,11 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, ControlNode, TangentAndSt
         self._solve_best = (np.inf, "")
         self._drop_start()
         # -<prefix>strategy descent: the energy descent from the last state, Newton polishes
-        descend = self.strategy == "descent" and approach is not None
+        loading = (approach is not None and self._prev_approach is not None
+                   and float(approach) > self._prev_approach)
+        if not loading:
+            self._descending_loading = False
+        descend = approach is not None and (self.strategy == "descent" or self._descending_loading)
         if descend:
             # from the unknowns themselves: the descent saves them as it writes its state
             # (``saved_start``), so that its peak does not hold a copy
@@ -385,13 +400,15 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, ControlNode, TangentAndSt
             converged, reason, newton, linear, margin, solver = self.fallback.follow(
                 approach, x_start, check, newton, linear, solver, reason, skip=("descent",) if descend else ())
         elif (converged and fallback and approach is not None and not margin <= 0 and not self.out_of_time()
-              and self.branch_check.missed(approach)):
+              and not descend and self.branch_check.missed(approach)):
             # a state the check replaces is checked, whatever a sweep's watch decided for Newton's
             taken, n2, l2, m2, increments = self.branch_check.follow(approach, x_start,
                                                                      check or callable(check_stability))
             newton, linear, reason = newton + n2, linear + l2, reason + self.branch_check.note
             if taken:
                 margin, descend, solver = m2, True, f"{solver}+branch-descent"
+        if self.loading_descent and loading and not descend and converged and solver.endswith("+descent"):
+            self._descending_loading = True
         if not converged:
             # the state reported: the iterate of smallest error (never what a failed SNES
             # left in its solution); the next solve starts from the last converged state

@@ -96,6 +96,10 @@ ADHESION = (
     Option(("strategy",), "descent (periodic grids with the nodal rule) or newton",
            "newton (from the predicted state) or descent (the energy descent from the last state, then Newton; "
            "the nodal rule on a periodic grid or an isolated window split along y)"),
+    Option(("loading_descent",), "true (an isolated window with a hard-wall law that has a slope), false",
+           "newton strategy where the descent applies: once Newton has failed on a step that raises the approach "
+           "(the fallback's descent reached it), the steps that raise it further are descended from the last state "
+           "first (then Newton polishes), until the approach falls again"),
     Option(("branch_check",), (True,),
            "newton strategy where the descent applies (smooth laws): a converged state whose force misses the "
            "trapezoid of its and the last state's tangent stiffnesses (a jump) is descended from the last state "
