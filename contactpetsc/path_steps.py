@@ -200,10 +200,15 @@ def _locate_jump(problem, snap, prev, after, refine) -> Jump | None:
     k_hi = after.stiffness
     if refine and abs(d_hi - after.approach) > 0:
         # the force just after the jump, on the new branch, at the bisected approach
+        descending = getattr(problem, "descending_loading", False)
         st = problem.solve(approach=d_hi, raise_on_failure=False)
         st.release_fields()
         w_after, k_hi = st.force, st.stiffness
         problem.solve(approach=after.approach, raise_on_failure=False).release_fields()
+        # the path goes on from the state after the jump as if these two solves had not been
+        # (the step back to d_hi would count as an unloading step)
+        if descending:
+            problem.descending_loading = True
     else:
         w_after = w_hi
     snap.destroy()

@@ -70,6 +70,21 @@ def test_central_gap_traces_the_unstable_branch(coll):
     assert approach[k - 1] > approach[0] and np.max(approach) > approach[-1]
 
 
+def test_a_prescribed_central_gap_is_reached_after_the_control_gap_is_read(coll):
+    """A solve at a prescribed gap of the control node lands on that gap, also straight after
+    ``control_gap`` read the present gap there (the step ``edge_gap_path`` takes at each node):
+    the gap rows that read made under displacement control are not the prescribed gap's."""
+    pb = sphere_problem(2.0, law="hardwall-lj", n=96, dx=0.5, radius=100.0, prefix="cg_read_")
+    for delta in (-1.5, -1.0):
+        st = pb.solve(approach=delta)
+    j0, i0 = divmod(pb.centre_index, pb.grid.nx)
+    pb.set_control_node((i0 + 24, j0))      # outside the contact (12 z0 out): its gap is free
+    target = pb.control_gap() + 0.05
+    st = pb.solve(central_gap=target)
+    assert st.converged and abs(st.central_gap - target) <= 1e-6
+    assert st.approach < delta - 0.01       # the sphere drawn back to open the gap
+
+
 @pytest.mark.heavy   # an adhesive path: 1 and 2 ranks (3 oversubscribed ranks spend minutes)
 def test_edge_gap_path_closes_the_s_curve_on_the_adhered_branch(coll):
     """Past the apex touching, prescribed gaps at nodes further out carry the S-curve

@@ -51,3 +51,25 @@ def test_the_default_is_on_for_a_windows_hard_wall_only():
     with pytest.raises(PETSc.Error):     # PETSc's own: "Unknown logical value: maybe"
         sphere_problem(2.0, law="hardwall-lj", n=16, dx=0.5, radius=100.0, prefix="ldd_bad_",
                        petsc_options={"loading_descent": "maybe"}).descends
+
+
+def test_a_sweep_locating_the_jump_on_keeps_descending_the_loading_steps(coll):
+    """``paths.sweep`` bisects the jump on from snapshots of the old branch (Newton first, as
+    then) and steps back to the new one; the loading steps after it still descend first, and a
+    snapshot brings back whether they do."""
+    from contactpetsc import paths
+    pb = sphere_problem(2.0, law="hardwall-lj", n=96, dx=0.5, radius=100.0, prefix="loading_sweep_",
+                        petsc_options={"loading_descent": "true"})
+    path = paths.sweep(pb, PATH, refine=4)
+    assert [j.kind for j in path.jumps] == ["jump-on"]
+    solvers = [p.solver for p in path.points]
+    jump = next(i for i, s in enumerate(solvers) if s.endswith("+descent"))
+    assert all(s.startswith("descent+") for s in solvers[jump + 1:-1]) and solvers[-1].startswith("newton")
+    assert not pb.descending_loading          # the last step lowered the approach
+    pb.descending_loading = True
+    snap = pb.snapshot()
+    pb.descending_loading = False
+    pb.restore(snap)
+    assert pb.descending_loading
+    snap.destroy()
+    pb.destroy()

@@ -198,6 +198,8 @@ class AdhesiveSteps:
             self._restore_best(recorder)
         (q, a), approach = recorder.read_step(len(rows), self.fields)
         self.problem.warm_start(q, a, approach)
+        # whether the uninterrupted run's next loading step descended first (-loading_descent)
+        self.problem.descending_loading = bool(saved.get("descending_loading", False))
         self.prev = (float(last["approach_m"]), float(last["force_N"]), NAN if saved.get("stiffness") is None
                      else float(saved["stiffness"]))
         if self.path is not None and saved.get("fold_watch") and leaves_checks_out(self.problem):
@@ -214,7 +216,8 @@ class AdhesiveSteps:
         watch = self.path._watch
         return {"stiffness": self.prev[2] if np.isfinite(self.prev[2]) else None,
                 "fold_watch": None if watch is None else watch.state(),
-                "coarse_levels": self.problem.coarse_levels.state()}
+                "coarse_levels": self.problem.coarse_levels.state(),
+                "descending_loading": bool(self.problem.descending_loading)}
 
     def _restore_best(self, recorder) -> None:
         """The pull-off search's start (``paths.keep_for_search``) on a restarted path: the most

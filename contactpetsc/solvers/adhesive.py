@@ -145,6 +145,9 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, ControlNode, TangentAndSt
         # the next descent starts with the cycle, held to them; 0: it starts with the compliance)
         self.descent_cycle_won = 0
         self._start_approach = None     # approach [m] of the state in the unknowns (its last solve's if converged)
+        #: the next loading step descends first: Newton failed on a loading step since the approach
+        #: last fell (``-<prefix>loading_descent``; kept in snapshots and a run's step files)
+        self.descending_loading = False
         self._released_pairs = 0.0      # weighted FFT pairs of the preconditioner levels ``release`` freed
         self._prev_approach = None
         self._budget_start = None       # time.monotonic() at the first solve under a time budget
@@ -227,7 +230,6 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, ControlNode, TangentAndSt
         by_default = self.hard_wall and not self.grid.periodic and steepest_slope(self.law) > 0.0
         self.loading_descent = (opts.getBool("loading_descent", by_default)
                                 and self.strategy == "newton" and descent_applies(self))
-        self._descending_loading = False     # a loading step's Newton failed; not yet reversed
         # off by default: at hard-wall, high-Tabor jump-ins the relaxation fallback can need
         # thousands of cycles from rest; sweeps that start from separation get the same state
         self.load_from_rest = opts.getBool("load_from_rest", code_default("adhesion", "load_from_rest"))
@@ -324,6 +326,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, ControlNode, TangentAndSt
             if v is not None and not np.isfinite(v):
                 raise ValueError(f"{name} must be finite, got {v!r}")
         self._build()
+        self._gap_mark = None   # the scratch gap is not this solve's (``_current_gap``)
         # PETSc objects the caller has let go of (a path's state before last) are freed here,
         # not at the end of this solve: they would be alive at its descent's peak
         PETSc.garbage_cleanup(self.grid.comm)
@@ -361,12 +364,13 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, ControlNode, TangentAndSt
         self.check_time = 0.0
         self._solve_best = (np.inf, "")
         self._drop_start()
-        # -<prefix>strategy descent: the energy descent from the last state, Newton polishes
-        loading = (approach is not None and self._prev_approach is not None
-                   and float(approach) > self._prev_approach)
+        # -<prefix>strategy descent: the energy descent from the last state, Newton polishes;
+        # loading: a step up from the state in the unknowns (not a failed solve's approach)
+        loading = (approach is not None and self._start_approach is not None
+                   and float(approach) > self._start_approach)
         if not loading:
-            self._descending_loading = False
-        descend = approach is not None and (self.strategy == "descent" or self._descending_loading)
+            self.descending_loading = False
+        descend = approach is not None and (self.strategy == "descent" or self.descending_loading)
         if descend:
             # from the unknowns themselves: the descent saves them as it writes its state
             # (``saved_start``), so that its peak does not hold a copy
@@ -375,7 +379,8 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, ControlNode, TangentAndSt
             # here, not at the end of the solve: Newton and the check come first
             PETSc.garbage_cleanup(self.grid.comm)
         x_start = self.saved_start()
-        self.branch_check.start(approach)
+        if not descend:
+            self.branch_check.start(approach)     # a descended step is the check's own truth
         coarse_predicted = (not descend and approach is not None
                             and self.coarse_levels.predict(float(approach), self._prev_approach))
         if not (coarse_predicted or descend) and approach is not None:
@@ -408,7 +413,7 @@ class AdhesiveProblem(AdhesiveCallbacks, Continuation, ControlNode, TangentAndSt
             if taken:
                 margin, descend, solver = m2, True, f"{solver}+branch-descent"
         if self.loading_descent and loading and not descend and converged and solver.endswith("+descent"):
-            self._descending_loading = True
+            self.descending_loading = True
         if not converged:
             # the state reported: the iterate of smallest error (never what a failed SNES
             # left in its solution); the next solve starts from the last converged state

@@ -21,7 +21,8 @@ class AdhesiveCallbacks:
 
     #: every how many unknowns one goes into the scratch gap's fingerprint (``_current_gap``)
     MARK_STRIDE = 61
-    #: (approach, sum, sample) of the unknowns whose gap and K p the scratch rows hold, or None
+    #: (approach, control, sum, sample) of the unknowns whose gap and K p the scratch rows hold,
+    #: or None
     _gap_mark = None
 
     def _gap(self, blocks: np.ndarray, out: np.ndarray) -> np.ndarray:
@@ -31,22 +32,25 @@ class AdhesiveCallbacks:
         return g
 
     def _mark(self, blocks: np.ndarray) -> tuple:
+        # under central-gap control the gap follows the prescribed central gap, not the approach
+        control = self._central_gap if self.centre_owner is not None else None
         flat = blocks.reshape(-1)
-        return self._approach, float(flat.sum()), flat[::self.MARK_STRIDE].copy()
+        return self._approach, control, float(flat.sum()), flat[::self.MARK_STRIDE].copy()
 
     def _current_gap(self, blocks: np.ndarray) -> np.ndarray:
         """The scratch rows ``_g`` (and ``_v``) at the unknowns ``blocks``: made (one FFT pair)
         unless they hold them already.  SNES asks for the Jacobian at the point whose residual its
         line search has just evaluated, and the check, the tangent and the state's fields come
         at the converged point of Newton's last residual.  The rows are recognised by a
-        fingerprint of the unknowns (the approach, their sum and every ``MARK_STRIDE``-th one), not
+        fingerprint of the unknowns (the approach or prescribed central gap, their sum and every
+        ``MARK_STRIDE``-th one; a solve starts without one), not
         a copy: a point taken for another would only linearise the law at a nearby gap, which
         the next residual, always exact, corrects.  Collective: every rank makes them or none."""
         mark = self._gap_mark
         same = False
         if mark is not None:
             here = self._mark(blocks)
-            same = here[:2] == mark[:2] and np.array_equal(here[2], mark[2])
+            same = here[:3] == mark[:3] and np.array_equal(here[3], mark[3])
         if not self.grid.mpi_comm.allreduce(same, op=MPI.LAND):
             self._gap(blocks, self._g)
         return self._g

@@ -100,6 +100,7 @@ class Continuation:
             # wall): start again from the Signorini solution at the target itself
             self._initial_guess(approach)
             self.predictor.drop()
+            self.descending_loading = False
             st = self.solve(approach=approach, raise_on_failure=False, check_stability=check_stability)
             newton, linear = newton + st.newton_iterations, linear + st.linear_iterations
             st.solver += " (from the Signorini state: loading from rest failed)"

@@ -17,8 +17,9 @@ class Snapshot:
     dx/d delta, dF/d delta [N/m]) or None.  Frees its Vecs with ``destroy()`` (or as a
     context manager); ``AdhesiveProblem.restore`` copies from it, so it may be reused."""
 
-    def __init__(self, x: PETSc.Vec, approach: float, tangent):
+    def __init__(self, x: PETSc.Vec, approach: float, tangent, descending_loading: bool = False):
         self.x, self.approach, self.tangent = x, approach, tangent
+        self.descending_loading = descending_loading
 
     def destroy(self) -> None:
         """Free the Vecs (collective); safe to call twice."""
@@ -41,15 +42,17 @@ class TangentAndState:
 
     @with_options
     def snapshot(self) -> Snapshot:
-        """The current unknowns, approach and tangent: to come back to (e.g. to bisect a jump)."""
+        """The current unknowns, approach and tangent, and whether the next loading step descends
+        first: to come back to (e.g. to bisect a jump)."""
         self._build()
-        return Snapshot(self._x.copy(), self._approach, self.predictor.copy())
+        return Snapshot(self._x.copy(), self._approach, self.predictor.copy(), self.descending_loading)
 
     def restore(self, snap: Snapshot) -> None:
         """Make ``snap`` the present state (``snap`` stays valid: it is copied)."""
         snap.x.copy(self._x)
         self._approach = self._start_approach = snap.approach
         self.predictor.restore(snap.tangent)
+        self.descending_loading = snap.descending_loading
         self._started = True
 
     def _inactive_set(self) -> PETSc.IS:
