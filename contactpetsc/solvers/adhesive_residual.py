@@ -26,10 +26,10 @@ class AdhesiveCallbacks:
     _gap_mark = None
 
     def _gap(self, blocks: np.ndarray, out: np.ndarray) -> np.ndarray:
-        """The gap [m] (``VIProblem.gap``) of the unknowns ``blocks``; K p stays in ``_v``."""
-        g = self.gap(total_pressure(blocks), out, displacement=self._v)
-        self._gap_mark = self._mark(blocks) if out is self._g else None
-        return g
+        """The gap [m] (``VIProblem.gap``) of the unknowns ``blocks``; K p stays in ``_v`` (whose
+        point is then no longer the one ``_current_gap`` recognises)."""
+        self._gap_mark = None
+        return self.gap(total_pressure(blocks), out, displacement=self._v)
 
     def _mark(self, blocks: np.ndarray) -> tuple:
         # under central-gap control the gap follows the prescribed central gap, not the approach
@@ -46,13 +46,12 @@ class AdhesiveCallbacks:
         ``MARK_STRIDE``-th one; a solve starts without one), not
         a copy: a point taken for another would only linearise the law at a nearby gap, which
         the next residual, always exact, corrects.  Collective: every rank makes them or none."""
-        mark = self._gap_mark
-        same = False
-        if mark is not None:
-            here = self._mark(blocks)
-            same = here[:3] == mark[:3] and np.array_equal(here[3], mark[3])
+        here, mark = self._mark(blocks), self._gap_mark
+        same = mark is not None and here[:3] == mark[:3] and np.array_equal(here[3], mark[3])
         if not self.grid.mpi_comm.allreduce(same, op=MPI.LAND):
             self._gap(blocks, self._g)
+            # the approach as the gap left it (central-gap control sets it from the unknowns)
+            self._gap_mark = (self._approach,) + here[1:]
         return self._g
 
     def no_equilibrium(self, approach: float) -> str | None:

@@ -50,7 +50,7 @@ class DescentCycle:
         self.d = weakref.proxy(descent)
         # ``auto``: the compliance's CG iterations the cycle is held to; it starts with the cycle
         # where the problem's last descent ended with it (``AdhesiveProblem.descent_cycle_won``)
-        self.reference = getattr(descent.p, "descent_cycle_won", 0) if auto else 0
+        self.reference = descent.p.descent_cycle_won if auto else 0
         self.auto, self.on = auto, not auto or self.reference > 0
         self.lost = False             # ``auto``: the cycle has lost, the compliance to the end
         self._applies = 0             # the descent's preconditioner applications at the last choice
@@ -130,7 +130,7 @@ class DescentCycle:
 
     def release(self) -> None:
         """Free the cycle and its grids; under ``auto`` the problem keeps whether it won."""
-        if self.auto and hasattr(self.d.p, "descent_cycle_won"):
+        if self.auto:
             self.d.p.descent_cycle_won = self.reference if self.on else 0
         self._free()
 
